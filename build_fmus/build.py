@@ -1,0 +1,134 @@
+"""Build every FMU of fmus/ with pythonfmu and pack every scene of ssp/ into an
+.ssp archive holding its FMUs; skip what is up to date.
+
+pythonfmu writes no ModelStructure/InitialUnknowns, which FMI 2.0 requires for
+outputs that are calculated at initialization (``fmpy validate`` flags it), so
+the built modelDescription.xml is completed here.
+"""
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+
+from lxml import etree
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: FMU model identifier -> the pythonfmu script that defines it.
+FMU_SCRIPTS = {
+    "SpringMass": "fmus/spring_mass/spring_mass_fmu.py",
+}
+SSD_NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
+
+
+def _newest(paths) -> float:
+    return max((p.stat().st_mtime for p in paths if p.is_file()), default=0.0)
+
+
+def _sources(root: Path) -> list[Path]:
+    files = [p for p in (root / "fmus").rglob("*.py") if "__pycache__" not in p.parts]
+    return files + [Path(__file__)]
+
+
+def _complete_model_description(fmu: Path) -> None:
+    """Add ModelStructure/InitialUnknowns listing every output (FMI 2.0 3.3.1)."""
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    root = etree.fromstring(entries["modelDescription.xml"])
+    variables = root.find("ModelVariables")
+    outputs = [str(i + 1) for i, v in enumerate(variables) if v.get("causality") == "output"]
+    structure = root.find("ModelStructure")
+    if structure.find("InitialUnknowns") is None and outputs:
+        unknowns = etree.SubElement(structure, "InitialUnknowns")
+        for index in outputs:
+            etree.SubElement(unknowns, "Unknown", index=index)
+    entries["modelDescription.xml"] = etree.tostring(root, xml_declaration=True,
+                                                     encoding="UTF-8", pretty_print=True)
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+
+
+def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Path:
+    """Build one FMU into ``out`` (default build/fmus) and return its path."""
+    from pythonfmu.builder import FmuBuilder
+
+    out = out or root / "build" / "fmus"
+    out.mkdir(parents=True, exist_ok=True)
+    target = out / f"{identifier}.fmu"
+    with tempfile.TemporaryDirectory(prefix="dsim-fmu-") as temp:
+        # the whole fmus package goes into the FMU's resources, without caches
+        package = Path(temp) / "fmus"
+        shutil.copytree(root / "fmus", package,
+                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        FmuBuilder.build_FMU(root / FMU_SCRIPTS[identifier], dest=target,
+                             project_files=[package], canGetAndSetFMUstate=True,
+                             canSerializeFMUstate=True)
+    _complete_model_description(target)
+    return target
+
+
+def build_fmus(root: Path = ROOT, force: bool = False, log=print) -> list[Path]:
+    """Build every FMU whose sources changed since it was built."""
+    newest = _newest(_sources(root))
+    built = []
+    for identifier in FMU_SCRIPTS:
+        target = root / "build" / "fmus" / f"{identifier}.fmu"
+        if force or not target.is_file() or target.stat().st_mtime < newest:
+            log(f"building {target.relative_to(root)}")
+            build_fmu(identifier, root)
+        built.append(target)
+    return built
+
+
+def pack_scene(folder: Path, fmu_dir: Path, out: Path) -> Path:
+    """Zip one scene folder with the FMUs its SystemStructure.ssd references."""
+    ssd = folder / "SystemStructure.ssd"
+    sources = {c.get("source") for c in
+               etree.parse(str(ssd)).getroot().iterfind(".//ssd:Component", SSD_NS)}
+    target = out / f"{folder.name}.ssp"
+    out.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as archive:
+        for file in sorted(folder.rglob("*")):
+            if file.is_file():
+                archive.write(file, file.relative_to(folder).as_posix())
+        for source in sorted(s for s in sources if s):
+            fmu = fmu_dir / Path(source).name
+            if not fmu.is_file():
+                raise FileNotFoundError(f"{ssd}: component source '{source}' is not a "
+                                        f"built FMU ({fmu} missing)")
+            archive.write(fmu, source)
+    return target
+
+
+def pack_scenes(root: Path = ROOT, force: bool = False, log=print) -> list[Path]:
+    """Pack every scene folder of ssp/ that changed since it was packed."""
+    fmu_dir = root / "build" / "fmus"
+    newest_fmu = _newest(fmu_dir.glob("*.fmu"))
+    packed = []
+    for folder in sorted(p for p in (root / "ssp").iterdir() if (p / "SystemStructure.ssd").is_file()):
+        target = root / "build" / "ssp" / f"{folder.name}.ssp"
+        newest = max(_newest(folder.rglob("*")), newest_fmu)
+        if force or not target.is_file() or target.stat().st_mtime < newest:
+            log(f"packing {target.relative_to(root)}")
+            pack_scene(folder, fmu_dir, root / "build" / "ssp")
+        packed.append(target)
+    return packed
+
+
+def main(argv=None) -> int:
+    """Command line: build FMUs then pack scenes."""
+    parser = argparse.ArgumentParser(prog="dsim build-fmus", description=__doc__.split("\n")[0])
+    parser.add_argument("--force", action="store_true", help="rebuild everything")
+    args = parser.parse_args(argv)
+    build_fmus(force=args.force)
+    pack_scenes(force=args.force)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

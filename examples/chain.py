@@ -1,0 +1,49 @@
+"""chain_<n>: n one-mass FMUs glued in a line by fixed joints.
+
+Monolithic reference: fixed joints make the chain one rigid body, a mass n*m on
+a spring n*k to ground under the end load, integrated with the same
+trapezoidal rule and step; every mass of the glued chain must follow it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from build_fmus.scenes import CHAIN
+from fmus.spring_mass.core import ChainParameters, SpringMassChain
+
+
+def monolithic(n: int, stop: float = CHAIN["stop"], step: float = CHAIN["step"]):
+    """Times (s) and the common position (m) of the rigidly glued chain."""
+    p = CHAIN
+    params = ChainParameters(n=1)
+    params.m[0] = n * p["m"]
+    params.k_ground[0] = n * p["k"]
+    params.Fa[0] = p["Fa"]
+    params.omega[0] = 2 * math.pi * p["frequency"]
+    body = SpringMassChain(params)
+    body.initialize(0.0)
+    count = round(stop / step)
+    times = np.arange(count + 1) * step
+    x = np.zeros(count + 1)
+    for i in range(count):
+        body.step(times[i], step)
+        x[i + 1] = body.x[0]
+    return times, x
+
+
+def compare(csv_path, n: int) -> dict:
+    """Largest difference of any mass from the reference, absolute (m) and
+    relative to the reference's peak."""
+    from master.results import read_csv
+
+    header, data = read_csv(csv_path)
+    times = data[:, 0]
+    step = times[1] - times[0]
+    ref_times, reference = monolithic(n, stop=times[-1], step=step)
+    reference = np.interp(times, ref_times, reference)
+    columns = [header.index(f"m{i}.x[1]") for i in range(1, n + 1)]
+    error = float(np.max(np.abs(data[:, columns] - reference[:, None])))
+    peak = float(np.max(np.abs(reference)))
+    return {"error": error, "peak": peak, "relative_error": error / peak}

@@ -1,0 +1,1 @@
+"""Subsystem models of dsim: physics cores (no FMI) and their pythonfmu wrappers."""

@@ -1,0 +1,1 @@
+"""Where subsystems run: in this process, or on Ray workers (same interface)."""

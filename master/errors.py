@@ -1,0 +1,28 @@
+"""The two ways a run goes wrong, with the exit codes of the results contract."""
+from __future__ import annotations
+
+
+class InputError(Exception):
+    """Bad input or usage (exit code 2): every problem is one line naming the
+    file, the element and what is wrong."""
+
+    exit_code = 2
+
+    def __init__(self, problems):
+        if isinstance(problems, str):
+            problems = [problems]
+        self.problems = list(problems)
+        super().__init__("\n".join(self.problems))
+
+
+class SimulationError(Exception):
+    """The simulation itself failed (exit code 1): divergence, a joint that does
+    not converge, an FMU that reports an error.  ``time`` and ``step`` say where."""
+
+    exit_code = 1
+
+    def __init__(self, message: str, time: float | None = None, step: int | None = None):
+        self.time = time
+        self.step = step
+        where = f"step {step} (t = {time:.6g} s): " if step is not None else ""
+        super().__init__(where + message)

@@ -1,0 +1,143 @@
+"""One FMI 2.0 co-simulation FMU instance as a :class:`~master.subsystem.Subsystem`.
+
+Value references are resolved once; every read and write of a step is one
+batched fmpy call; every FMI call is counted and timed per function name, and
+an FMI error becomes a :class:`~master.errors.SimulationError` naming the
+component and the function.
+"""
+from __future__ import annotations
+
+import atexit
+import shutil
+from pathlib import Path
+
+import numpy as np
+from fmpy import extract
+from fmpy.fmi2 import FMU2Slave
+
+from master.errors import SimulationError
+from master.ports import PortDof, model_description, variables_by_name
+from master.subsystem import Subsystem
+
+_UNZIPPED: dict[Path, str] = {}
+
+
+@atexit.register
+def _remove_unzipped() -> None:
+    for folder in _UNZIPPED.values():
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def unzipped(path: Path) -> str:
+    """Folder holding the extracted FMU (shared by every instance of the file)."""
+    if path not in _UNZIPPED:
+        _UNZIPPED[path] = extract(str(path))
+    return _UNZIPPED[path]
+
+
+def can_save_state(path: Path) -> bool:
+    """Whether the FMU declares canGetAndSetFMUstate (needed for rollback)."""
+    cs = model_description(path).coSimulation
+    return bool(cs and cs.canGetAndSetFMUstate)
+
+
+class FmuSubsystem(Subsystem):
+    """An FMU instance glued at ``port_dofs``, recording ``record`` outputs."""
+
+    def __init__(self, name: str, path: Path, port_dofs: list[PortDof],
+                 parameters: dict, record: list[str], start_time: float, stop_time: float):
+        super().__init__()
+        self.name = name
+        self.path = Path(path)
+        description = model_description(self.path)
+        variables = variables_by_name(self.path)
+        self.interface = tuple((p.port, p.dof) for p in port_dofs)
+        self._force_vrs = [p.force for p in port_dofs]
+        self._kinematic_vrs = [[getattr(p, kind) for p in port_dofs]
+                               for kind in ("position", "velocity", "acceleration")]
+        self.output_names = tuple(record)
+        self._record_vrs = [variables[n].valueReference for n in record]
+        self._state = None
+        self.time = start_time
+        self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped(self.path),
+                             modelIdentifier=description.coSimulation.modelIdentifier,
+                             instanceName=name)
+        self._call("fmi2Instantiate", self.fmu.instantiate)
+        self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
+            startTime=start_time, stopTime=stop_time))
+        self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
+        self._set_parameters(parameters, variables)
+        self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+
+    def _call(self, label: str, function, *args):
+        try:
+            return self._timed(label, function, *args)
+        except SimulationError:
+            raise
+        except Exception as error:  # fmpy raises FMICallException, ctypes errors
+            raise SimulationError(f"component '{self.name}': {label} failed: {error}",
+                                  time=self.time) from None
+
+    def _set_parameters(self, parameters: dict, variables: dict) -> None:
+        setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
+                   "Enumeration": self.fmu.setInteger, "Boolean": self.fmu.setBoolean,
+                   "String": self.fmu.setString}
+        for name, (_, value) in parameters.items():
+            variable = variables[name]
+            self._call("fmi2Set" + variable.type, setters[variable.type],
+                       [variable.valueReference], [value])
+
+    # --- Subsystem -------------------------------------------------------------------
+    def save_state(self):
+        if self._state is None:
+            self._state = self._call("fmi2GetFMUstate", self.fmu.getFMUstate)
+        else:  # overwrite the held state rather than allocate one per step
+            self._call("fmi2GetFMUstate", self._update_state)
+
+    def _update_state(self):
+        from ctypes import byref
+        state = self._state
+        self.fmu.fmi2GetFMUstate(self.fmu.component, byref(state))
+
+    def restore_state(self):
+        self._call("fmi2SetFMUstate", self.fmu.setFMUstate, self._state)
+
+    def set_forces(self, forces):
+        if self._force_vrs:
+            self._call("fmi2SetReal", self.fmu.setReal, self._force_vrs, list(forces))
+
+    def do_step(self, time, step_size):
+        self.time = time
+        self._call("fmi2DoStep", lambda: self.fmu.doStep(
+            currentCommunicationPoint=time, communicationStepSize=step_size))
+
+    def kinematics(self):
+        result = []
+        for vrs in self._kinematic_vrs:
+            if any(vr is None for vr in vrs):
+                result.append(None)
+            else:
+                result.append(np.array(self._call("fmi2GetReal", self.fmu.getReal, vrs)))
+        return tuple(result)
+
+    def outputs(self):
+        if not self._record_vrs:
+            return []
+        return self._call("fmi2GetReal", self.fmu.getReal, self._record_vrs)
+
+    def get_reals(self, vrs: list[int]) -> list[float]:
+        """Read Real variables by value reference (causal connections)."""
+        return self._call("fmi2GetReal", self.fmu.getReal, vrs)
+
+    def set_reals(self, vrs: list[int], values: list[float]) -> None:
+        """Write Real inputs by value reference (causal connections)."""
+        self._call("fmi2SetReal", self.fmu.setReal, vrs, values)
+
+    def terminate(self):
+        try:
+            if self._state is not None:
+                self.fmu.freeFMUstate(self._state)
+                self._state = None
+            self.fmu.terminate()
+        finally:
+            self.fmu.freeInstance()

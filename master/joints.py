@@ -1,0 +1,96 @@
+"""Joint laws and the joint state the master integrates (seed chapter 5).
+
+Every glued degree of freedom r of every joint is one unknown force F_r and one
+compatibility residual.  For a flexible joint the master integrates the joint's
+own extension q (eq. 5.2) with the trapezoidal rule, the rule every subsystem
+uses, under the Kelvin-Voigt law of eq. 5.3/5.36 with the seed's sign (eq. 5.32),
+made odd-symmetric so that the law is monotone (see fmus/spring_mass/core.py):
+
+    (k0 + k1 |q|) q + (c0 + c1 |qd|) qd = -F      (F: force on port b)
+
+Fixed joints have q = qd = qdd = 0.  The kinematic measure of a joint dof is a
+blend w_u u + w_v v + w_a a; the penalized measure (eq. 5.28) is
+w = (omega^2, 2 xi omega, 1).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from master.errors import SimulationError
+
+
+def measure_weights(measure: str, xi: float = 1.0, omega: float = 0.0):
+    """(w_u, w_v, w_a) of a kinematic measure."""
+    return {"displacement": (1.0, 0.0, 0.0), "velocity": (0.0, 1.0, 0.0),
+            "acceleration": (0.0, 0.0, 1.0),
+            "penalized": (omega * omega, 2.0 * xi * omega, 1.0)}[measure]
+
+
+class JointStates:
+    """Extensions q (m, rad), rates qd and accelerations qdd of every glued dof.
+
+    ``flexible`` marks the dofs that follow a law; the others are fixed.
+    Arrays hold one entry per glued dof (the order of the force vector F).
+    """
+
+    def __init__(self, flexible, k0, k1, c0, c1, newton_tolerance=1e-14, max_newton=50):
+        self.flexible = np.asarray(flexible, dtype=bool)
+        self.k0, self.k1 = np.asarray(k0, float), np.asarray(k1, float)
+        self.c0, self.c1 = np.asarray(c0, float), np.asarray(c1, float)
+        self.nonlinear = bool(np.any(self.k1[self.flexible]) or np.any(self.c1[self.flexible]))
+        n = len(self.flexible)
+        self.q, self.qd, self.qdd = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.newton_tolerance = newton_tolerance
+        self.max_newton = max_newton
+
+    def start(self, q, qd, qdd) -> None:
+        """Initial extension, rate and acceleration (from the ports at t0)."""
+        mask = self.flexible
+        self.q = np.where(mask, q, 0.0)
+        self.qd = np.where(mask, qd, 0.0)
+        self.qdd = np.where(mask, qdd, 0.0)
+
+    def law(self, q, qd):
+        """Joint force -F for extension q and rate qd, with tangents dk, dc."""
+        aq, aqd = np.abs(q), np.abs(qd)
+        force = (self.k0 + self.k1 * aq) * q + (self.c0 + self.c1 * aqd) * qd
+        return force, self.k0 + 2.0 * self.k1 * aq, self.c0 + 2.0 * self.c1 * aqd
+
+    def trial(self, forces: np.ndarray, step_size: float):
+        """End-of-step (q, qd, qdd) that balance ``forces`` under the law, and the
+        stiffness d(-F)/dq of each dof (inf for fixed dofs: no extension)."""
+        h = step_size
+        mask = self.flexible
+        q = self.q.copy()
+        qd = qdd = None
+        tangent = np.full(len(q), np.inf)
+        if not mask.any():
+            zero = np.zeros(len(q))
+            return zero, zero, zero, tangent
+        for _ in range(self.max_newton):
+            qd = 2.0 / h * (q - self.q) - self.qd
+            force, dk, dc = self.law(q, qd)
+            stiffness = dk + 2.0 / h * dc
+            residual = np.where(mask, force + forces, 0.0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                delta = np.where(mask, residual / stiffness, 0.0)
+            q = q - delta
+            scale = np.maximum(np.abs(q), 1e-12)
+            if not np.all(np.isfinite(q)):
+                break
+            if not self.nonlinear or np.all(np.abs(delta) <= self.newton_tolerance * scale
+                                            + 1e-300):
+                break
+        else:
+            raise SimulationError("a flexible joint law has no solution for the "
+                                  "current force (Newton on the law did not converge)")
+        qd = 2.0 / h * (q - self.q) - self.qd
+        qdd = 2.0 / h * (qd - self.qd) - self.qdd
+        _, dk, dc = self.law(q, qd)
+        tangent = np.where(mask, dk + 2.0 / h * dc, np.inf)
+        return (np.where(mask, q, 0.0), np.where(mask, qd, 0.0),
+                np.where(mask, qdd, 0.0), tangent)
+
+    def accept(self, q, qd, qdd) -> None:
+        """Make a converged trial the joint state."""
+        self.q, self.qd, self.qdd = q, qd, qdd

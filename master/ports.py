@@ -1,0 +1,128 @@
+"""Which FMU variables form which port (DESIGN.md, "Ports").
+
+By convention a port P with dof c has the input ``P.f_c`` and the outputs
+``P.u_c``, ``P.v_c``, ``P.a_c``; a ``glue:Port`` annotation maps a third-party
+FMU's own names onto a port instead.  A port ``S`` that does not exist but
+``S[1]``, ``S[2]``, ... do is a node set: a joint on it glues node i to node i.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+from fmpy import read_model_description
+
+from master.ssp import Joint, PortMap, Scene
+
+PORT_VARIABLE = re.compile(r"^(?P<port>.+)\.(?P<kind>[fuva])_(?P<dof>x|y|z|rx|ry|rz)$")
+KIND_NAMES = {"f": "force", "u": "position", "v": "velocity", "a": "acceleration"}
+NEEDED = {"displacement": ("u",), "velocity": ("v",), "acceleration": ("a",),
+          "penalized": ("u", "v", "a")}
+
+
+@dataclass(frozen=True)
+class PortDof:
+    """One glueable degree of freedom of one component: its value references."""
+
+    component: str
+    port: str
+    dof: str
+    force: int
+    position: int | None
+    velocity: int | None
+    acceleration: int | None
+
+
+@lru_cache(maxsize=64)
+def model_description(path: Path):
+    """fmpy's parsed modelDescription.xml of an FMU file (cached per file)."""
+    return read_model_description(str(path))
+
+
+def variables_by_name(path: Path) -> dict:
+    """Name -> fmpy ScalarVariable of an FMU."""
+    return {v.name: v for v in model_description(path).modelVariables}
+
+
+def conventional_ports(path: Path) -> dict[str, dict[str, dict[str, int]]]:
+    """port -> dof -> kind (f, u, v, a) -> value reference, from variable names."""
+    ports: dict = {}
+    for variable in model_description(path).modelVariables:
+        match = PORT_VARIABLE.match(variable.name)
+        if match:
+            ports.setdefault(match["port"], {}).setdefault(match["dof"], {})[
+                match["kind"]] = variable.valueReference
+    return ports
+
+
+def _mapped_ports(path: Path, maps: list[PortMap], problems: list) -> dict:
+    variables = variables_by_name(path)
+    ports: dict = {}
+    for port_map in maps:
+        for i, dof in enumerate(port_map.dofs):
+            entry = ports.setdefault(port_map.name, {}).setdefault(dof, {})
+            for kind, names in (("f", port_map.force), ("u", port_map.position),
+                                ("v", port_map.velocity), ("a", port_map.acceleration)):
+                if names is None or i >= len(names):
+                    continue
+                variable = variables.get(names[i])
+                if variable is None:
+                    problems.append(f"{port_map.location}: FMU {path.name} has no "
+                                    f"variable '{names[i]}'")
+                else:
+                    entry[kind] = variable.valueReference
+    return ports
+
+
+def expand_node_set(ports: dict, port: str) -> list[str]:
+    """``[port]`` if it exists, else its members ``port[1]``, ``port[2]``, ..."""
+    if port in ports:
+        return [port]
+    members = []
+    while f"{port}[{len(members) + 1}]" in ports:
+        members.append(f"{port}[{len(members) + 1}]")
+    return members
+
+
+def joint_port_dofs(joint: Joint, side: str, ports: dict, problems: list) -> list[PortDof]:
+    """The PortDofs of one side ('a' or 'b') of a joint, in (node, dof) order."""
+    component, port = getattr(joint, side)
+    members = expand_node_set(ports, port)
+    if not members:
+        problems.append(f"{joint.location}: component '{component}' has no port '{port}' "
+                        f"(ports: {', '.join(sorted(ports)) or 'none'})")
+        return []
+    result = []
+    for member in members:
+        for dof in joint.dofs:
+            kinds = ports[member].get(dof, {})
+            missing = [k for k in ("f",) + NEEDED[joint.measure] if k not in kinds]
+            if missing:
+                problems.append(
+                    f"{joint.location}: port '{component}.{member}' has no "
+                    f"{' or '.join(KIND_NAMES[k] for k in missing)} variable for dof {dof}")
+                continue
+            result.append(PortDof(component, member, dof, kinds["f"], kinds.get("u"),
+                                  kinds.get("v"), kinds.get("a")))
+    return result
+
+
+def component_ports(scene: Scene, problems: list) -> dict[str, dict]:
+    """component path -> its ports (conventional names, then annotation maps)."""
+    result = {}
+    for component in scene.components:
+        if not component.source.is_file():
+            continue
+        try:
+            ports = conventional_ports(component.source)
+        except Exception as error:  # fmpy raises several kinds for a broken FMU
+            problems.append(f"{component.location}: cannot read FMU "
+                            f"{component.source.name}: {error}")
+            continue
+        maps = [m for m in scene.port_maps if m.component == component.path]
+        for name, dofs in _mapped_ports(component.source, maps, problems).items():
+            ports.setdefault(name, {}).update(dofs)
+        result[component.path] = ports
+    return result

@@ -1,0 +1,141 @@
+"""The handle through which the gluing algorithm drives a subsystem.
+
+The algorithm never sees an FMU: it sees a :class:`Subsystem` with a small,
+batched interface (one call moves every glued dof of the subsystem):
+save and restore state, set interface forces, step, read interface kinematics.
+:class:`~master.fmu.FmuSubsystem` implements it over fmpy; :class:`CoreSubsystem`
+over an in-process physics core (algorithm tests without FMI); a Ray backend
+wraps either on a worker.
+"""
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from collections import defaultdict
+
+import numpy as np
+
+Kinematics = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+class Subsystem(ABC):
+    """One glued subsystem.  ``interface`` lists its glued (port, dof) pairs:
+    the order of the force vector it takes and of the kinematics it returns."""
+
+    name: str
+    interface: tuple[tuple[str, str], ...]
+
+    def __init__(self):
+        self._dirty = False
+        #: FMI function (or core method) -> [calls, seconds]
+        self.counters: dict[str, list] = defaultdict(lambda: [0, 0.0])
+
+    def _timed(self, label: str, function, *args):
+        start = time.perf_counter()
+        try:
+            return function(*args)
+        finally:
+            entry = self.counters[label]
+            entry[0] += 1
+            entry[1] += time.perf_counter() - start
+
+    # --- what an implementation provides ------------------------------------------
+    @abstractmethod
+    def save_state(self) -> None:
+        """Remember the current state as the start of the macro step."""
+
+    @abstractmethod
+    def restore_state(self) -> None:
+        """Go back to the state saved by :meth:`save_state`."""
+
+    @abstractmethod
+    def set_forces(self, forces: np.ndarray) -> None:
+        """Interface forces (N, N.m) in ``interface`` order."""
+
+    @abstractmethod
+    def do_step(self, time: float, step_size: float) -> None:
+        """Advance from ``time`` by ``step_size`` (s)."""
+
+    @abstractmethod
+    def kinematics(self) -> Kinematics:
+        """Interface positions, velocities, accelerations (None where absent)."""
+
+    def outputs(self) -> list[float]:
+        """Values of the recorded outputs, in ``output_names`` order."""
+        return []
+
+    output_names: tuple[str, ...] = ()
+
+    def terminate(self) -> None:
+        """Release what the subsystem holds."""
+
+    # --- what the algorithm calls ---------------------------------------------------
+    def begin_step(self) -> None:
+        """Start a macro step: the current state is the one to come back to."""
+        self.save_state()
+        self._dirty = False
+
+    def trial_step(self, forces: np.ndarray, time: float, step_size: float) -> Kinematics:
+        """Step from the saved state with ``forces`` and return the kinematics.
+        The first trial of a macro step needs no restore."""
+        if self._dirty:
+            self.restore_state()
+        self.set_forces(forces)
+        self.do_step(time, step_size)
+        self._dirty = True
+        return self.kinematics()
+
+    def flexibility(self, forces: np.ndarray, time: float, step_size: float,
+                    deltas: np.ndarray, base: Kinematics) -> list[np.ndarray]:
+        """Interface flexibility by perturbation (eq. 4.45/4.46): for each glued
+        dof k, re-step from the saved state with force k raised by ``deltas[k]``;
+        returns [du/df, dv/df, da/df], each n x n (column k: response to force k).
+        ``base`` is the response to ``forces`` itself."""
+        n = len(forces)
+        result = [np.zeros((n, n)) for _ in range(3)]
+        for k in range(n):
+            perturbed = forces.copy()
+            perturbed[k] += deltas[k]
+            response = self.trial_step(perturbed, time, step_size)
+            for matrix, new, old in zip(result, response, base):
+                if new is not None and old is not None:
+                    matrix[:, k] = (new - old) / deltas[k]
+        return result
+
+
+class CoreSubsystem(Subsystem):
+    """A physics core (:class:`fmus.interface.InterfaceCore`) driven in process,
+    glued at the named subset of its interface."""
+
+    def __init__(self, name: str, core, interface=None, start_time: float = 0.0):
+        super().__init__()
+        self.name = name
+        self.core = core
+        self.interface = tuple(interface or core.interface)
+        self._index = [core.interface.index(pair) for pair in self.interface]
+        self._all_forces = np.zeros(len(core.interface))
+        self._saved = None
+        core.set_interface_forces(self._all_forces)
+        core.initialize(start_time)
+        self.output_names = tuple(core.outputs())
+
+    def save_state(self):
+        self._saved = self._timed("get_state", self.core.get_state)
+
+    def restore_state(self):
+        self._timed("set_state", self.core.set_state, self._saved)
+
+    def set_forces(self, forces):
+        self._all_forces[self._index] = forces
+        self.core.set_interface_forces(self._all_forces)
+
+    def do_step(self, time, step_size):
+        self._timed("step", self.core.step, time, step_size)
+
+    def kinematics(self):
+        u, v, a = self.core.interface_kinematics()
+        return u[self._index], v[self._index], a[self._index]
+
+    def outputs(self):
+        values = self.core.outputs()
+        return [values[name] for name in self.output_names]

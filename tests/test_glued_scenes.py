@@ -1,0 +1,60 @@
+"""Glued scenes, run through dsim from their .ssp archives, against their
+monolithic references."""
+import json
+
+import numpy as np
+import pytest
+
+from examples import chain, spring_mass
+from master.results import read_csv
+from master.run import run
+
+
+@pytest.mark.parametrize("nonlinear", [False, True], ids=["linear", "nonlinear"])
+def test_spring_mass_glued_equals_monolithic(built, tmp_path, nonlinear):
+    name = "spring_mass_nonlinear" if nonlinear else "spring_mass_linear"
+    out = tmp_path / f"{name}.csv"
+    statistics = run(built["ssp"] / f"{name}.ssp", out)
+    result = spring_mass.compare(out, nonlinear)
+    assert statistics.data["steps"] == 1000
+    assert result["peak"] > 0.3  # the scene moves (x3 peaks at 0.57 m / 0.42 m)
+    assert result["relative_error"] < 1e-8
+
+
+def test_linear_joint_needs_two_do_steps_per_macro_step_once_lambda_is_known(built, tmp_path):
+    """Once Lambda is known, a linear problem converges in one Newton update:
+    one doStep with the predicted force, one with the corrected force."""
+    out = tmp_path / "linear.csv"
+    statistics = run(built["ssp"] / "spring_mass_linear.ssp", out).data
+    steps = statistics["steps"]
+    assert statistics["lambda_refreshes"] == 1
+    for name, component in statistics["components"].items():
+        do_steps = component["functions"]["fmi2DoStep"]["calls"]
+        perturbations = 1  # one glued dof, perturbed once at the single refresh
+        assert (do_steps - perturbations) / steps <= 2.0, name
+    assert statistics["iterations"]["max_per_step"] == 2
+
+
+def test_chain_10_follows_the_rigid_monolithic_chain(built, tmp_path):
+    out = tmp_path / "chain_10.csv"
+    statistics = run(built["ssp"] / "chain_10.ssp", out, stop=0.2).data
+    result = chain.compare(out, 10)
+    header, data = read_csv(out)
+    positions = data[:, [header.index(f"m{i}.x[1]") for i in range(1, 11)]]
+    # fixed joints: every mass at the same place, to the interface tolerance
+    assert np.max(np.abs(positions - positions[:, :1])) <= statistics["master"]["tolerance"]
+    assert result["error"] < 1e-9 and result["peak"] > 1e-5
+    assert statistics["iterations"]["mean_per_step"] <= 2.0
+
+
+def test_stats_file_has_the_results_contract(built, tmp_path):
+    out = tmp_path / "run.csv"
+    run(built["ssp"] / "spring_mass_linear.ssp", out, stop=0.5)
+    stats = json.loads(out.with_suffix(".stats.json").read_text())
+    assert stats["status"] == "ok" and stats["steps"] == 50
+    assert set(stats["components"]) == {"left", "right"}
+    assert stats["components"]["left"]["functions"]["fmi2DoStep"]["calls"] >= 50
+    assert 0 < stats["seconds_in_fmus"] < stats["wall_seconds"]
+    header, data = read_csv(out)
+    assert header == ["time", "left.x[1]", "right.x[1]", "right.x[2]", "right.a[2]", "j1.f_x"]
+    assert data.shape == (51, 6) and data[0, 0] == 0.0 and data[-1, 0] == pytest.approx(0.5)
