@@ -57,3 +57,32 @@ def assemble(components: list[str], joints: list[Joint], sides: dict):
     layout = GluingLayout(incidence, weights, labels, joint_of)
     states = JointStates(flexible, k0, k1, c0, c1)
     return layout, states, interfaces
+
+
+class _Glued:
+    """A port dof of an in-process core (what :func:`assemble` needs of a side)."""
+
+    def __init__(self, component, port, dof):
+        self.component, self.port, self.dof = component, port, dof
+
+
+def glue_cores(cores: dict, joints: list[Joint], settings, start_time: float = 0.0):
+    """Glue in-process physics cores (no FMI) with the T-T algorithm.
+
+    ``cores`` maps component names to :class:`fmus.interface.InterfaceCore`
+    objects; joints name them as in an SSP file (node-set ports excluded).
+    Returns the started :class:`~master.gluing.TTGluing`; its ``backend``
+    holds the subsystems.
+    """
+    from master.backends.inprocess import InProcessBackend
+    from master.gluing import TTGluing
+    from master.subsystem import CoreSubsystem
+
+    sides = {j.name: tuple([_Glued(getattr(j, s)[0], getattr(j, s)[1], d) for d in j.dofs]
+                           for s in ("a", "b")) for j in joints}
+    layout, states, interfaces = assemble(list(cores), joints, sides)
+    subsystems = [CoreSubsystem(name, core, [(p.port, p.dof) for p in interfaces[name]],
+                                start_time) for name, core in cores.items()]
+    gluing = TTGluing(InProcessBackend(subsystems), layout, states, settings)
+    gluing.start(gluing.backend.kinematics())
+    return gluing

@@ -1,0 +1,285 @@
+"""A linear elastic finite-element body as a glueable core (no FMI here).
+
+Equations: M a + C v + K u = f_loads(t) + B^T F on the generalized coordinates q of
+:mod:`.constraints` (clamps, rigid sets), optionally Craig-Bampton reduced, integrated by
+Newmark average acceleration (:mod:`.newmark`), equilibrium at the end of each step.
+Units: SI (m, s, kg, N, Pa, rad).
+
+Ports. A *node-set port* ``S`` glues every node of node set ``S``: its interface pairs
+are ``("S[1]", "x"), ("S[1]", "y"), ... ("S[N]", "y")`` (3-D adds z), nodes in the order
+of :func:`.geometry.sort_along`. A *rigid port* ties node set ``S`` to one reference
+point: pairs ``("S", "x"), ("S", "y"), ("S", "rz")`` (3-D: x y z rx ry rz). Interface
+kinematics are global positions (reference coordinate + displacement; rotation angle),
+velocities and accelerations.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Optional, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import Basis
+
+from ..interface import InterfaceCore
+from .assembly import STEEL, Material, mass_matrix, stiffness_matrix, vector_basis, von_mises
+from .constraints import ROTATIONS, TRANSLATIONS, build_transformation
+from .geometry import NodeSetSpec, check_mesh, nearest_node, resolve_node_set
+from .newmark import NewmarkAverageAcceleration
+from .reduction import craig_bampton_basis, generalized_eigen
+
+
+@dataclass(frozen=True)
+class PointLoad:
+    """Force (N) along ``dof`` (x, y or z) at the node nearest ``point`` (m):
+    ``constant + amplitude * sin(omega * t + phase)``, omega in rad/s."""
+
+    point: tuple[float, ...]
+    dof: str
+    constant: float = 0.0
+    amplitude: float = 0.0
+    omega: float = 0.0
+    phase: float = 0.0
+
+    def value(self, time: float) -> float:
+        return self.constant + self.amplitude * np.sin(self.omega * time + self.phase)
+
+
+class ElasticBody(InterfaceCore):
+    """Linear elastic FE body: plane stress (tri/quad, with thickness) or solid (tet/hex).
+
+    Parameters: ``mesh`` (skfem mesh, see :mod:`.geometry`), ``material``, ``thickness``
+    (m, 2-D only), ``mass`` ("consistent" or "lumped"), ``rayleigh`` = (alpha in 1/s,
+    beta in s) for C = alpha M + beta K, ``node_sets`` (name -> spec), ``clamped`` (node
+    set names with u = 0), ``ports`` (node-set port names), ``rigid_ports`` (node set name
+    -> reference point, None for the set's centroid), ``loads``, ``probes`` (name ->
+    point; outputs ``name.u_x`` ...), ``modes`` (None for the full model, or the number of
+    Craig-Bampton fixed-interface modes), ``stress_outputs`` (add ``name.von_mises`` to
+    outputs), ``ties`` (hanging node -> (master nodes, weights): u = sum w u_master),
+    ``name`` (used in error messages).
+    """
+
+    def __init__(self, mesh, material: Material = STEEL, *, thickness: float = 1.0,
+                 mass: str = "consistent", rayleigh: tuple[float, float] = (0.0, 0.0),
+                 node_sets: Optional[Mapping[str, NodeSetSpec]] = None,
+                 clamped: Sequence[str] = (), ports: Sequence[str] = (),
+                 rigid_ports: Optional[Mapping[str, Optional[Sequence[float]]]] = None,
+                 loads: Sequence[PointLoad] = (),
+                 probes: Optional[Mapping[str, Sequence[float]]] = None,
+                 modes: Optional[int] = None, stress_outputs: bool = False,
+                 ties: Optional[Mapping[int, tuple[Sequence[int], Sequence[float]]]] = None,
+                 name: str = "body"):
+        check_mesh(mesh, name)
+        if mass not in ("consistent", "lumped"):
+            raise ValueError(f"{name}: mass must be 'consistent' or 'lumped', got {mass!r}")
+        self.name, self.mesh, self.material, self.thickness = name, mesh, material, thickness
+        self.dim = mesh.dim()
+        self.basis: Basis = vector_basis(mesh)
+        self.node_sets = {key: resolve_node_set(mesh, key, spec)
+                          for key, spec in (node_sets or {}).items()}
+        rigid_ports = dict(rigid_ports or {})
+        for key in [*clamped, *ports, *rigid_ports]:
+            if key not in self.node_sets:
+                raise ValueError(f"{name}: node set {key!r} is not defined "
+                                 f"(defined: {sorted(self.node_sets)})")
+        if set(ports) & set(rigid_ports):
+            raise ValueError(f"{name}: {sorted(set(ports) & set(rigid_ports))} "
+                             f"both node-set and rigid ports")
+
+        # Constraints: u_full = T q.
+        nodal = self.basis.nodal_dofs
+        clamped_nodes = np.unique(np.concatenate(
+            [self.node_sets[key] for key in clamped] or [np.zeros(0, dtype=int)]))
+        rigid = {key: (self.node_sets[key],
+                       np.mean(mesh.p[:, self.node_sets[key]], axis=1) if point is None
+                       else np.asarray(point, dtype=float))
+                 for key, point in rigid_ports.items()}
+        ties = {int(node): (np.asarray(m, dtype=int), np.asarray(w, dtype=float))
+                for node, (m, w) in (ties or {}).items()}
+        transformation = build_transformation(nodal, mesh.p, clamped_nodes, rigid, ties)
+        T = transformation.matrix
+
+        k_full = stiffness_matrix(self.basis, material, thickness)
+        m_full = mass_matrix(self.basis, material, thickness, lumped=(mass == "lumped"))
+        stiffness = (T.T @ k_full @ T).tocsr()
+        mass_q = (T.T @ m_full @ T).tocsr()
+
+        interface_map = self._build_interface(ports, rigid, transformation)
+        self.loads = tuple(loads)
+        loads_q = self._build_loads(T)  # f(t) = loads_q @ values(t)
+        self.probes = {key: np.asarray(point, dtype=float) for key, point in (probes or {}).items()}
+        probe_map = self._build_probes(T)  # probe displacements = probe_map @ q
+        self.stress_outputs = stress_outputs
+
+        # Craig-Bampton: q = Psi r, interface coordinates kept physical.
+        self.modes = modes
+        self._full_map = T  # u_full = _full_map @ q
+        if modes is not None:
+            # loaded dofs stay physical too: the static response to a point load is then
+            # exact, instead of converging slowly with the number of modes
+            boundary = np.unique(np.concatenate([interface_map.indices,
+                                                 sp.csc_matrix(loads_q).indices]))
+            psi = craig_bampton_basis(stiffness, mass_q, boundary, modes)
+            stiffness = sp.csr_matrix(psi.T @ (stiffness @ psi))
+            mass_q = sp.csr_matrix(psi.T @ (mass_q @ psi))
+            interface_map = sp.csr_matrix(interface_map @ psi)
+            loads_q = sp.csr_matrix(psi.T @ loads_q.toarray())
+            probe_map = sp.csr_matrix(probe_map @ psi)
+            self._full_map = sp.csr_matrix(T @ psi)
+        alpha, beta = rayleigh
+        damping = alpha * mass_q + beta * stiffness if (alpha or beta) else None
+        self.stiffness, self.mass, self.damping = stiffness, mass_q, damping
+        self._interface_map, self._interface_map_t = interface_map, interface_map.T.tocsr()
+        self._loads, self._probe_map = loads_q, probe_map
+        self.integrator = NewmarkAverageAcceleration(stiffness, mass_q, damping)
+
+        n = stiffness.shape[0]
+        self.time = 0.0
+        self._q, self._v, self._a = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._forces = np.zeros(len(self.interface))
+
+    # -- construction helpers --------------------------------------------------------------
+    def _build_interface(self, ports, rigid, transformation) -> sp.csr_matrix:
+        """Interface pairs, reference positions and B (interface displacement = B q)."""
+        T, nodal, points = transformation.matrix, self.basis.nodal_dofs, self.mesh.p
+        pairs, rows, reference = [], [], []
+        self._port_slices: dict[str, slice] = {}
+        for key in ports:  # node-set ports: rows of T
+            start = len(pairs)
+            for k, node in enumerate(self.node_sets[key], start=1):
+                for c, dof in enumerate(TRANSLATIONS[self.dim]):
+                    pairs.append((f"{key}[{k}]", dof))
+                    rows.append(T[nodal[c, node]])
+                    reference.append(points[c, node])
+            self._port_slices[key] = slice(start, len(pairs))
+        for key, (_, point) in rigid.items():  # rigid ports: their own reference columns
+            start = len(pairs)
+            for j, dof in enumerate(TRANSLATIONS[self.dim] + ROTATIONS[self.dim]):
+                pairs.append((key, dof))
+                column = transformation.rigid_columns[key][j]
+                rows.append(sp.csr_matrix(([1.0], ([0], [column])), shape=(1, T.shape[1])))
+                reference.append(point[j] if j < self.dim else 0.0)
+            self._port_slices[key] = slice(start, len(pairs))
+        self.interface = tuple(pairs)
+        self._rigid_points = {key: point for key, (_, point) in rigid.items()}
+        self._reference = np.array(reference, dtype=float)
+        return sp.vstack(rows).tocsr() if rows else sp.csr_matrix((0, T.shape[1]))
+
+    def _build_loads(self, T: sp.csr_matrix) -> sp.csr_matrix:
+        """Unit load columns in q (one per point load, at its nearest node)."""
+        columns = []
+        for load in self.loads:
+            if load.dof not in TRANSLATIONS[self.dim]:
+                raise ValueError(f"{self.name}: load dof {load.dof!r} must be one of "
+                                 f"{TRANSLATIONS[self.dim]}")
+            node = nearest_node(self.mesh, load.point)
+            columns.append(T[self.basis.nodal_dofs[TRANSLATIONS[self.dim].index(load.dof), node]].T)
+        return sp.hstack(columns).tocsr() if columns else sp.csr_matrix((T.shape[1], 0))
+
+    def _build_probes(self, T: sp.csr_matrix) -> sp.csr_matrix:
+        """Rows interpolating each probe's displacement components from q."""
+        nodal = self.basis.nodal_dofs
+        scalar = Basis(self.mesh, self.basis.elem.elem)  # nodal interpolation weights
+        self._probe_elements, rows, self._output_names = {}, [], []
+        for key, point in self.probes.items():
+            try:
+                self._probe_elements[key] = int(self.mesh.element_finder()(*point[:, None])[0])
+            except (ValueError, IndexError):
+                raise ValueError(f"{self.name}: probe {key!r} at {point.tolist()} "
+                                 f"is outside the mesh") from None
+            weights = sp.csr_matrix(scalar.probes(point[:, None]))
+            for c, dof in enumerate(TRANSLATIONS[self.dim]):
+                row = sp.csr_matrix((weights.data, (np.zeros(weights.nnz, dtype=int),
+                                                    nodal[c, weights.indices])),
+                                    shape=(1, nodal.size))
+                rows.append(row @ T)
+                self._output_names.append(f"{key}.u_{dof}")
+        return sp.vstack(rows).tocsr() if rows else sp.csr_matrix((0, T.shape[1]))
+
+    # -- InterfaceCore -------------------------------------------------------------------
+    def initialize(self, start_time: float) -> None:
+        """Time := start_time; M a0 = f(t0) + B^T F - K u0 - C v0 on the free coordinates."""
+        self.time = float(start_time)
+        self._a = self.integrator.acceleration(self._q, self._v, self._force(self.time))
+
+    def set_interface_forces(self, forces: np.ndarray) -> None:
+        forces = np.asarray(forces, dtype=float)
+        if forces.shape != self._forces.shape:
+            raise ValueError(f"{self.name}: {forces.size} interface forces given, "
+                             f"{self._forces.size} expected")
+        self._forces = forces.copy()
+
+    def step(self, time: float, step_size: float) -> None:
+        """Newmark step t -> t + h with loads evaluated at t + h and the forces held."""
+        end = time + step_size
+        self._q, self._v, self._a = self.integrator.step(
+            self._q, self._v, self._a, self._force(end), step_size)
+        self.time = end
+
+    def interface_kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        B = self._interface_map
+        return self._reference + B @ self._q, B @ self._v, B @ self._a
+
+    def get_state(self) -> dict:
+        return {"time": self.time, "q": self._q.copy(), "v": self._v.copy(),
+                "a": self._a.copy(), "forces": self._forces.copy()}
+
+    def set_state(self, state: dict) -> None:
+        self.time = float(state["time"])
+        self._q, self._v = state["q"].copy(), state["v"].copy()
+        self._a, self._forces = state["a"].copy(), state["forces"].copy()
+
+    def outputs(self) -> dict[str, float]:
+        """Probe displacements ``<probe>.u_<dof>`` (m); ``<probe>.von_mises`` (Pa) if asked."""
+        values = dict(zip(self._output_names, (self._probe_map @ self._q).tolist()))
+        if self.stress_outputs:
+            for key in self.probes:
+                values[f"{key}.von_mises"] = self.von_mises(key)
+        return values
+
+    # -- beyond the contract -------------------------------------------------------------
+    def _force(self, time: float) -> np.ndarray:
+        """Generalized force: point loads at ``time`` plus the interface forces (N)."""
+        values = np.array([load.value(time) for load in self.loads])
+        force = self._interface_map_t @ self._forces
+        return force + self._loads @ values if self.loads else force
+
+    def displacement(self) -> np.ndarray:
+        """Full nodal displacement vector (m), dofs as ``self.basis.nodal_dofs``."""
+        return np.asarray(self._full_map @ self._q).ravel()
+
+    def port_coordinates(self, port: str) -> np.ndarray:
+        """Reference coordinates (m) of a port's nodes, shape (N, dim), in interface order
+        (a rigid port gives its reference point, shape (1, dim))."""
+        if port in self._rigid_points:
+            return self._rigid_points[port][None, :].copy()
+        if port not in self._port_slices:
+            raise ValueError(f"{self.name}: no port {port!r} (ports: {sorted(self._port_slices)})")
+        return self.mesh.p[:, self.node_sets[port]].T.copy()
+
+    def port_slice(self, port: str) -> slice:
+        """The entries of the interface vectors that belong to ``port``."""
+        if port not in self._port_slices:
+            raise ValueError(f"{self.name}: no port {port!r} (ports: {sorted(self._port_slices)})")
+        return self._port_slices[port]
+
+    def von_mises(self, probe: str) -> float:
+        """Von Mises stress (Pa), averaged over the element containing the probe."""
+        return von_mises(self.basis, self.material, self.displacement(),
+                         self._probe_elements[probe])
+
+    def static_displacement(self, time: float = 0.0) -> np.ndarray:
+        """Full displacement (m) of K u = f(time) + B^T F (does not change the state)."""
+        return np.asarray(self._full_map @ self.integrator.static(self._force(time))).ravel()
+
+    def set_static_equilibrium(self, time: float = 0.0) -> None:
+        """State := static solution K q = f(time) + B^T F with zero velocity and acceleration
+        (a preloaded start; time is set to ``time``)."""
+        self._q = self.integrator.static(self._force(time))
+        self._v, self._a = np.zeros_like(self._q), np.zeros_like(self._q)
+        self.time = float(time)
+
+    def natural_frequencies(self, count: int) -> np.ndarray:
+        """Lowest ``count`` natural frequencies (Hz) on the clamps, interface free, undamped."""
+        values, _ = generalized_eigen(self.stiffness, self.mass, count)
+        return np.sqrt(np.maximum(values, 0.0)) / (2.0 * np.pi)
