@@ -1,0 +1,114 @@
+"""Speed and accuracy of the spring-mass and chain scenes, as a markdown table.
+
+Each scene runs through dsim from its .ssp archive (real FMUs) and its
+monolithic reference runs in the same process right after, so the glued/
+monolithic wall-time ratio is measured under the same machine load.
+
+    python -m benchmarks.run_benchmarks [--out docs/benchmarks.md] [--chain-stop 1.0]
+"""
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+from pathlib import Path
+
+from examples import chain, spring_mass
+from master.run import run
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _timed(function, *args, **kwargs):
+    start = time.perf_counter()
+    result = function(*args, **kwargs)
+    return result, time.perf_counter() - start
+
+
+def measure(scene: str, out_dir: Path, stop=None) -> dict:
+    """One glued run and its monolithic reference: the table's row."""
+    csv_path = out_dir / f"{scene}.csv"
+    statistics = run(ROOT / "build" / "ssp" / f"{scene}.ssp", csv_path, stop=stop).data
+    if scene.startswith("spring_mass"):
+        nonlinear = scene.endswith("nonlinear")
+        _, mono_seconds = _timed(spring_mass.monolithic, nonlinear, stop=statistics["stop_time"])
+        accuracy = spring_mass.compare(csv_path, nonlinear)
+    else:
+        n = int(scene.split("_")[1])
+        _, mono_seconds = _timed(chain.monolithic, n, stop=statistics["stop_time"])
+        accuracy = chain.compare(csv_path, n)
+    steps = statistics["steps"]
+    components = statistics["components"]
+    calls = sum(f["calls"] for c in components.values() for f in c["functions"].values())
+    return {
+        "scene": scene, "subsystems": len(components), "steps": steps,
+        "wall": statistics["wall_seconds"], "mono": mono_seconds,
+        "iterations": statistics["iterations"]["mean_per_step"],
+        "max_iterations": statistics["iterations"]["max_per_step"],
+        "refreshes": statistics["lambda_refreshes"],
+        "calls_per_step": calls / steps,
+        "do_steps_per_fmu_step": statistics["do_steps_per_step"] / len(components),
+        "inside": statistics["seconds_in_fmus"], "master": statistics["seconds_in_master"],
+        "error": accuracy["error"], "relative_error": accuracy["relative_error"],
+    }
+
+
+def table(rows: list[dict]) -> str:
+    """The markdown table of the measured rows."""
+    lines = ["| scene | FMUs | steps | wall (s) | glued / monolithic | iterations per step "
+             "(max) | Lambda refreshes | FMI calls per step | doSteps per FMU per step | "
+             "s in FMUs | s in master | ms per step per FMU | max error (m) | error / peak |",
+             "|" + "---|" * 14]
+    for r in rows:
+        lines.append(
+            f"| {r['scene']} | {r['subsystems']} | {r['steps']} | {r['wall']:.2f} | "
+            f"{r['wall'] / r['mono']:.0f}x | {r['iterations']:.2f} ({r['max_iterations']}) | "
+            f"{r['refreshes']} | {r['calls_per_step']:.1f} | {r['do_steps_per_fmu_step']:.2f} | "
+            f"{r['inside']:.2f} | {r['master']:.2f} | "
+            f"{1e3 * r['wall'] / r['steps'] / r['subsystems']:.3f} | {r['error']:.2e} | "
+            f"{r['relative_error']:.2e} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", default=str(ROOT / "docs" / "benchmarks.md"))
+    parser.add_argument("--chain-stop", type=float, default=1.0,
+                        help="stop time of the chain scenes, s")
+    args = parser.parse_args(argv)
+    out_dir = ROOT / "results" / "benchmarks"
+    rows = [measure("spring_mass_linear", out_dir), measure("spring_mass_nonlinear", out_dir),
+            measure("chain_10", out_dir, stop=args.chain_stop),
+            measure("chain_100", out_dir, stop=args.chain_stop)]
+    small, large = rows[2], rows[3]
+    growth = (large["wall"] / large["steps"]) / (small["wall"] / small["steps"])
+    master_growth = (large["master"] / large["steps"]) / (small["master"] / small["steps"])
+    text = "\n".join([
+        "# Benchmarks: spring-mass and chain scenes",
+        "",
+        f"Written by `python -m benchmarks.run_benchmarks` on {time.strftime('%Y-%m-%d')} "
+        f"({platform.processor() or platform.machine()}, Python {platform.python_version()}, "
+        "one process, in-process backend). Every row is one glued run from the scene's "
+        ".ssp archive through real pythonfmu FMUs loaded with fmpy; the monolithic "
+        "reference runs right after it in the same process, so the ratio column compares "
+        "runs made under the same load. Errors are against that reference (m3's position "
+        "for spring_mass_*, every mass for chain_*).",
+        "",
+        table(rows),
+        "",
+        f"Cost growth from chain_10 to chain_100 (10x the subsystems): wall time per step "
+        f"x{growth:.1f}, master time per step x{master_growth:.1f}. Linear growth would be "
+        "x10: the joint Jacobian is assembled and factored sparse (scipy `splu`), and the "
+        "residual is one sparse product over all glued dofs.",
+        "",
+        "Where the time goes: the monolithic references are numpy loops over one small "
+        "model, so the ratio mostly measures the price of crossing the FMI boundary "
+        "(ctypes into the pythonfmu C layer and back into Python) a few times per "
+        "subsystem per iteration; see `s in FMUs` against `s in master`.",
+    ])
+    Path(args.out).write_text(text + "\n")
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
