@@ -3,7 +3,10 @@
 Value references are resolved once; every read and write of a step is one
 batched fmpy call; every FMI call is counted and timed per function name, and
 an FMI error becomes a :class:`~master.errors.SimulationError` naming the
-component and the function.
+component and the function.  An FMU that fails while it is instantiated and
+initialised with the scene's parameters is bad input (an
+:class:`~master.errors.InputError`, exit 2) and the message is the error the FMU
+logged, so that a user learns which parameter it refused.
 """
 from __future__ import annotations
 
@@ -12,10 +15,11 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-from fmpy import extract
-from fmpy.fmi2 import FMU2Slave
+from fmpy import calloc, extract, free
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from master.errors import SimulationError
+from master.errors import InputError, SimulationError
 from master.ports import PortDof, model_description, variables_by_name
 from master.subsystem import Subsystem
 
@@ -41,11 +45,43 @@ def can_save_state(path: Path) -> bool:
     return bool(cs and cs.canGetAndSetFMUstate)
 
 
+class _Log:
+    """FMI logger callbacks that keep the last messages of one instance."""
+
+    def __init__(self, keep: int = 20):
+        self.messages: list[tuple[int, str]] = []  # (fmi2Status, one-line message)
+        self.keep = keep
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:  # fmpy's proxy formats the variadic message as its default logger does
+            from ctypes import byref
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(byref(self.callbacks))
+        except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
+            pass
+
+    def _log(self, environment, instance, status, category, message):
+        text = " ".join((message or b"").decode("utf-8", "replace").split())
+        self.messages = (self.messages + [(int(status), text)])[-self.keep:]
+
+    def reason(self) -> str:
+        """The first error the FMU logged (fmi2Error before fmi2Fatal), or ''."""
+        for level in (3, 4):
+            for status, text in self.messages:
+                if status == level and text:
+                    return text
+        return ""
+
+
 class FmuSubsystem(Subsystem):
-    """An FMU instance glued at ``port_dofs``, recording ``record`` outputs."""
+    """An FMU instance glued at ``port_dofs``, recording ``record`` outputs.
+    ``location`` names the component in the scene file (for input errors)."""
 
     def __init__(self, name: str, path: Path, port_dofs: list[PortDof],
-                 parameters: dict, record: list[str], start_time: float, stop_time: float):
+                 parameters: dict, record: list[str], start_time: float, stop_time: float,
+                 location: str = ""):
         super().__init__()
         self.name = name
         self.path = Path(path)
@@ -55,6 +91,12 @@ class FmuSubsystem(Subsystem):
         self._force_vrs = [p.force for p in port_dofs]
         self._kinematic_vrs = [[getattr(p, kind) for p in port_dofs]
                                for kind in ("position", "velocity", "acceleration")]
+        # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
+        self._kinematic_present = [all(vr is not None for vr in vrs)
+                                   for vrs in self._kinematic_vrs]
+        self._kinematic_read = [vr for vrs, present in zip(self._kinematic_vrs,
+                                                           self._kinematic_present)
+                                if present for vr in vrs]
         self.output_names = tuple(record)
         self._record_vrs = [variables[n].valueReference for n in record]
         self._state = None
@@ -62,12 +104,24 @@ class FmuSubsystem(Subsystem):
         self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped(self.path),
                              modelIdentifier=description.coSimulation.modelIdentifier,
                              instanceName=name)
-        self._call("fmi2Instantiate", self.fmu.instantiate)
-        self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
-            startTime=start_time, stopTime=stop_time))
-        self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
-        self._set_parameters(parameters, variables)
-        self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+        self._log = _Log()
+        try:
+            self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
+                callbacks=self._log.callbacks, loggingOn=True))
+            self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
+                startTime=start_time, stopTime=stop_time))
+            self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
+            self._set_parameters(parameters, variables)
+            self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+        except SimulationError as error:
+            reason = self._log.reason() or str(error)
+            if self.fmu.component is not None:
+                try:
+                    self.fmu.freeInstance()
+                except Exception:  # the instance is broken already; the reason matters
+                    pass
+            raise InputError(f"{location or name}: FMU {self.path.name} cannot be "
+                             f"initialised with these parameters: {reason}") from None
 
     def _call(self, label: str, function, *args):
         try:
@@ -112,12 +166,17 @@ class FmuSubsystem(Subsystem):
             currentCommunicationPoint=time, communicationStepSize=step_size))
 
     def kinematics(self):
-        result = []
-        for vrs in self._kinematic_vrs:
-            if any(vr is None for vr in vrs):
-                result.append(None)
+        if not self.interface:  # an unglued component: nothing to read
+            return (np.zeros(0),) * 3
+        values = np.array(self._call("fmi2GetReal", self.fmu.getReal, self._kinematic_read))
+        n = len(self.interface)
+        result, start = [], 0
+        for present in self._kinematic_present:
+            if present:
+                result.append(values[start:start + n])
+                start += n
             else:
-                result.append(np.array(self._call("fmi2GetReal", self.fmu.getReal, vrs)))
+                result.append(None)
         return tuple(result)
 
     def outputs(self):

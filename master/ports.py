@@ -4,6 +4,10 @@ By convention a port P with dof c has the input ``P.f_c`` and the outputs
 ``P.u_c``, ``P.v_c``, ``P.a_c``; a ``glue:Port`` annotation maps a third-party
 FMU's own names onto a port instead.  A port ``S`` that does not exist but
 ``S[1]``, ``S[2]``, ... do is a node set: a joint on it glues node i to node i.
+An FMU whose variable list is fixed but whose node count is not (a finite-element
+body's depends on its mesh) declares an Integer parameter ``S.nodes``: only
+``S[1]`` .. ``S[n]`` are then ports, n being the scene's value of ``S.nodes``
+(or its start value); the FMU checks n against its mesh when it initialises.
 """
 from __future__ import annotations
 
@@ -109,6 +113,21 @@ def joint_port_dofs(joint: Joint, side: str, ports: dict, problems: list) -> lis
     return result
 
 
+def _limit_node_sets(ports: dict, component) -> None:
+    """Drop the members ``S[k]``, k > n, of every node set with a parameter ``S.nodes`` = n."""
+    for name, variable in variables_by_name(component.source).items():
+        if not (name.endswith(".nodes") and variable.type == "Integer"
+                and variable.causality == "parameter"):
+            continue
+        port = name[:-len(".nodes")]
+        count = int(component.parameters.get(name, (None, variable.start or 0))[1])
+        member = re.compile(re.escape(port) + r"\[(\d+)\]")
+        for key in list(ports):
+            match = member.fullmatch(key)
+            if match and int(match[1]) > count:
+                del ports[key]
+
+
 def component_ports(scene: Scene, problems: list) -> dict[str, dict]:
     """component path -> its ports (conventional names, then annotation maps)."""
     result = {}
@@ -121,6 +140,7 @@ def component_ports(scene: Scene, problems: list) -> dict[str, dict]:
             problems.append(f"{component.location}: cannot read FMU "
                             f"{component.source.name}: {error}")
             continue
+        _limit_node_sets(ports, component)
         maps = [m for m in scene.port_maps if m.component == component.path]
         for name, dofs in _mapped_ports(component.source, maps, problems).items():
             ports.setdefault(name, {}).update(dofs)

@@ -31,6 +31,12 @@ class Plan:
     interfaces: dict
     records: dict
     connections: list
+    sides: dict
+
+    @property
+    def non_matching(self) -> bool:
+        """Whether a joint glues node sets of different sizes (needs positions)."""
+        return any(len(a) != len(b) for a, b in self.sides.values())
 
 
 def _records(scene: Scene, problems: list) -> dict[str, list[str]]:
@@ -110,9 +116,10 @@ def plan(scene: Scene) -> Plan:
             continue
         a = joint_port_dofs(joint, "a", ports[joint.a[0]], problems)
         b = joint_port_dofs(joint, "b", ports[joint.b[0]], problems)
-        if a and b and len(a) != len(b):
-            problems.append(f"{joint.location}: sides have {len(a)} and {len(b)} glued dofs: "
-                            "node sets must have the same number of nodes")
+        if a and b and len(a) != len(b) and not set(joint.dofs) <= {"x", "y", "z"}:
+            problems.append(f"{joint.location}: node sets of {len(a) // len(joint.dofs)} and "
+                            f"{len(b) // len(joint.dofs)} nodes can be glued by moving least "
+                            "squares on translations only (dofs x y z)")
         sides[joint.name] = (a, b)
         for path in (joint.a[0], joint.b[0]):
             if not can_save_state(scene.component(path).source):
@@ -123,7 +130,21 @@ def plan(scene: Scene) -> Plan:
         raise InputError(list(dict.fromkeys(problems)))
     paths = [c.path for c in scene.components]
     layout, joint_states, interfaces = assemble(paths, list(scene.joints), sides)
-    return Plan(scene, layout, joint_states, interfaces, records, connections)
+    return Plan(scene, layout, joint_states, interfaces, records, connections, sides)
+
+
+def _with_positions(checked: Plan, subsystems, kinematics) -> None:
+    """Assemble non-matching joints from the glued dofs' initial positions."""
+    positions = {}
+    for subsystem, (u, _, _) in zip(subsystems, kinematics):
+        for port_dof, value in zip(checked.interfaces[subsystem.name], u):
+            positions[(subsystem.name, port_dof.port, port_dof.dof)] = value
+    paths = [c.path for c in checked.scene.components]
+    try:
+        checked.layout, checked.joint_states, _ = assemble(
+            paths, list(checked.scene.joints), checked.sides, positions)
+    except ValueError as error:
+        raise InputError(f"{checked.scene.file}: non-matching joint: {error}") from None
 
 
 def step_times(start: float, stop: float, step: float) -> list[float]:
@@ -157,7 +178,7 @@ def _instantiate(checked: Plan) -> list[FmuSubsystem]:
             subsystems.append(FmuSubsystem(
                 component.path, component.source, checked.interfaces[component.path],
                 component.parameters, checked.records[component.path],
-                scene.start_time, scene.stop_time))
+                scene.start_time, scene.stop_time, location=component.location))
     except Exception:
         InProcessBackend(subsystems).close()
         raise
@@ -179,6 +200,12 @@ def execute(checked: Plan, out: Path, observers=()) -> "RunStatistics":
     wall_start = clock.perf_counter()
     subsystems = _instantiate(checked)
     backend = InProcessBackend(subsystems)
+    if checked.non_matching:
+        try:
+            _with_positions(checked, subsystems, backend.kinematics())
+        except InputError:
+            backend.close()
+            raise
     by_name = {s.name: s for s in subsystems}
     gluing = TTGluing(backend, checked.layout, checked.joint_states, master)
     columns = [f"{s.name}.{n}" for s in subsystems for n in s.output_names]

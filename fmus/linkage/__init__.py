@@ -1,0 +1,10 @@
+"""Planar rigid multibody core (:mod:`.core`), its parts list (:mod:`.elements`),
+motion laws (:mod:`.laws`) and the shipped mechanisms (:mod:`.scenes`)."""
+from .core import Linkage, LinkageConvergenceError
+from .elements import (AngleDriver, Body, Bushing, Mechanism, Port, Prismatic, Revolute,
+                       SpringDamper)
+from .laws import ConstantSpeed, CosineRampSpeed, SineAngle
+
+__all__ = ["Linkage", "LinkageConvergenceError", "AngleDriver", "Body", "Bushing",
+           "Mechanism", "Port", "Prismatic", "Revolute", "SpringDamper", "ConstantSpeed",
+           "CosineRampSpeed", "SineAngle"]
