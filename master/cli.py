@@ -132,6 +132,24 @@ def _cmd_info(args) -> int:
     return 0
 
 
+def _cmd_compare(args) -> int:
+    from master.compare import compare_files
+
+    columns = args.columns.split(",") if args.columns else None
+    differences = compare_files(args.result, args.reference, columns, args.rtol, args.atol)
+    width = max(len(d.column) for d in differences)
+    print(f"{'column':<{width}}  {'max |diff|':>11}  {'allowed':>11}  {'ref peak':>11}")
+    for d in differences:
+        print(f"{d.column:<{width}}  {d.max_difference:>11.3e}  {d.allowed:>11.3e}  "
+              f"{d.reference_peak:>11.3e}  {'ok' if d.passed else 'DIFFERS'}")
+    failed = [d.column for d in differences if not d.passed]
+    if failed:
+        print(f"dsim: {len(failed)} of {len(differences)} columns differ from {args.reference}",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
 def _cmd_build(args) -> int:
     from build_fmus.build import build_fmus, pack_scenes
 
@@ -161,6 +179,15 @@ def parser() -> argparse.ArgumentParser:
                                       "joints and master settings of a scene")
     info_parser.add_argument("scene")
     info_parser.set_defaults(handler=_cmd_info)
+    compare_parser = commands.add_parser(
+        "compare", help="compare a results CSV with a reference CSV (exit 1 if it differs)")
+    compare_parser.add_argument("result")
+    compare_parser.add_argument("reference")
+    compare_parser.add_argument("--columns", help="comma-separated columns (default: common)")
+    compare_parser.add_argument("--rtol", type=float, default=1e-6,
+                                help="allowed difference relative to the reference's peak")
+    compare_parser.add_argument("--atol", type=float, default=0.0, help="absolute allowance")
+    compare_parser.set_defaults(handler=_cmd_compare)
     build_parser = commands.add_parser("build-fmus", help="build FMUs and pack scenes")
     build_parser.add_argument("--force", action="store_true")
     build_parser.set_defaults(handler=_cmd_build)
