@@ -206,6 +206,9 @@ def main(argv=None) -> int:
     except SimulationError as error:
         print(f"dsim: simulation failed: {error}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("dsim: interrupted; the converged steps are kept", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

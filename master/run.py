@@ -226,6 +226,9 @@ def execute(checked: Plan, out: Path, observers=()) -> "RunStatistics":
     except SimulationError as error:
         statistics.failure = str(error)
         raise
+    except KeyboardInterrupt:
+        statistics.failure = "interrupted by the user"
+        raise
     finally:
         recorder.close()
         for observer in observers:

@@ -441,6 +441,9 @@ def load_scene(path) -> Scene:
 def _check_references(reader: _Reader) -> None:
     """Joints, port maps and connections must name components that exist."""
     paths = {c.path for c in reader.components}
+    for component in reader.components:
+        if sum(c.path == component.path for c in reader.components) > 1:
+            reader.problems.append(f"{component.location}: component name used twice")
     seen = set()
     for joint in reader.joints:
         if joint.name in seen:
