@@ -21,6 +21,12 @@ ROOT = Path(__file__).resolve().parent.parent
 #: FMU model identifier -> the pythonfmu script that defines it.
 FMU_SCRIPTS = {
     "SpringMass": "fmus/spring_mass/spring_mass_fmu.py",
+    "ElasticBody2D": "fmus/elastic/elastic_body_fmu.py",
+}
+#: Folders copied into an FMU's resources folder besides the fmus package (a user's mesh
+#: files: ``mesh_file = "meshes/deck_plate.vtk"``).
+FMU_RESOURCES = {
+    "ElasticBody2D": ["fmus/elastic/meshes"],
 }
 SSD_NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
 
@@ -30,7 +36,8 @@ def _newest(paths) -> float:
 
 
 def _sources(root: Path) -> list[Path]:
-    files = [p for p in (root / "fmus").rglob("*.py") if "__pycache__" not in p.parts]
+    files = [p for p in (root / "fmus").rglob("*") if p.is_file()
+             and "__pycache__" not in p.parts and p.suffix != ".pyc"]
     return files + [Path(__file__)]
 
 
@@ -66,7 +73,9 @@ def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Pa
         shutil.copytree(root / "fmus", package,
                         ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
         FmuBuilder.build_FMU(root / FMU_SCRIPTS[identifier], dest=target,
-                             project_files=[package], canGetAndSetFMUstate=True,
+                             project_files=[package] + [
+                                 root / extra for extra in FMU_RESOURCES.get(identifier, [])],
+                             canGetAndSetFMUstate=True,
                              canSerializeFMUstate=True)
     _complete_model_description(target)
     return target

@@ -23,11 +23,14 @@ def _q(ns, tag):
 
 
 def parameter_set(name: str, values: dict) -> etree._Element:
-    """An ssv:ParameterSet; ints become Integer, floats Real."""
+    """An ssv:ParameterSet; ints become Integer, floats Real, strings String."""
     root = etree.Element(_q(SSV, "ParameterSet"), nsmap={"ssv": SSV}, version="1.0", name=name)
     parameters = etree.SubElement(root, _q(SSV, "Parameters"))
     for key, value in values.items():
         parameter = etree.SubElement(parameters, _q(SSV, "Parameter"), name=key)
+        if isinstance(value, str):
+            etree.SubElement(parameter, _q(SSV, "String"), value=value)
+            continue
         kind = "Integer" if isinstance(value, int) else "Real"
         etree.SubElement(parameter, _q(SSV, kind), value=repr(value))
     return root
@@ -45,9 +48,21 @@ class SceneWriter:
         self.elements = etree.SubElement(self.system, _q(SSD, "Elements"))
         self.parameter_sets: dict[str, etree._Element] = {}
         self.joints: list[etree._Element] = []
+        #: dotted path ("" for the root) -> (ssd:System, its ssd:Elements, its joints)
+        self.systems = {"": (self.system, self.elements, self.joints)}
 
-    def component(self, name: str, fmu: str, parameters: dict, outputs=()) -> None:
-        element = etree.SubElement(self.elements, _q(SSD, "Component"), name=name,
+    def nested_system(self, name: str, parent: str = "") -> str:
+        """Add an ssd:System ``name`` inside system ``parent``; returns its dotted path."""
+        elements = self.systems[parent][1]
+        system = etree.SubElement(elements, _q(SSD, "System"), name=name)
+        path = f"{parent}.{name}" if parent else name
+        self.systems[path] = (system, etree.SubElement(system, _q(SSD, "Elements")), [])
+        return path
+
+    def component(self, name: str, fmu: str, parameters: dict, outputs=(),
+                  system: str = "") -> None:
+        """A component of system ``system`` (a dotted path, "" for the root)."""
+        element = etree.SubElement(self.systems[system][1], _q(SSD, "Component"), name=name,
                                    type="application/x-fmu-sharedlibrary",
                                    source=f"resources/{fmu}.fmu")
         if outputs:
@@ -57,26 +72,30 @@ class SceneWriter:
                                              name=output, kind="output")
                 etree.SubElement(connector, _q(SSC, "Real"))
         bindings = etree.SubElement(element, _q(SSD, "ParameterBindings"))
+        path = f"{system}.{name}" if system else name
         etree.SubElement(bindings, _q(SSD, "ParameterBinding"),
-                         source=f"resources/{name}.ssv")
-        self.parameter_sets[name] = parameter_set(name, parameters)
+                         source=f"resources/{path}.ssv")
+        self.parameter_sets[path] = parameter_set(path, parameters)
 
     def joint(self, name, a, b, dofs="x", kind="fixed", measure="displacement",
-              spring=None, damper=None, penalty=None) -> None:
+              spring=None, damper=None, penalty=None, system: str = "") -> None:
+        """A glue joint declared in system ``system``; ``a`` and ``b`` are relative to it."""
         joint = etree.Element(_q(GLUE, "Joint"), name=name, a=a, b=b, dofs=dofs,
                               kind=kind, measure=measure)
         for tag, values in (("Spring", spring), ("Damper", damper), ("Penalty", penalty)):
             if values:
                 etree.SubElement(joint, _q(GLUE, tag), {k: repr(v) for k, v in values.items()})
-        self.joints.append(joint)
+        self.systems[system][2].append(joint)
 
     def write(self, folder: Path, start: float, stop: float, **master) -> None:
-        if self.joints:
-            annotations = etree.SubElement(self.system, _q(SSD, "Annotations"))
+        for system, _, joints in self.systems.values():
+            if not joints:
+                continue
+            annotations = etree.SubElement(system, _q(SSD, "Annotations"))
             annotation = etree.SubElement(annotations, _q(SSC, "Annotation"),
                                           type="org.dsim.gluing")
             gluing = etree.SubElement(annotation, _q(GLUE, "Gluing"), nsmap={"glue": GLUE})
-            gluing.extend(self.joints)
+            gluing.extend(joints)
         experiment = etree.SubElement(self.root, _q(SSD, "DefaultExperiment"),
                                       startTime=repr(start), stopTime=repr(stop))
         annotations = etree.SubElement(experiment, _q(SSD, "Annotations"))
@@ -138,6 +157,102 @@ def chain(n: int) -> SceneWriter:
     return scene
 
 
+#: frame_split / frame_nested (SCENES.md; seed section 2.2): Newmark, H = 1e-4 s, 0 to 0.2 s.
+#: The glued quantities are global positions (about 1 m) while the response is about
+#: 1e-5 m: the tolerance is absolute and near round-off, and the flexibility is measured
+#: with a large force perturbation (the bodies are linear, so it has no truncation error).
+FRAME = {"step": 1e-4, "stop": 0.2, "tolerance": 1e-14, "perturbation": 1.0,
+         "element_size": 0.025}
+#: The plate of frame_nested: a steel strip x in [0.05, 3.95], y in [0.55, 0.65] (m),
+#: meshed at 0.05 m, pinned at the cross members' mid points; a user mesh file.
+PLATE = {"mesh_file": "meshes/deck_plate.vtk", "bounds": (0.05, 3.95, 0.55, 0.65),
+         "element_size": 0.05, "points": {"front": (0.05, 0.6), "mid": (2.0, 0.6),
+                                          "rear": (3.95, 0.6)}}
+
+
+def frame_part_parameters(part: str, element_size: float = FRAME["element_size"],
+                          center: bool = False, **options) -> dict:
+    """Parameters of the ElasticBody2D FMU for one ladder-frame part; ``S.nodes`` is the
+    part's node count on every port the scene glues (``center`` only if asked)."""
+    from fmus.elastic.parts import frame_port_nodes
+
+    values = {"part": part, "element_size": element_size, "mass": "consistent", "modes": 0}
+    values.update(options)
+    for port, count in frame_port_nodes(part, element_size).items():
+        if port != "center" or center:
+            values[f"{port}.nodes"] = count
+    return values
+
+
+def _frame(scene: SceneWriter, system: str = "", center: bool = False) -> None:
+    """The five parts and six edge joints of frame_split, in system ``system``."""
+    from fmus.elastic.frame import COMPONENTS, JOINTS
+
+    for part in COMPONENTS:
+        outputs = ["load.u_x"] if part == "cross_front" else []
+        scene.component(part, "ElasticBody2D", frame_part_parameters(part, center=center),
+                        outputs=outputs, system=system)
+    for a, b in JOINTS:  # a = rail_<side>.<cross>, b = cross_<cross>.<side>
+        cross, side = b.split(".")[0].split("_")[1], b.split(".")[1]
+        scene.joint(f"{cross}_{side}", a, b, dofs="x y", system=system)
+
+
+def frame_split() -> SceneWriter:
+    """SCENES.md frame_split: the ladder frame as five FE FMUs glued node to node."""
+    scene = SceneWriter("frame_split", "Seed section 2.2.1: a ladder frame split into two "
+                        "rails and three cross members, glued node to node on six edges")
+    _frame(scene)
+    return scene
+
+
+def plate_parameters() -> dict:
+    """The frame_nested plate: part 'mesh' from the FMU's resources, three one-node ports."""
+    values = {"part": "mesh", "mesh_file": PLATE["mesh_file"], "mass": "consistent",
+              "load.probe": 1, "load.point_x": PLATE["points"]["mid"][0],
+              "load.point_y": PLATE["points"]["mid"][1]}
+    for port, (x, y) in PLATE["points"].items():
+        values[f"{port}.set"] = f"point {x!r} {y!r}"
+        values[f"{port}.nodes"] = 1
+    return values
+
+
+def write_plate_mesh(root: Path = ROOT) -> Path:
+    """Write the plate's mesh file (what a user brings) into fmus/elastic/meshes/."""
+    from fmus.elastic.geometry import rectangle
+
+    x0, x1, y0, y1 = PLATE["bounds"]
+    target = root / "fmus" / "elastic" / PLATE["mesh_file"]
+    target.parent.mkdir(parents=True, exist_ok=True)
+    rectangle(x0, x1, y0, y1, PLATE["element_size"]).save(str(target))
+    return target
+
+
+def frame_nested(flat: bool = False) -> SceneWriter:
+    """SCENES.md frame_nested: the frame as the nested system ``frame`` (level 2), pinned
+    (dofs x y) at the cross members' mid points to a plate (level 1). ``flat``: the same
+    model with every component and joint in the root system (frame_nested_flat)."""
+    name = "frame_nested_flat" if flat else "frame_nested"
+    scene = SceneWriter(name, "Seed section 2.2.2: the ladder frame as a nested system "
+                        "glued to a plate" + (", flattened" if flat else ""))
+    system = "" if flat else scene.nested_system("frame")
+    prefix = "" if flat else "frame."
+    _frame(scene, system, center=True)
+    scene.component("plate", "ElasticBody2D", plate_parameters(), outputs=["load.u_x"])
+    for cross in ("front", "mid", "rear"):
+        scene.joint(f"plate_{cross}", f"{prefix}cross_{cross}.center", f"plate.{cross}",
+                    dofs="x y")
+    return scene
+
+
+def write_frame_scenes(root: Path = ROOT) -> None:
+    """frame_split, frame_nested, frame_nested_flat (and the plate's mesh file)."""
+    write_plate_mesh(root)
+    for scene in (frame_split(), frame_nested(), frame_nested(flat=True)):
+        scene.write(root / "ssp" / scene.name, 0.0, FRAME["stop"], step=FRAME["step"],
+                    tolerance=FRAME["tolerance"], maxIterations=20, predictor="linear",
+                    refreshAfter=10, perturbation=FRAME["perturbation"])
+
+
 def write_all(root: Path = ROOT) -> None:
     """(Re)write every generated scene folder."""
     p = SPRING_MASS
@@ -150,6 +265,7 @@ def write_all(root: Path = ROOT) -> None:
         scene = chain(n)
         scene.write(root / "ssp" / scene.name, 0.0, CHAIN["stop"], step=CHAIN["step"],
                     tolerance=1e-13, maxIterations=20, predictor="linear", refreshAfter=10)
+    write_frame_scenes(root)
 
 
 if __name__ == "__main__":

@@ -45,34 +45,39 @@ def can_save_state(path: Path) -> bool:
     return bool(cs and cs.canGetAndSetFMUstate)
 
 
-class _Log:
-    """FMI logger callbacks that keep the last messages of one instance."""
+#: instance name -> the last (fmi2Status, one-line message) pairs it logged
+_MESSAGES: dict[str, list[tuple[int, str]]] = {}
 
-    def __init__(self, keep: int = 20):
-        self.messages: list[tuple[int, str]] = []  # (fmi2Status, one-line message)
-        self.keep = keep
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        try:  # fmpy's proxy formats the variadic message as its default logger does
-            from ctypes import byref
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(byref(self.callbacks))
-        except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
-            pass
 
-    def _log(self, environment, instance, status, category, message):
-        text = " ".join((message or b"").decode("utf-8", "replace").split())
-        self.messages = (self.messages + [(int(status), text)])[-self.keep:]
+def _log(environment, instance, status, category, message):
+    name = (instance or b"").decode("utf-8", "replace")
+    text = " ".join((message or b"").decode("utf-8", "replace").split())
+    _MESSAGES[name] = (_MESSAGES.get(name, []) + [(int(status), text)])[-20:]
 
-    def reason(self) -> str:
-        """The first error the FMU logged (fmi2Error before fmi2Fatal), or ''."""
-        for level in (3, 4):
-            for status, text in self.messages:
-                if status == level and text:
-                    return text
-        return ""
+
+# One callbacks structure for the whole process, alive as long as it is: fmpy's proxy
+# (which formats the variadic message) keeps a single global pointer to the logger.
+_CALLBACKS = fmi2CallbackFunctions()
+_CALLBACKS.logger = fmi2CallbackLoggerTYPE(_log)
+_CALLBACKS.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+_CALLBACKS.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+try:
+    from ctypes import byref as _byref
+
+    from fmpy.logging import addLoggerProxy as _add_logger_proxy
+    _add_logger_proxy(_byref(_CALLBACKS))
+except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
+    pass
+
+
+def logged_error(instance: str) -> str:
+    """The first error an instance logged (fmi2Error before fmi2Fatal), or ''."""
+    messages = _MESSAGES.get(instance, [])
+    for level in (3, 4):
+        for status, text in messages:
+            if status == level and text:
+                return text
+    return ""
 
 
 class FmuSubsystem(Subsystem):
@@ -104,22 +109,20 @@ class FmuSubsystem(Subsystem):
         self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped(self.path),
                              modelIdentifier=description.coSimulation.modelIdentifier,
                              instanceName=name)
-        self._log = _Log()
+        _MESSAGES.pop(name, None)
         try:
             self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
-                callbacks=self._log.callbacks, loggingOn=True))
+                callbacks=_CALLBACKS, loggingOn=True))
             self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
                 startTime=start_time, stopTime=stop_time))
             self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
             self._set_parameters(parameters, variables)
             self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
         except SimulationError as error:
-            reason = self._log.reason() or str(error)
-            if self.fmu.component is not None:
-                try:
-                    self.fmu.freeInstance()
-                except Exception:  # the instance is broken already; the reason matters
-                    pass
+            # No fmi2FreeInstance: after fmi2Fatal the standard allows no further call, and
+            # pythonfmu (0.7) has already released its Python objects when it reports one:
+            # freeing the instance would release them twice and crash the process later.
+            reason = logged_error(name) or str(error)
             raise InputError(f"{location or name}: FMU {self.path.name} cannot be "
                              f"initialised with these parameters: {reason}") from None
 
@@ -143,15 +146,12 @@ class FmuSubsystem(Subsystem):
 
     # --- Subsystem -------------------------------------------------------------------
     def save_state(self):
-        if self._state is None:
-            self._state = self._call("fmi2GetFMUstate", self.fmu.getFMUstate)
-        else:  # overwrite the held state rather than allocate one per step
-            self._call("fmi2GetFMUstate", self._update_state)
-
-    def _update_state(self):
-        from ctypes import byref
-        state = self._state
-        self.fmu.fmi2GetFMUstate(self.fmu.component, byref(state))
+        # Free the held state before taking the next: asking an FMU to overwrite a state in
+        # place (FMI 2.0 allows it) leaks the old one in pythonfmu, which always allocates.
+        if self._state is not None:
+            self._call("fmi2FreeFMUstate", self.fmu.freeFMUstate, self._state)
+            self._state = None
+        self._state = self._call("fmi2GetFMUstate", self.fmu.getFMUstate)
 
     def restore_state(self):
         self._call("fmi2SetFMUstate", self.fmu.setFMUstate, self._state)

@@ -25,9 +25,14 @@ class NewmarkAverageAcceleration:
         self._effective = None
         self._mass_lu = None
 
+    #: Step sizes this close (relative) to the factored one reuse its factor and are
+    #: replaced by it: a master's communication steps t_{n+1} - t_n differ in the last bits.
+    SAME_STEP = 1e-9
+
     def factor(self, step_size: float) -> None:
-        """Factor K + 2/h C + 4/h^2 M, unless already factored for this exact ``step_size``."""
-        if step_size == self.step_size:
+        """Factor K + 2/h C + 4/h^2 M, unless already factored for this ``step_size``."""
+        if self.step_size is not None and abs(step_size - self.step_size) <= (
+                self.SAME_STEP * self.step_size):
             return
         if not step_size > 0:
             raise ValueError(f"step size must be positive, got {step_size}")
@@ -42,7 +47,7 @@ class NewmarkAverageAcceleration:
              step_size: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Displacement, velocity, acceleration at t + h from those at t and f(t + h)."""
         self.factor(step_size)
-        h = step_size
+        h = self.step_size  # the factored step (equal to step_size up to SAME_STEP)
         rhs = force_next + self.mass @ ((4.0 / h ** 2) * u + (4.0 / h) * v + a)
         if self.damping is not None:
             rhs = rhs + self.damping @ ((2.0 / h) * u + v)

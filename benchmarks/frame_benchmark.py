@@ -1,0 +1,169 @@
+"""frame_split glued through dsim against the monolithic finite-element solve, and the
+Craig-Bampton error table; writes docs/frame_benchmark.md.
+
+``python -m benchmarks.frame_benchmark [--stop 0.2]`` (OMP_NUM_THREADS=1). Both solves
+run in this process, one after the other, on the same machine: the ratio is what the
+gluing costs over solving the frame as one mesh. A short glued run is profiled to say
+where the time goes.
+"""
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import pstats
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fmus.elastic import craig_bampton_error, frame
+from fmus.elastic.parts import PartSpec, build_body
+
+ROOT = Path(__file__).resolve().parent.parent
+MODES = (5, 10, 20, 40, 60)
+CB_STEPS = 500
+
+
+def glued_versus_monolithic(stop: float) -> dict:
+    """Wall times, the error and the run statistics of frame_split over [0, stop]."""
+    from examples.frame import compare
+    from master.run import run
+
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "frame_split.csv"
+        statistics = run(ROOT / "build" / "ssp" / "frame_split.ssp", out, stop=stop).data
+        reference = frame.monolithic_frame(stop_time=stop)
+        result = compare(out, reference)
+    return {"statistics": statistics, "monolithic_seconds": reference.wall_time,
+            "relative_error": result["relative_error"], "peak": result["peak"]}
+
+
+def profile_glued(stop: float = 0.01, top: int = 14) -> str:
+    """cProfile of a short glued run: the functions with most cumulative time."""
+    from master.run import run
+
+    profiler = cProfile.Profile()
+    with tempfile.TemporaryDirectory() as folder:
+        profiler.enable()
+        run(ROOT / "build" / "ssp" / "frame_split.ssp", Path(folder) / "p.csv", stop=stop)
+        profiler.disable()
+    text = io.StringIO()
+    pstats.Stats(profiler, stream=text).sort_stats("tottime").print_stats(top)
+    return text.getvalue()
+
+
+def part_step_seconds(part: str, modes: int | None, steps: int = 300) -> float:
+    """Seconds per Newmark step of one frame part alone (ports glued, forces zero)."""
+    spec = PartSpec(part=part, modes=modes or 0)
+    for port, count in {"rail": {"front": 5, "mid": 5, "rear": 5},
+                        "cross": {"left": 5, "right": 5}}[part.split("_")[0]].items():
+        spec.nodes[port] = count
+    body = build_body(spec)
+    body.initialize(0.0)
+    start = time.perf_counter()
+    for n in range(steps):
+        body.step(n * frame.STEP_SIZE, frame.STEP_SIZE)
+    return (time.perf_counter() - start) / steps
+
+
+def craig_bampton_table() -> list[dict]:
+    """Rail_left driven at its three port edges (y, 25 Hz), reduced vs full, 500 steps."""
+    def build(modes):
+        return frame.rail("left", modes=modes)
+
+    size = len(build(None).interface)
+
+    def forces(t):  # 100 N per port node in y, at the load's 25 Hz
+        return np.tile([0.0, 100.0 * np.sin(50 * np.pi * t)], size // 2)
+
+    rows = [{"modes": "full", "coordinates": build(None).stiffness.shape[0],
+             "response": 0.0, "frequency": 0.0,
+             "step_ms": 1e3 * part_step_seconds("rail_left", None)}]
+    for modes in MODES:
+        error = craig_bampton_error(build, modes, frame.STEP_SIZE, CB_STEPS, forces)
+        rows.append({"modes": modes, "coordinates": build(modes).stiffness.shape[0],
+                     "response": error.response, "frequency": error.frequency,
+                     "step_ms": 1e3 * part_step_seconds("rail_left", modes)})
+    return rows
+
+
+def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md") -> str:
+    run = glued_versus_monolithic(stop)
+    stats = run["statistics"]
+    wall, mono = stats["wall_seconds"], run["monolithic_seconds"]
+    inside = stats["seconds_in_fmus"]
+    do_steps = {name: c["functions"]["fmi2DoStep"] for name, c in stats["components"].items()}
+    core_ms = {p: 1e3 * part_step_seconds(p, None) for p in ("rail_left", "cross_front")}
+    profile = profile_glued()
+    table = craig_bampton_table()
+    lines = [
+        "# frame_split: glued versus monolithic, and Craig-Bampton", "",
+        "Written by `python -m benchmarks.frame_benchmark` (OMP_NUM_THREADS=1, one process, "
+        "the in-process backend). Scene: build/ssp/frame_split.ssp, five ElasticBody2D FMUs "
+        f"glued on six edges, H = 1e-4 s, 0 to {stop:g} s ({stats['steps']} steps).", "",
+        "## Glued versus monolithic", "",
+        "| quantity | value |", "|---|---|",
+        f"| glued wall time (dsim run) | {wall:.2f} s |",
+        f"| monolithic FE solve (one mesh, same Newmark rule and step) | {mono:.2f} s |",
+        f"| ratio glued / monolithic | {wall / mono:.1f} |",
+        f"| load-point error, relative to the peak ({run['peak']:.3e} m) | "
+        f"{run['relative_error']:.2e} |",
+        f"| iterations per step (mean / max) | {stats['iterations']['mean_per_step']:.2f} / "
+        f"{stats['iterations']['max_per_step']} |",
+        f"| Lambda refreshes | {stats['lambda_refreshes']} |",
+        f"| doSteps per FMU per step | {stats['do_steps_per_step'] / 5:.2f} |",
+        f"| time inside the FMUs | {inside:.2f} s ({100 * inside / wall:.0f}% of the wall "
+        "time) |",
+        "", "doStep per component (calls, seconds, ms per call):", "",
+    ]
+    for name, entry in do_steps.items():
+        lines.append(f"- {name}: {entry['calls']}, {entry['seconds']:.2f} s, "
+                     f"{1e3 * entry['seconds'] / entry['calls']:.2f} ms")
+    lines += [
+        "", "The bare core step (ElasticBody.step, no FMI) takes "
+        f"{core_ms['rail_left']:.2f} ms for a rail and {core_ms['cross_front']:.2f} ms for a "
+        "cross member.", "",
+        "## Where the time goes", "",
+        "The glued frame costs more than 3x the monolithic solve. Found and fixed while "
+        "profiling: the Newmark kernel refactored its effective stiffness (splu) whenever "
+        "the step size changed, and the master's communication steps t_{n+1} - t_n differ "
+        "in the last bits, so almost every doStep refactored (glued run 29.5 s, ratio 15.6); "
+        "fmus/elastic/newmark.py now reuses the factor for steps equal to 1e-9 relative "
+        "(and integrates with the factored step). What remains, from the counters above "
+        "and the profile below:", "",
+        "1. Two doSteps per part per macro step: the predicted force, then one Newton "
+        "correction (the bodies are linear, Lambda is exact, so the second trial converges). "
+        "Together the five parts have about as many dofs as the one mesh, so the finite-"
+        "element work alone is about twice the monolithic solve's.",
+        "2. The FMI boundary: a doStep through pythonfmu costs several times the bare core "
+        "step (the C-to-Python call, the CoreBinding refresh copying every output, the "
+        "fixed 492-slot port layout scattered on every step), and every iteration adds "
+        "fmi2SetFMUstate, fmi2SetReal and fmi2GetReal calls whose per-variable Python getters "
+        "and setters dominate for small parts.",
+        "3. The master: residual, sparse products and the CSV row per step, and "
+        "fmi2GetFMUstate (a deep copy of q, v, a) once per step per part.",
+        "", "Profile of a 0.01 s glued run (sorted by own time):", "", "```",
+        profile.strip(), "```", "",
+        "## Craig-Bampton (rail_left, forced at its three port edges)", "",
+        f"rail_left with a 25 Hz force of 100 N (y) on each of its 15 port nodes, "
+        f"{CB_STEPS} steps of 1e-4 s; the error is `craig_bampton_error`: max over time of "
+        "the interface displacement error relative to the full model's peak, and the "
+        "largest relative error of the lowest four natural frequencies. Time per step: "
+        "ElasticBody.step alone.", "",
+        "| modes | coordinates | response error | frequency error | ms per step |",
+        "|---|---|---|---|---|",
+    ]
+    for row in table:
+        lines.append(f"| {row['modes']} | {row['coordinates']} | {row['response']:.2e} | "
+                     f"{row['frequency']:.2e} | {row['step_ms']:.3f} |")
+    text = "\n".join(lines) + "\n"
+    path.write_text(text)
+    return text
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--stop", type=float, default=frame.STOP_TIME)
+    print(write_report(parser.parse_args().stop))
