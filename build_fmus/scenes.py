@@ -60,8 +60,9 @@ class SceneWriter:
         return path
 
     def component(self, name: str, fmu: str, parameters: dict, outputs=(),
-                  system: str = "") -> None:
-        """A component of system ``system`` (a dotted path, "" for the root)."""
+                  system: str = "", inline: bool = False) -> None:
+        """A component of system ``system`` (a dotted path, "" for the root); its
+        parameters go to resources/<path>.ssv, or into the SSD itself if ``inline``."""
         element = etree.SubElement(self.systems[system][1], _q(SSD, "Component"), name=name,
                                    type="application/x-fmu-sharedlibrary",
                                    source=f"resources/{fmu}.fmu")
@@ -73,6 +74,11 @@ class SceneWriter:
                 etree.SubElement(connector, _q(SSC, "Real"))
         bindings = etree.SubElement(element, _q(SSD, "ParameterBindings"))
         path = f"{system}.{name}" if system else name
+        if inline:
+            binding = etree.SubElement(bindings, _q(SSD, "ParameterBinding"))
+            values = etree.SubElement(binding, _q(SSD, "ParameterValues"))
+            values.append(parameter_set(path, parameters))
+            return
         etree.SubElement(bindings, _q(SSD, "ParameterBinding"),
                          source=f"resources/{path}.ssv")
         self.parameter_sets[path] = parameter_set(path, parameters)
@@ -102,9 +108,11 @@ class SceneWriter:
         annotation = etree.SubElement(annotations, _q(SSC, "Annotation"), type="org.dsim.master")
         etree.SubElement(annotation, _q(GLUE, "Master"), {k: str(v) for k, v in master.items()},
                          nsmap={"glue": GLUE})
-        (folder / "resources").mkdir(parents=True, exist_ok=True)
+        folder.mkdir(parents=True, exist_ok=True)
         for old in (folder / "resources").glob("*.ssv"):
             old.unlink()
+        if self.parameter_sets:
+            (folder / "resources").mkdir(exist_ok=True)
         etree.ElementTree(self.root).write(str(folder / "SystemStructure.ssd"),
                                            pretty_print=True, xml_declaration=True,
                                            encoding="UTF-8")
@@ -151,7 +159,7 @@ def chain(n: int) -> SceneWriter:
         values = {"n": 1, "m[1]": p["m"], "k_ground[1]": p["k"], "P.mass": 1, "Q.mass": 1}
         if i == 1:
             values.update({"Fa[1]": p["Fa"], "omega[1]": 2 * math.pi * p["frequency"]})
-        scene.component(f"m{i}", "SpringMass", values, outputs=["x[1]"])
+        scene.component(f"m{i}", "SpringMass", values, outputs=["x[1]"], inline=True)
     for i in range(1, n):
         scene.joint(f"j{i}", f"m{i}.Q", f"m{i + 1}.P")
     return scene
@@ -184,13 +192,16 @@ def frame_part_parameters(part: str, element_size: float = FRAME["element_size"]
     return values
 
 
-def _frame(scene: SceneWriter, system: str = "", center: bool = False) -> None:
+def _frame(scene: SceneWriter, system: str = "", center: bool = False,
+           cross_element_size: float = FRAME["element_size"]) -> None:
     """The five parts and six edge joints of frame_split, in system ``system``."""
     from fmus.elastic.frame import COMPONENTS, JOINTS
 
     for part in COMPONENTS:
         outputs = ["load.u_x"] if part == "cross_front" else []
-        scene.component(part, "ElasticBody2D", frame_part_parameters(part, center=center),
+        size = cross_element_size if part.startswith("cross") else FRAME["element_size"]
+        scene.component(part, "ElasticBody2D",
+                        frame_part_parameters(part, size, center=center),
                         outputs=outputs, system=system)
     for a, b in JOINTS:  # a = rail_<side>.<cross>, b = cross_<cross>.<side>
         cross, side = b.split(".")[0].split("_")[1], b.split(".")[1]
@@ -202,6 +213,20 @@ def frame_split() -> SceneWriter:
     scene = SceneWriter("frame_split", "Seed section 2.2.1: a ladder frame split into two "
                         "rails and three cross members, glued node to node on six edges")
     _frame(scene)
+    return scene
+
+
+#: frame_nonmatching (SCENES.md; seed section 2.2.3): cross members meshed at half the
+#: rails' element size, so 9 cross-member nodes face 5 rail nodes on every interface edge.
+NONMATCHING_CROSS_SIZE = 0.0125
+
+
+def frame_nonmatching() -> SceneWriter:
+    """SCENES.md frame_nonmatching: frame_split with finer cross members, glued by MLS."""
+    scene = SceneWriter("frame_nonmatching", "Seed section 2.2.3: the ladder frame with "
+                        "cross members meshed at 0.0125 m and rails at 0.025 m, glued on "
+                        "non-matching edges by moving least squares")
+    _frame(scene, cross_element_size=NONMATCHING_CROSS_SIZE)
     return scene
 
 
@@ -247,7 +272,8 @@ def frame_nested(flat: bool = False) -> SceneWriter:
 def write_frame_scenes(root: Path = ROOT) -> None:
     """frame_split, frame_nested, frame_nested_flat (and the plate's mesh file)."""
     write_plate_mesh(root)
-    for scene in (frame_split(), frame_nested(), frame_nested(flat=True)):
+    for scene in (frame_split(), frame_nonmatching(), frame_nested(),
+                  frame_nested(flat=True)):
         scene.write(root / "ssp" / scene.name, 0.0, FRAME["stop"], step=FRAME["step"],
                     tolerance=FRAME["tolerance"], maxIterations=20, predictor="linear",
                     refreshAfter=10, perturbation=FRAME["perturbation"])
@@ -261,7 +287,7 @@ def write_all(root: Path = ROOT) -> None:
         scene.write(root / "ssp" / scene.name, 0.0, p["stop"], step=p["step"],
                     tolerance=p["tolerance"], maxIterations=20, predictor="linear",
                     refreshAfter=10)
-    for n in (10, 100):
+    for n in (10, 100, 1000):
         scene = chain(n)
         scene.write(root / "ssp" / scene.name, 0.0, CHAIN["stop"], step=CHAIN["step"],
                     tolerance=1e-13, maxIterations=20, predictor="linear", refreshAfter=10)

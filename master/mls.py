@@ -9,7 +9,8 @@ dependent nodes reach the independent nodes as ``T^T F``.
 
 Each row is a local linear least-squares fit (basis 1, s in the interface's own
 coordinates) weighted by a cubic spline of support ``support`` times the
-independent nodes' spacing.  Because the basis holds constants and linear
+independent nodes' spacing (default 1: on an edge, the piecewise linear
+interpolant, the same tie a conforming mesh transition makes).  Because the basis holds constants and linear
 functions, every row sums to one and reproduces the node coordinates exactly;
 so the total force and the total moment carried across are conserved exactly.
 
@@ -39,12 +40,14 @@ def _spline(r: np.ndarray) -> np.ndarray:
 
 
 def transfer_matrix(dependent: np.ndarray, independent: np.ndarray,
-                    support: float = 2.0) -> np.ndarray:
+                    support: float = 1.0) -> np.ndarray:
     """MLS weights T (n_dependent x n_independent) from node coordinates (m).
 
     ``support`` is the radius of influence in units of the independent nodes'
-    mean nearest-neighbour spacing; each dependent node must see at least as
-    many independent nodes as the basis has terms, else ValueError.
+    mean nearest-neighbour spacing.  At 1 an edge's transfer is the piecewise
+    linear interpolant (each point sees the two nodes around it); larger values
+    smooth over more nodes.  A node that sees fewer nodes than the basis has
+    terms widens its own radius until it sees enough.
     """
     dependent = np.atleast_2d(np.asarray(dependent, float))
     independent = np.atleast_2d(np.asarray(independent, float))
@@ -58,12 +61,25 @@ def transfer_matrix(dependent: np.ndarray, independent: np.ndarray,
     terms = basis_ind.shape[1]
     rows = []
     for point in s_dep:
-        weights = _spline(np.linalg.norm(s_ind - point, axis=1) / radius)
+        distances = np.linalg.norm(s_ind - point, axis=1)
+        nearest = int(np.argmin(distances))
+        reach = radius
+        while True:
+            weights = _spline(distances / reach)
+            weights[weights < 1e-12 * weights.max(initial=0.0)] = 0.0  # round-off at the rim
+            if np.count_nonzero(weights) >= terms or distances[nearest] <= 1e-9 * reach:
+                break
+            if reach > 2.0 * distances.max():
+                raise ValueError(f"MLS: {len(s_ind)} nodes cannot determine a fit of "
+                                 f"{terms} terms at {point}")
+            reach *= 1.25  # this node sees too few: widen its own support only
         if np.count_nonzero(weights) < terms:
-            raise ValueError(f"MLS: a node at {point} sees {np.count_nonzero(weights)} "
-                             f"nodes of the other side within {radius:.3g} m; "
-                             "raise the support")
+            # on top of an independent node that alone is in reach: take its value,
+            # which is the linear interpolant there
+            row = np.zeros(len(s_ind))
+            row[nearest] = 1.0
+            rows.append(row)
+            continue
         moment = basis_ind.T @ (weights[:, None] * basis_ind)
-        p = np.r_[1.0, point]
-        rows.append(np.linalg.solve(moment, p) @ (basis_ind.T * weights))
+        rows.append(np.linalg.solve(moment, np.r_[1.0, point]) @ (basis_ind.T * weights))
     return np.array(rows)

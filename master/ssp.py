@@ -54,7 +54,7 @@ class Joint:
     c1: tuple[float, ...] = ()
     xi: float = 1.0
     omega: float = 0.0
-    support: float = 2.0
+    support: float = 1.0
     location: str = ""
 
 
@@ -348,7 +348,7 @@ class _Reader:
                 xi = _floats(penalty.get("xi"), 1, 1.0, f"{where}: xi", self.problems)[0]
                 omega = _floats(penalty.get("omega"), 1, 0.0, f"{where}: omega",
                                 self.problems)[0]
-        support = _floats(element.get("support"), 1, 2.0, f"{where}: support",
+        support = _floats(element.get("support"), 1, 1.0, f"{where}: support",
                           self.problems)[0]
         if not support > 0:
             self.problems.append(f"{where}: support must be positive")

@@ -41,9 +41,28 @@ def test_a_face_in_3d_reproduces_linear_fields():
     assert np.allclose(T @ field, 3.0 * finer[:, 0] - 2.0 * finer[:, 1] + 1.0, atol=1e-12)
 
 
-def test_too_small_a_support_is_a_clear_error():
-    with pytest.raises(ValueError, match="raise the support"):
-        transfer_matrix(edge(9), edge(5), support=0.3)
+def test_support_one_on_an_edge_is_the_linear_interpolant():
+    T = transfer_matrix(edge(9), edge(5), support=1.0)
+    expected = np.zeros((9, 5))
+    for p in range(9):
+        k, odd = divmod(p, 2)
+        expected[p, k] = 0.5 if odd else 1.0
+        if odd:
+            expected[p, k + 1] = 0.5
+    assert np.allclose(T, expected, atol=1e-14)
+
+
+def test_a_node_seeing_too_few_nodes_widens_its_own_support():
+    """A face point on a cell edge sees 2 nodes at support 1; a plane fit needs 3."""
+    grid = np.array([(x, y, 0.0) for x in range(3) for y in range(3)], float)
+    T = transfer_matrix(np.array([[0.5, 0.0, 0.0], [1.0, 1.0, 0.0]]), grid, support=0.3)
+    assert np.allclose(T @ grid, [[0.5, 0.0, 0.0], [1.0, 1.0, 0.0]], atol=1e-13)
+
+
+def test_too_few_nodes_for_a_fit_is_a_clear_error():
+    square = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], float)
+    with pytest.raises(ValueError, match="cannot determine a fit"):
+        transfer_matrix(np.array([[0.5, 0.5, 0.0]]), square[:2], support=1.0)
 
 
 def test_non_matching_bar_in_tension_matches_the_one_piece_bar():
@@ -79,7 +98,7 @@ def test_non_matching_bar_in_tension_matches_the_one_piece_bar():
     right = ElasticBody(right_mesh, STEEL, thickness=thickness, node_sets={"cut": cut},
                         ports=["cut"], loads=traction(right_mesh),
                         probes={"tip": (length, depth / 2)}, rayleigh=damping)
-    joint = Joint("j", ("left", "cut"), ("right", "cut"), ("x", "y"), support=2.0)
+    joint = Joint("j", ("left", "cut"), ("right", "cut"), ("x", "y"), support=2.0)  # smoothing
     gluing = glue_cores({"left": left, "right": right}, [joint],
                         MasterSettings(step=1e-4, tolerance=1e-14))
     assert gluing.layout.size == 2 * 9  # forces live on the finer side's nodes
