@@ -22,6 +22,8 @@ ROOT = Path(__file__).resolve().parent.parent
 FMU_SCRIPTS = {
     "SpringMass": "fmus/spring_mass/spring_mass_fmu.py",
     "ElasticBody2D": "fmus/elastic/elastic_body_fmu.py",
+    "Linkage2D": "fmus/linkage/linkage_fmu.py",
+    "FlexibleLink2D": "fmus/flexible_link/flexible_link_fmu.py",
 }
 #: Folders copied into an FMU's resources folder besides the fmus package (a user's mesh
 #: files: ``mesh_file = "meshes/deck_plate.vtk"``).

@@ -292,6 +292,9 @@ def write_all(root: Path = ROOT) -> None:
         scene.write(root / "ssp" / scene.name, 0.0, CHAIN["stop"], step=CHAIN["step"],
                     tolerance=1e-13, maxIterations=20, predictor="linear", refreshAfter=10)
     write_frame_scenes(root)
+    from build_fmus.linkage_scenes import write_all as write_linkage_scenes
+
+    write_linkage_scenes(root)
 
 
 if __name__ == "__main__":

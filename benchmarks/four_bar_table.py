@@ -1,0 +1,122 @@
+"""The seed's Table 5.1 through dsim: Lambda refreshes and total Newton
+iterations of the four bar glued with fixed and with flexible joints, at
+interface tolerances 1e-7 .. 1e-10 m (H = 0.01 s, refresh after 10 iterations).
+
+Every case runs the shipped scene archive with :func:`master.run.run` and a
+tolerance override, as ``dsim run build/ssp/four_bar_singular_<joints>.ssp
+--tol <tol>`` would.  A run that fails (:class:`master.errors.SimulationError`,
+exit code 1 on the command line) is reported as failed at its step and time,
+with the counts up to the failure.
+
+    python -m benchmarks.four_bar_table [--out docs/four_bar_table.md] [--stop 2]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+from pathlib import Path
+
+from build_fmus.linkage_scenes import FOUR_BAR
+from master.errors import SimulationError
+from master.run import run
+
+ROOT = Path(__file__).resolve().parent.parent
+#: The seed's Table 5.1 (refreshes, total iterations; None: failed at a singular point).
+SEED = {("fixed", 1e-7): (None, None), ("fixed", 1e-8): (16, 4935),
+        ("fixed", 1e-9): (18, 5217), ("fixed", 1e-10): (None, None),
+        ("flexible", 1e-7): (0, 2616), ("flexible", 1e-8): (0, 3016),
+        ("flexible", 1e-9): (0, 3457), ("flexible", 1e-10): (0, 3943)}
+
+
+def measure(joints: str, tolerance: float, out_dir: Path, stop: float | None = None) -> dict:
+    """One case: refreshes, iterations, steps done, and the failure if any."""
+    csv_path = out_dir / f"four_bar_{joints}_{tolerance:g}.csv"
+    failure = None
+    try:
+        run(ROOT / "build" / "ssp" / f"four_bar_singular_{joints}.ssp", csv_path,
+            tolerance=tolerance, stop=stop)
+    except SimulationError as error:
+        failure = error
+    stats = json.loads(csv_path.with_suffix(".stats.json").read_text())
+    return {"joints": joints, "tolerance": tolerance, "steps": stats["steps"],
+            "planned": stats["planned_steps"], "refreshes": stats["lambda_refreshes"],
+            "iterations": stats["iterations"]["total"],
+            "mean": stats["iterations"]["mean_per_step"],
+            "max": stats["iterations"]["max_per_step"], "wall": stats["wall_seconds"],
+            "failure": None if failure is None else str(failure),
+            "failed_step": None if failure is None else failure.step,
+            "failed_time": None if failure is None else failure.time}
+
+
+def _cell(row: dict, key: str) -> str:
+    if row["failure"]:
+        return (f"failed at step {row['failed_step']} (t = {row['failed_time']:.2f} s); "
+                f"{row[key]} before")
+    return str(row[key])
+
+
+def table(rows: list[dict]) -> str:
+    """Markdown: dsim's counts next to the seed's."""
+    by = {(r["joints"], r["tolerance"]): r for r in rows}
+    lines = ["| tolerance (m) | refreshes, fixed | refreshes, flexible | iterations, fixed | "
+             "iterations, flexible | seed refreshes fixed / flexible | "
+             "seed iterations fixed / flexible |", "|" + "---|" * 7]
+    for tolerance in FOUR_BAR["tolerances"]:
+        fixed, flexible = by[("fixed", tolerance)], by[("flexible", tolerance)]
+        seed_fixed, seed_flexible = SEED[("fixed", tolerance)], SEED[("flexible", tolerance)]
+        show = lambda v: "-" if v is None else str(v)  # noqa: E731
+        lines.append(
+            f"| {tolerance:g} | {_cell(fixed, 'refreshes')} | {_cell(flexible, 'refreshes')} | "
+            f"{_cell(fixed, 'iterations')} | {_cell(flexible, 'iterations')} | "
+            f"{show(seed_fixed[0])} / {show(seed_flexible[0])} | "
+            f"{show(seed_fixed[1])} / {show(seed_flexible[1])} |")
+    return "\n".join(lines)
+
+
+def details(rows: list[dict]) -> str:
+    lines = ["| joints | tolerance | steps done / planned | iterations per step (max) | "
+             "wall (s) | result |", "|" + "---|" * 6]
+    for r in rows:
+        lines.append(f"| {r['joints']} | {r['tolerance']:g} | {r['steps']} / {r['planned']} | "
+                     f"{r['mean']:.2f} ({r['max']}) | {r['wall']:.1f} | "
+                     f"{r['failure'] or 'passed'} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> list[dict]:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", default=str(ROOT / "docs" / "four_bar_table.md"))
+    parser.add_argument("--stop", type=float, help=f"stop time, s (default {FOUR_BAR['stop']})")
+    args = parser.parse_args(argv)
+    out_dir = ROOT / "results" / "four_bar_table"
+    rows = [measure(joints, tolerance, out_dir, args.stop)
+            for joints in ("fixed", "flexible") for tolerance in FOUR_BAR["tolerances"]]
+    stop = args.stop or FOUR_BAR["stop"]
+    text = "\n".join([
+        "# Four bar through its singular configuration: Table 5.1 by dsim",
+        "",
+        f"Written by `python -m benchmarks.four_bar_table` on {time.strftime('%Y-%m-%d')} "
+        f"(Python {platform.python_version()}, {platform.machine()}). Scenes "
+        "`four_bar_singular_fixed` and `four_bar_singular_flexible` (SCENES.md): crank, "
+        "coupler and rocker as three Linkage2D FMUs glued at A and B (dofs x y, displacement "
+        f"measure), H = {FOUR_BAR['step']} s, 0 to {stop:g} s (the crank passes the collinear "
+        "positions at t = 0.375, 0.875, 1.375, 1.875 s), predictor linear, Lambda refreshed "
+        "when a step needs more than 10 iterations (the seed's rule), at most "
+        f"{FOUR_BAR['max_iterations']} iterations per step. Flexible joints: k = 1e6 N/m, "
+        "c = 2 0.707 1e3 N.s/m. The seed's counts (Matlab ode45/ode15s parts, its own run "
+        "length) are shown for reference; only the pattern compares, not the numbers.",
+        "",
+        table(rows),
+        "",
+        details(rows),
+        "",
+    ])
+    Path(args.out).write_text(text)
+    print(text)
+    return rows
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,149 @@
+"""Write the linkage scene folders of ssp/ (SCENES.md: crank_slider_rigid,
+crank_slider_flexible, four_bar_singular_*, crank_slider_penalized*).
+
+``python -m build_fmus.linkage_scenes`` (re)writes them; ``python -m build_fmus``
+then packs them with their FMUs (Linkage2D, FlexibleLink2D) into build/ssp.
+
+Measures and tolerances (docs/linkages.md explains the choice):
+
+* crank slider (rigid and flexible coupler): ``penalized`` with xi = 1,
+  omega = 1000 rad/s, the same row as the Linkage parts' own Baumgarte
+  stabilisation, so the glued rigid mechanism solves the monolithic discrete
+  equations.  Tolerance 1e-7 (m/s^2, the penalized blend's units): its
+  round-off floor is near 1e-9 (omega^2 = 1e6 times a position's last bits).
+  Predictor ``quadratic`` and ``refreshAfter`` 3: the mechanism's interface
+  flexibility turns with the links, so a Lambda a few steps old converges
+  slowly (measured over 0..1 s: 3.4 iterations per step against 5.3 with the
+  default linear predictor and refreshAfter 10).
+* four bar: ``displacement`` (Table 5.1's setting), H = 0.01, tolerance chosen
+  on the command line (``dsim run ... --tol 1e-9``); the scene's default 1e-8.
+* crank_slider_penalized: the flexible crank slider glued on ``acceleration``
+  only (crank_slider_penalized_acceleration) versus ``penalized``; both record
+  the port kinematics of joint A on both sides, for the drift figures.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from build_fmus.scenes import SceneWriter
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: Crank slider (seed section 4.2.1): 0..5 s, H = 1e-3, penalized xi = 1, omega = 1000.
+CRANK_SLIDER = {"stop": 5.0, "step": 1e-3, "tolerance": 1e-7, "xi": 1.0, "omega": 1000.0,
+                "max_iterations": 20, "predictor": "quadratic", "refresh_after": 3}
+#: Four bar (seed section 5.3.2): H = 0.01, bushings k = 1e6 N/m, c = 2 0.707 1e3 N.s/m;
+#: two crank turns from 45 degrees: four collinear (singular) passes.
+FOUR_BAR = {"stop": 2.0, "step": 0.01, "tolerance": 1e-8, "k": 1e6, "c": 2 * 0.707 * 1e3,
+            "max_iterations": 50, "tolerances": (1e-7, 1e-8, 1e-9, 1e-10)}
+#: The seed's coupler as a flexible link (6 m steel 0.1 x 0.1, 6 elements) from x = 3 to 9 m.
+COUPLER = {"length": 6.0, "density": 7850.0, "area": 0.01, "young": 210e9,
+           "second_moment": 0.1 ** 4 / 12.0, "elements": 6, "x0": 6.0}
+#: Port kinematics recorded by the penalized scenes (interface error figures).
+PORT_RECORDS = ["A.u_x", "A.u_y", "A.v_x", "A.v_y", "A.a_x", "A.a_y"]
+
+
+def _part(scene: str, part: str) -> dict:
+    return {"scene": scene, "part": part}
+
+
+def crank_slider(name: str, coupler: str = "rigid", measure: str = "penalized",
+                 record_ports: bool = False) -> SceneWriter:
+    """crank, coupler, slider glued at A = (crank.A, coupler.A) and B = (coupler.B,
+    slider.P), dofs x y; ``coupler`` is ``rigid`` (Linkage2D) or ``flexible``
+    (FlexibleLink2D); ``measure`` is ``penalized`` or ``acceleration``."""
+    p = CRANK_SLIDER
+    scene = SceneWriter(name, f"Seed section 4.2.1: crank slider with a {coupler} coupler, "
+                        f"three FMUs glued at revolute joints A and B ({measure} measure)")
+    extra = PORT_RECORDS if record_ports else []
+    scene.component("crank", "Linkage2D", _part("crank_slider", "crank"),
+                    outputs=["theta", "omega", "torque"] + extra)
+    coupler_outputs = ["omega"] + extra
+    if coupler == "rigid":
+        scene.component("coupler", "Linkage2D", _part("crank_slider", "coupler"),
+                        outputs=["theta"] + coupler_outputs)
+    else:
+        scene.component("coupler", "FlexibleLink2D", dict(COUPLER),
+                        outputs=["reference.theta"] + coupler_outputs
+                        + ["deflection", "pim_iterations"])
+    scene.component("slider", "Linkage2D", _part("crank_slider", "slider"),
+                    outputs=["P.u_x", "P.v_x"])
+    penalty = {"xi": p["xi"], "omega": p["omega"]} if measure == "penalized" else None
+    for joint, a, b in (("A", "crank.A", "coupler.A"), ("B", "coupler.B", "slider.P")):
+        scene.joint(joint, a, b, dofs="x y", measure=measure, penalty=penalty)
+    return scene
+
+
+def four_bar_initial_forces() -> dict:
+    """Port input start values that make the parts' initial accelerations those of
+    the whole fixed four bar (the coupler starts on a circular translation, so its
+    joints carry centripetal load at t = 0; the master starts from zero forces)."""
+    from fmus.linkage.scenes import four_bar
+
+    whole = four_bar("whole")
+    whole.initialize(0.0)
+    r = whole.reactions()
+    fa, fb = (r["A.f_x"], r["A.f_y"]), (r["B.f_x"], r["B.f_y"])
+    # b receives +F, a receives -F: A = (crank.A, coupler.A), B = (coupler.B, rocker.B)
+    return {"crank": {"A.f_x": -fa[0], "A.f_y": -fa[1]},
+            "coupler": {"A.f_x": fa[0], "A.f_y": fa[1], "B.f_x": -fb[0], "B.f_y": -fb[1]},
+            "rocker": {"B.f_x": fb[0], "B.f_y": fb[1]}}
+
+
+def four_bar_singular(joints: str) -> SceneWriter:
+    """Parallelogram four bar as crank, coupler, rocker glued at A = (crank.A,
+    coupler.A) and B = (coupler.B, rocker.B), dofs x y, displacement measure;
+    ``joints`` ``fixed`` or ``flexible`` (Kelvin-Voigt k, c of FOUR_BAR)."""
+    p = FOUR_BAR
+    name = f"four_bar_singular_{joints}"
+    scene = SceneWriter(name, f"Seed section 5.3.2: parallelogram four bar through its "
+                        f"singular (collinear) configuration, {joints} glue joints")
+    initial = four_bar_initial_forces() if joints == "fixed" else {}
+    outputs = {"crank": ["theta", "omega", "torque"], "coupler": ["theta", "omega"],
+               "rocker": ["theta", "omega"]}
+    for part in ("crank", "coupler", "rocker"):
+        values = {**_part("four_bar", part), **initial.get(part, {})}
+        scene.component(part, "Linkage2D", values, outputs=outputs[part])
+    law = dict(kind="flexible", spring={"k0": p["k"], "k1": 0.0},
+               damper={"c0": p["c"], "c1": 0.0}) if joints == "flexible" else {}
+    scene.joint("A", "crank.A", "coupler.A", dofs="x y", **law)
+    scene.joint("B", "coupler.B", "rocker.B", dofs="x y", **law)
+    return scene
+
+
+def scenes() -> list[tuple[SceneWriter, dict]]:
+    """Every linkage scene with its master settings."""
+    cs, fb = CRANK_SLIDER, FOUR_BAR
+    crank_master = dict(step=cs["step"], tolerance=cs["tolerance"],
+                        maxIterations=cs["max_iterations"], predictor=cs["predictor"],
+                        refreshAfter=cs["refresh_after"])
+    four_master = dict(step=fb["step"], tolerance=fb["tolerance"],
+                       maxIterations=fb["max_iterations"], predictor="linear", refreshAfter=10)
+    return [
+        (crank_slider("crank_slider_rigid"), dict(stop=cs["stop"], **crank_master)),
+        (crank_slider("crank_slider_flexible", "flexible"), dict(stop=cs["stop"],
+                                                                 **crank_master)),
+        (crank_slider("crank_slider_penalized", "flexible", "penalized", True),
+         dict(stop=cs["stop"], **crank_master)),
+        (crank_slider("crank_slider_penalized_acceleration", "flexible", "acceleration",
+                      True), dict(stop=cs["stop"], **crank_master)),
+        (four_bar_singular("fixed"), dict(stop=fb["stop"], **four_master)),
+        (four_bar_singular("flexible"), dict(stop=fb["stop"], **four_master)),
+    ]
+
+
+def write_all(root: Path = ROOT) -> list[Path]:
+    """(Re)write every linkage scene folder under ``root``/ssp; returns the folders."""
+    folders = []
+    for scene, settings in scenes():
+        settings = dict(settings)
+        stop = settings.pop("stop")
+        folder = root / "ssp" / scene.name
+        scene.write(folder, 0.0, stop, **settings)
+        folders.append(folder)
+    return folders
+
+
+if __name__ == "__main__":
+    for written in write_all():
+        print(f"wrote {written.relative_to(ROOT)}")

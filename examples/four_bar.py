@@ -1,0 +1,154 @@
+"""Seed section 5.3.2: the parallelogram four bar glued from three FMUs through
+its singular (collinear) configurations, against the whole mechanism in one
+:class:`~fmus.linkage.core.Linkage`.
+
+Monolithic references: ``fixed`` -- revolutes A and B; ``flexible`` -- A and B
+as Kelvin-Voigt bushings (k = 1e6 N/m, c = 2 0.707 1e3 N.s/m), the monolithic
+twin of the flexible glue joints, started with the fixed mechanism's velocities
+(the glued parts start from them too).  Same trapezoidal rule and H = 0.01 s.
+Reactions / bushing forces on the coupler at A compare with the CSV's ``A.f_x``,
+``A.f_y`` (port b of joint A is coupler.A).
+
+``python -m examples.four_bar [--joints fixed|flexible] [--tol 1e-8]`` runs the
+glued scene, prints the differences and writes a PNG into results/; a fixed run
+that fails at the singular point is reported with its converged part.
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import time
+from pathlib import Path
+
+import numpy as np
+
+from build_fmus.linkage_scenes import FOUR_BAR
+from fmus.linkage import Linkage
+from fmus.linkage.scenes import four_bar, four_bar_mechanism
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def whole_model(joints: str) -> Linkage:
+    """The initialized whole four bar with ``fixed`` or ``flexible`` joints."""
+    fixed = four_bar("whole")
+    fixed.initialize(0.0)
+    if joints == "fixed":
+        return fixed
+    mech = four_bar_mechanism("flexible", FOUR_BAR["k"], FOUR_BAR["c"])
+    for body, q, v in zip(mech.bodies, fixed.q, fixed.v):
+        body.x, body.y, body.theta = (float(x) for x in q)
+        body.vx, body.vy, body.omega = (float(x) for x in v)
+    whole = Linkage(copy.deepcopy(mech))
+    whole.initialize(0.0)
+    return whole
+
+
+def monolithic(joints: str, stop: float = FOUR_BAR["stop"], step: float = FOUR_BAR["step"]):
+    """Times, force on the coupler at A (N), crank and rocker angular velocities
+    (rad/s), one row per step; ``seconds`` the integration's wall time."""
+    whole = whole_model(joints)
+    count = round(stop / step)
+    force, omega = np.zeros((count + 1, 2)), np.zeros((count + 1, 2))
+
+    def force_at_a():
+        out = whole.outputs()
+        if joints == "fixed":
+            return out["A.f_x"], out["A.f_y"]
+        # bushing A: force on body_i (coupler) = -(k q + c q'), q = coupler.A - crank.A
+        from fmus.linkage.kinematics import point_kinematics
+        bodies = np.array([1, 0])
+        points = np.array([[-1.0, 0.0], [0.5, 0.0]])
+        pos, vel, _ = point_kinematics(whole.q, whole.v, whole.a, bodies, points)
+        return tuple(-(FOUR_BAR["k"] * (pos[0] - pos[1]) + FOUR_BAR["c"] * (vel[0] - vel[1])))
+
+    force[0] = force_at_a()
+    omega[0] = whole.v[0, 2], whole.v[2, 2]
+    start = time.perf_counter()
+    for n in range(count):
+        whole.step(n * step, step)
+        force[n + 1] = force_at_a()
+        omega[n + 1] = whole.v[0, 2], whole.v[2, 2]
+    return {"times": np.arange(count + 1) * step, "force": force, "omega": omega,
+            "seconds": time.perf_counter() - start}
+
+
+def compare(csv_path, joints: str) -> dict:
+    """Glued (CSV rows, possibly a failed run's converged part) against the
+    monolithic model of the same joints: largest force difference at A (N) and
+    its ratio to the peak, rocker angular velocity difference (rad/s)."""
+    from master.results import read_csv
+
+    header, data = read_csv(csv_path)
+    times = data[:, 0]
+    reference = monolithic(joints, stop=max(times[-1], FOUR_BAR["step"]))
+    count = len(times)
+    force = np.column_stack((data[:, header.index("A.f_x")], data[:, header.index("A.f_y")]))
+    ref_force = reference["force"][:count]
+    rocker = data[:, header.index("rocker.omega")]
+    error = np.linalg.norm(force[1:] - ref_force[1:], axis=1)
+    peak = float(np.max(np.linalg.norm(reference["force"], axis=1)))
+    return {"times": times, "glued_force": np.linalg.norm(force, axis=1),
+            "reference_force": np.linalg.norm(ref_force, axis=1),
+            "glued_omega": rocker, "reference_omega": reference["omega"][:count, 1],
+            "force_error": float(np.max(error, initial=0.0)), "force_peak": peak,
+            "force_relative": float(np.max(error, initial=0.0) / peak),
+            "omega_error": float(np.max(np.abs(rocker - reference["omega"][:count, 1])))}
+
+
+def main(joints: str = "flexible", tolerance: float | None = None, plot: bool = False,
+         stop: float | None = None, out_dir=ROOT / "results") -> dict:
+    """Run four_bar_singular_<joints> through dsim; a failure is part of the result
+    (``failure``: the message naming the step and joint)."""
+    from master.errors import SimulationError
+    from master.run import run
+
+    name = f"four_bar_singular_{joints}"
+    csv_path = Path(out_dir) / f"{name}.csv"
+    failure = None
+    try:
+        run(ROOT / "build" / "ssp" / f"{name}.ssp", csv_path, tolerance=tolerance, stop=stop)
+    except SimulationError as error:
+        failure = str(error)
+    result = compare(csv_path, joints)
+    result["failure"] = failure
+    if plot:
+        plot_comparison(result, Path(out_dir) / f"{name}_vs_monolithic.png", name)
+    return result
+
+
+def plot_comparison(result: dict, png: Path, title: str) -> None:
+    """Force magnitude at A and rocker angular velocity, glued over monolithic."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
+    t = result["times"]
+    for axis, key, label in zip(axes, ("force", "omega"), ("|F_A| (N)", "rocker omega (rad/s)")):
+        axis.plot(t, result[f"reference_{key}"], "k-", lw=2.5, label="monolithic (one Linkage)")
+        axis.plot(t, result[f"glued_{key}"], "C1--", label="glued (dsim, 3 FMUs)")
+        axis.set_ylabel(label)
+        axis.grid(True, alpha=0.3)
+    axes[0].legend()
+    axes[0].set_title(title + (f" -- {result['failure']}" if result.get("failure") else ""),
+                      fontsize=8 if result.get("failure") else None)
+    axes[-1].set_xlabel("time (s)")
+    figure.tight_layout()
+    png.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(png, dpi=110)
+    plt.close(figure)
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--joints", choices=["fixed", "flexible"], default="flexible")
+    parser.add_argument("--tol", type=float, help="interface tolerance, m")
+    parser.add_argument("--stop", type=float)
+    args = parser.parse_args()
+    result = main(args.joints, args.tol, plot=True, stop=args.stop)
+    if result["failure"]:
+        print(f"glued run failed: {result['failure']}")
+    print(f"glued vs monolithic: |F_A| difference {result['force_error']:.3e} N = "
+          f"{result['force_relative']:.2e} of the peak {result['force_peak']:.4g} N; "
+          f"rocker omega {result['omega_error']:.3e} rad/s")

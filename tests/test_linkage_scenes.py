@@ -1,0 +1,136 @@
+"""Linkage scenes (crank slider, four bar) run through dsim from their .ssp
+archives, against their monolithic references; the Linkage2D and FlexibleLink2D
+FMUs alone (validation, rollback)."""
+import numpy as np
+import pytest
+
+from examples import crank_slider, four_bar
+from master.cli import main as dsim
+from master.results import read_csv
+from master.run import run
+
+
+@pytest.mark.parametrize("name", ["Linkage2D", "FlexibleLink2D"])
+def test_fmu_is_valid(built, name):
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(built["fmus"] / f"{name}.fmu")) == []
+
+
+def _stepper(path, start_values):
+    """An initialised fmpy FMU2Slave with start values set in initialization mode."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    description = read_model_description(str(path))
+    refs = {v.name: v for v in description.modelVariables}
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(path)),
+                    modelIdentifier=description.coSimulation.modelIdentifier,
+                    instanceName="rollback")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    for name, value in start_values.items():
+        setter = fmu.setString if isinstance(value, str) else fmu.setReal
+        setter([refs[name].valueReference], [value])
+    fmu.exitInitializationMode()
+    outputs = [v.valueReference for v in description.modelVariables
+               if v.causality == "output"]
+    return fmu, refs, outputs
+
+
+@pytest.mark.parametrize("name, start, force", [
+    ("Linkage2D", {"scene": "crank_slider", "part": "coupler"}, "B.f_y"),
+    ("FlexibleLink2D", {"omega0": 1.0}, "B.f_y")])
+def test_rollback_bit_for_bit_through_the_fmu(built, name, start, force):
+    fmu, refs, outputs = _stepper(built["fmus"] / f"{name}.fmu", start)
+    try:
+        h = 1e-3
+        fmu.setReal([refs[force].valueReference], [250.0])
+        for n in range(50):
+            fmu.doStep(n * h, h)
+        state = fmu.getFMUstate()
+        fmu.setReal([refs[force].valueReference], [-400.0])
+        for n in range(50, 55):
+            fmu.doStep(n * h, h)
+        first = np.array(fmu.getReal(outputs))
+        fmu.setReal([refs[force].valueReference], [0.0])   # wreck inputs and state
+        fmu.doStep(0.055, h)
+        fmu.setFMUstate(state)
+        fmu.setReal([refs[force].valueReference], [-400.0])
+        for n in range(50, 55):
+            fmu.doStep(n * h, h)
+        again = np.array(fmu.getReal(outputs))
+        assert np.any(first != 0.0)
+        assert np.array_equal(first, again)
+        fmu.freeFMUstate(state)
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+
+
+def test_crank_slider_rigid_matches_monolithic(built, tmp_path):
+    """Penalized gluing (xi = 1, omega = 1000, the parts' own Baumgarte row) solves
+    the monolithic discrete equations: joint force at A to 1e-6 of its peak
+    (a 0.3 s run; the full 5 s run is in docs/linkage_benchmark.md)."""
+    out = tmp_path / "crank_slider_rigid.csv"
+    statistics = run(built["ssp"] / "crank_slider_rigid.ssp", out, stop=0.3).data
+    result = crank_slider.compare(out)
+    assert statistics["steps"] == 300
+    assert result["force_peak"] > 1e3                 # a real load, not zeros
+    assert result["force_relative"] < 1e-6            # measured ~1e-9
+    assert result["slider_error"] < 1e-9
+    header, _ = read_csv(out)
+    assert {"A.f_x", "A.f_y", "slider.P.u_x", "coupler.omega"} <= set(header)
+
+
+def test_four_bar_flexible_passes_the_singular_point(built, tmp_path):
+    """The crank is collinear with the ground at t = 0.375 s; with flexible joints
+    the glued run goes through and the rocker keeps following the crank."""
+    out = tmp_path / "four_bar_flexible.csv"
+    statistics = run(built["ssp"] / "four_bar_singular_flexible.ssp", out, stop=0.5,
+                     tolerance=1e-7).data
+    assert statistics["status"] == "ok" and statistics["steps"] == 50
+    header, data = read_csv(out)
+    assert np.all(np.isfinite(data))
+    crank, rocker = data[:, header.index("crank.theta")], data[:, header.index("rocker.theta")]
+    assert crank[-1] > np.pi > crank[0]
+    assert np.max(np.abs(rocker - crank)) < 1e-3       # parallelogram kept (rad)
+    result = four_bar.compare(out, "flexible")
+    # the master integrates the joint rate from port positions, the monolithic
+    # bushing uses point velocities: O(H^2) apart, measured 2 % of the peak at H = 0.01
+    assert result["force_relative"] < 0.05
+
+
+def test_four_bar_fixed_fails_cleanly_at_the_singular_point(built, tmp_path, capsys):
+    out = tmp_path / "four_bar_fixed.csv"
+    code = dsim(["run", str(built["ssp"] / "four_bar_singular_fixed.ssp"), "--out", str(out),
+                 "--tol", "1e-8", "--stop", "0.5", "--quiet"])
+    message = capsys.readouterr().err
+    assert code == 1
+    assert "step 38" in message and "joint '" in message and "t = 0.38" in message
+    header, data = read_csv(out)
+    assert data.shape[0] == 38 and data[-1, 0] == pytest.approx(0.37)
+    assert np.all(np.isfinite(data))
+
+
+def _joint_a_errors(csv_path):
+    header, data = read_csv(csv_path)
+    column = lambda name: data[:, header.index(name)]  # noqa: E731
+    return {kind: np.hypot(column(f"coupler.A.{kind}_x") - column(f"crank.A.{kind}_x"),
+                           column(f"coupler.A.{kind}_y") - column(f"crank.A.{kind}_y"))
+            for kind in ("u", "a")}
+
+
+def test_penalized_bounds_the_drift_that_acceleration_only_gluing_lets_grow(built, tmp_path):
+    errors = {}
+    for scene in ("crank_slider_penalized", "crank_slider_penalized_acceleration"):
+        run(built["ssp"] / f"{scene}.ssp", tmp_path / f"{scene}.csv", stop=0.4)
+        errors[scene] = _joint_a_errors(tmp_path / f"{scene}.csv")
+    penalized = errors["crank_slider_penalized"]["u"]
+    accelerated = errors["crank_slider_penalized_acceleration"]["u"]
+    assert np.max(penalized) < 1e-7                    # m; measured 2e-8 over 0.5 s
+    assert accelerated[-1] > 20 * np.max(penalized)    # measured 4.7e-6 m at 0.5 s
+    assert accelerated[-1] > accelerated[len(accelerated) // 2]   # and it grows
+    # acceleration-only keeps its own measure tight, as it should
+    assert np.max(errors["crank_slider_penalized_acceleration"]["a"][1:]) < 1e-6
