@@ -9,6 +9,7 @@ implements the complete FMU state (the core's numerical state plus inputs).
 """
 from __future__ import annotations
 
+import abc
 import pickle
 
 import numpy as np
@@ -96,3 +97,46 @@ def state_to_bytes(state) -> bytes:
 def state_from_bytes(data: bytes):
     """Inverse of :func:`state_to_bytes`."""
     return pickle.loads(data)
+
+
+def glued_slave(cls):
+    """Class decorator for a pythonfmu slave of a glueable core.
+
+    The slave's ``__init__`` creates ``self.binding`` (a :class:`CoreBinding`) and the
+    slave defines ``build_core(self)``, which makes the core from the parameters set
+    so far; this decorator adds the FMI callbacks every such wrapper shares (start
+    time, initialisation, step, complete state and its serialisation).  A
+    ``ValueError`` from ``build_core`` is logged as an fmi2Error, so a master can tell
+    the user which parameter the model refused.  (A decorator and not a base class:
+    pythonfmu finds the model class by the literal line ``class Name(Fmi2Slave):``.)
+    """
+    from pythonfmu.enums import Fmi2Status
+
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self.start_time = start_time
+
+    def exit_initialization_mode(self):
+        try:
+            core = self.build_core()
+        except ValueError as error:
+            self.log(f"{self.instance_name}: {error}", Fmi2Status.error)
+            raise
+        self.binding.attach(core, getattr(self, "start_time", 0.0))
+
+    def do_step(self, current_time, step_size):
+        return self.binding.step(current_time, step_size)
+
+    def _get_fmu_state(self):
+        return self.binding.get_state()
+
+    def _set_fmu_state(self, state):
+        self.binding.set_state(state)
+
+    for method in (setup_experiment, exit_initialization_mode, do_step, _get_fmu_state,
+                   _set_fmu_state):
+        if method.__name__ not in cls.__dict__:
+            setattr(cls, method.__name__, method)
+    cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
+    cls._fmu_state_from_bytes = staticmethod(state_from_bytes)
+    abc.update_abstractmethods(cls)
+    return cls

@@ -61,7 +61,7 @@ def assemble(components: list[str], joints: list[Joint], sides: dict, positions=
     interfaces: dict[str, list] = {c: [] for c in components}
     position: dict[str, dict] = {c: {} for c in components}
     entries = []  # (component, local index, force index, coefficient)
-    labels, joint_of, weights = [], [], []
+    labels, joint_of, weights, measures = [], [], [], []
     flexible, k0, k1, c0, c1 = [], [], [], [], []
 
     def enter(port_dof, r, coefficient):
@@ -83,6 +83,7 @@ def assemble(components: list[str], joints: list[Joint], sides: dict, positions=
             labels.append(f"{joint.name}{node}.f_{dependent.dof}")
             joint_of.append(joint.name)
             weights.append(w)
+            measures.append(joint.measure)
             d = joint.dofs.index(dependent.dof)
             flexible.append(joint.kind == "flexible")
             k0.append(joint.k0[d] if joint.k0 else 0.0)
@@ -99,7 +100,7 @@ def assemble(components: list[str], joints: list[Joint], sides: dict, positions=
         rows.append(local), cols.append(r), data.append(coefficient)
     incidence = [sp.csr_matrix((data, (rows, cols)), shape=(len(interfaces[c]), n))
                  for c, (rows, cols, data) in per_component.items()]
-    layout = GluingLayout(incidence, weights, labels, joint_of)
+    layout = GluingLayout(incidence, weights, labels, joint_of, measures)
     states = JointStates(flexible, k0, k1, c0, c1)
     return layout, states, interfaces
 

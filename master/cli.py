@@ -79,7 +79,8 @@ def _cmd_run(args) -> int:
 
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
     overrides = dict(stop=args.stop, step=args.step, tolerance=args.tol,
-                     max_iterations=args.max_iterations, predictor=args.predictor)
+                     max_iterations=args.max_iterations, predictor=args.predictor,
+                     refresh=args.refresh)
     try:
         statistics = run(args.scene, out, observers=[ProgressBar(Path(args.scene).stem)],
                          **overrides)
@@ -171,6 +172,8 @@ def parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--tol", type=float, help="absolute interface tolerance")
     run_parser.add_argument("--max-iterations", type=int, help="Newton iterations per step")
     run_parser.add_argument("--predictor", choices=["none", "constant", "linear", "quadratic"])
+    run_parser.add_argument("--refresh", choices=["adaptive", "iterations"],
+                            help="when to re-measure the interface flexibility")
     run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here)")
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
     run_parser.add_argument("--quiet", action="store_true", help="no summary")

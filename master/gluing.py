@@ -42,11 +42,12 @@ class GluingLayout:
     """The topology of the glued problem: which subsystem dof feels which force.
 
     ``incidence[i]`` is C_i (n_i x n_F, +1 for side b, -1 for side a);
-    ``weights`` is n_F x 3 (w_u, w_v, w_a); ``labels[r]`` names force entry r
-    as ``joint.f_dof`` (the CSV column); ``joint_of[r]`` the joint name.
+    ``weights`` is n_F x 3 (w_u, w_v, w_a) and ``measures`` the measure's name per
+    dof; ``labels[r]`` names force entry r as ``joint.f_dof`` (the CSV column);
+    ``joint_of[r]`` the joint name.
     """
 
-    def __init__(self, incidence, weights, labels, joint_of):
+    def __init__(self, incidence, weights, labels, joint_of, measures=None):
         self.incidence = [sp.csr_matrix(c) for c in incidence]
         # one stacked C (all subsystem dofs x n_F) so that an iteration costs a
         # handful of sparse products, not a few per subsystem
@@ -57,6 +58,8 @@ class GluingLayout:
         self.weights = np.asarray(weights, dtype=float).reshape(-1, 3)
         self.labels = list(labels)
         self.joint_of = list(joint_of)
+        #: the measure's name per dof ("displacement", "velocity", ...)
+        self.measures = list(measures or ["displacement"] * len(self.labels))
         self.size = len(self.labels)
 
 
@@ -72,8 +75,11 @@ class TTGluing:
         self.forces = np.zeros(layout.size)
         self._history: deque = deque(maxlen=3)
         self._flexibility = None  # per subsystem [Gu, Gv, Ga]
-        self._subsystem_jacobian = None
+        self._parts = None
         self._factor = None
+        self._factored_with = None
+        joints.configure(layout.weights,
+                         np.array([m == "displacement" for m in layout.measures], dtype=bool))
         self.refreshes = 0
         self._step_size = None
         self.iterations = 0
@@ -94,37 +100,68 @@ class TTGluing:
         magnitudes = (layout.stacked_abs_t @ np.abs(stacked)).T
         return differences, magnitudes
 
-    def residual(self, kinematics, joint_trial):
-        """Compatibility residual R (eq. 5.6) and its tolerance per dof."""
+    def residual(self, kinematics, forces, step_size):
+        """Compatibility residual R (eqs. 4.13, 5.6) at ``forces``, its tolerance per
+        dof, the Jacobian weights and joint diagonal, and the trial joint state."""
         differences, magnitudes = self._gather(kinematics)
-        w = self.layout.weights
-        q, qd, qdd, _ = joint_trial
-        joint = np.vstack((q, qd, qdd))
-        r = np.einsum("rk,kr->r", w, differences - joint)
-        scale = np.einsum("rk,kr->r", w, magnitudes)
-        return r, self.settings.tolerance + self.settings.relative_tolerance * scale
+        r, weights, diagonal, trial = self.joints.evaluate(forces, differences, step_size)
+        scale = np.einsum("rk,kr->r", np.abs(weights), magnitudes)
+        tolerance = self.settings.tolerance + self.settings.relative_tolerance * scale
+        return r, tolerance, weights, diagonal, trial
 
-    def _assemble_subsystem_jacobian(self):
-        w = self.layout.weights
-        total = sp.csr_matrix((self.layout.size, self.layout.size))
+    def _assemble_subsystem_parts(self):
+        """A_k = sum_i C_i^T G_ik C_i for k = u, v, a (eq. 5.14 before weighting)."""
+        n = self.layout.size
+        parts = [sp.csr_matrix((n, n)) for _ in range(3)]
         for c, flexibility in zip(self.layout.incidence, self._flexibility):
             if not c.shape[0]:
                 continue
             for kind, g in enumerate(flexibility):
-                weighted = sp.diags(w[:, kind]) @ c.T
-                total = total + weighted @ sp.csr_matrix(g) @ c
-        self._subsystem_jacobian = total
+                if np.any(g):
+                    parts[kind] = parts[kind] + c.T @ sp.csr_matrix(g) @ c
+        self._parts = parts
 
-    def _factorize(self, tangent, step_size):
-        w = self.layout.weights
-        blend = w[:, 0] + w[:, 1] * 2.0 / step_size + w[:, 2] * 4.0 / step_size ** 2
-        joint_part = blend / tangent  # zero for fixed joints (tangent = inf)
-        jacobian = (self._subsystem_jacobian + sp.diags(joint_part)).tocsc()
+    def _factorize(self, weights, diagonal):
+        jacobian = sp.diags(diagonal)
+        for kind, part in enumerate(self._parts):
+            if np.any(weights[:, kind]):
+                jacobian = jacobian + sp.diags(weights[:, kind]) @ part
         try:
-            self._factor = splu(jacobian)
+            self._factor = splu(jacobian.tocsc())
         except RuntimeError:
-            raise SimulationError("the gluing matrix is singular: a joint constrains "
-                                  "a dof that no subsystem can move (check joint dofs)")
+            raise SimulationError(f"{self._singular_direction(jacobian)}: the gluing matrix "
+                                  "is singular (a singular configuration of the mechanism, "
+                                  "or a joint dof that no subsystem can move)") from None
+        self._factored_with = (weights, diagonal)
+
+    def _singular_direction(self, jacobian) -> str:
+        """Name the joint dof that dominates the gluing matrix's null direction."""
+        if self.layout.size > 2000:
+            return "joints " + ", ".join(sorted(set(self.layout.joint_of)))
+        dense = jacobian.toarray()
+        dense[~np.isfinite(dense)] = 0.0
+        null = np.linalg.svd(dense)[2][-1]
+        worst = int(np.argmax(np.abs(null)))
+        return f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]})"
+
+    def _needs_refresh(self, iteration, history, tolerance, local) -> bool:
+        """Re-measure the interface flexibility now?  Always when there is none;
+        after every ``refresh_after`` iterations of one step (the seed's rule); and,
+        with ``refresh = adaptive``, when the contraction seen so far predicts more
+        iterations to the tolerance than a refresh costs (one trial step per glued
+        dof of the largest subsystem)."""
+        settings = self.settings
+        if self._flexibility is None:
+            return True
+        if iteration > 1 and (iteration - 1) % settings.refresh_after == 0:
+            return True
+        if settings.refresh != "adaptive" or len(history) < 2 or history[-1] == 0.0:
+            return False
+        rate = history[-1] / history[-2]
+        if rate >= 1.0:
+            return True
+        remaining = np.log(max(history[-1], 1.0 + 1e-12)) / -np.log(max(rate, 1e-300))
+        return remaining > max((len(f) for f in local), default=0) + 1
 
     # --- the macro step --------------------------------------------------------------
     def start(self, kinematics) -> None:
@@ -159,38 +196,40 @@ class TTGluing:
             self._step_size = step_size
         self.backend.begin_step()
         refreshed = 0
-        last_tangent = None
+        history = []  # max |R| / tolerance per iteration
         for iteration in range(1, settings.max_iterations + 1):
             local = np.split(self.layout.stacked @ forces, self.layout.offsets)
             kinematics = self.backend.trial_step(local, time, step_size)
-            trial = self.joints.trial(forces, step_size)
-            r, tolerance = self.residual(kinematics, trial)
+            r, tolerance, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
             if not np.all(np.isfinite(r)):
                 worst = int(np.argmax(~np.isfinite(r)))
                 raise SimulationError(
                     f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}): "
                     "residual is not finite, the iteration diverged",
                     time=time + step_size, step=step_index)
-            if np.all(np.abs(r) <= tolerance):
-                self.joints.accept(*trial[:3])
+            history.append(float(np.max(np.abs(r) / tolerance, initial=0.0)))
+            if history[-1] <= 1.0:
+                self.joints.accept(*trial)
                 self.forces = forces
                 self._history.append(forces.copy())
                 self.iterations += iteration
                 self.step_count += 1
                 return StepReport(iteration, refreshed, float(np.max(np.abs(r), initial=0.0)))
-            slow = iteration > 1 and (iteration - 1) % settings.refresh_after == 0
-            if self._flexibility is None or slow:
+            if self._needs_refresh(iteration, history, tolerance, local):
                 self._flexibility = self.backend.flexibility(
                     local, time, step_size, [self._deltas(f) for f in local], kinematics)
-                self._assemble_subsystem_jacobian()
+                self._assemble_subsystem_parts()
                 self.refreshes += 1
                 refreshed += 1
                 self._factor = None
-            tangent = trial[3]
-            if self._factor is None or (self.joints.nonlinear and not np.array_equal(
-                    tangent, last_tangent)):
-                self._factorize(tangent, step_size)
-                last_tangent = tangent
+            if self._factor is None or not (
+                    np.array_equal(weights, self._factored_with[0])
+                    and np.array_equal(diagonal, self._factored_with[1])):
+                try:
+                    self._factorize(weights, diagonal)
+                except SimulationError as error:
+                    raise SimulationError(str(error), time=time + step_size,
+                                          step=step_index) from None
             forces = forces - self._factor.solve(r)
         worst = int(np.argmax(np.abs(r) - tolerance))
         raise SimulationError(

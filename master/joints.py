@@ -1,16 +1,26 @@
-"""Joint laws and the joint state the master integrates (seed chapter 5).
+"""Joint laws, the joint state the master integrates, and each glued dof's row
+of the Newton system (seed chapter 5).
 
 Every glued degree of freedom r of every joint is one unknown force F_r and one
-compatibility residual.  For a flexible joint the master integrates the joint's
-own extension q (eq. 5.2) with the trapezoidal rule, the rule every subsystem
-uses, under the Kelvin-Voigt law of eq. 5.3/5.36 with the seed's sign (eq. 5.32),
-made odd-symmetric so that the law is monotone (see fmus/spring_mass/core.py):
+compatibility residual.  Three kinds of rows:
+
+* fixed joints: R = m_b - m_a, with m the joint's kinematic measure, a blend
+  w_u u + w_v v + w_a a (the penalized measure of eq. 5.28 is
+  w = (omega^2, 2 xi omega, 1));
+* flexible joints on the displacement measure, in force form: the joint force
+  follows from the ports' relative motion, R = (F + law(u_b - u_a, v_b - v_a)) / k_ref
+  (m, like a displacement residual).  It is the seed's eq. 5.3 with the joint's
+  extension and rate taken from the ports, so a glued flexible joint is exactly a
+  spring-damper between the two points of one model, whatever rule the
+  subsystems integrate with;
+* flexible joints on another measure: the seed's form (eqs. 5.2-5.18): the
+  master integrates the joint's extension q with the trapezoidal rule under the
+  law and R = m_b - m_a - m(q).
+
+The law is Kelvin-Voigt (eq. 5.3/5.36), made odd-symmetric so that it is monotone
+(see docs/method.md), with the seed's sign (eq. 5.32):
 
     (k0 + k1 |q|) q + (c0 + c1 |qd|) qd = -F      (F: force on port b)
-
-Fixed joints have q = qd = qdd = 0.  The kinematic measure of a joint dof is a
-blend w_u u + w_v v + w_a a; the penalized measure (eq. 5.28) is
-w = (omega^2, 2 xi omega, 1).
 """
 from __future__ import annotations
 
@@ -39,9 +49,52 @@ class JointStates:
         self.c0, self.c1 = np.asarray(c0, float), np.asarray(c1, float)
         self.nonlinear = bool(np.any(self.k1[self.flexible]) or np.any(self.c1[self.flexible]))
         n = len(self.flexible)
+        self.force_form = np.zeros(n, dtype=bool)  # set by configure()
+        self.weights = np.zeros((n, 3))
         self.q, self.qd, self.qdd = np.zeros(n), np.zeros(n), np.zeros(n)
         self.newton_tolerance = newton_tolerance
         self.max_newton = max_newton
+
+    def configure(self, weights: np.ndarray, displacement: np.ndarray) -> None:
+        """Measure weights (n x 3) of every dof, and which dofs are on the
+        displacement measure (flexible ones there are solved in force form)."""
+        self.weights = np.asarray(weights, float)
+        self.force_form = self.flexible & np.asarray(displacement, bool)
+
+    def _reference_stiffness(self, step_size):
+        """k0 + 2 c0 / H: scales a force-form row to metres (1 where it is zero)."""
+        k = self.k0 + 2.0 / step_size * self.c0
+        return np.where(k > 0, k, 1.0)
+
+    def evaluate(self, forces, differences, step_size):
+        """Residual r, Jacobian weights W (n x 3: d r / d(u, v, a) of the ports),
+        joint diagonal d (d r / d F through the joint itself) and the trial joint
+        state (q, qd, qdd) for forces F and port differences (3 x n: u, v, a of
+        b minus a)."""
+        w = self.weights
+        r = np.einsum("rk,kr->r", w, differences)
+        W = w.copy()
+        diagonal = np.zeros(len(r))
+        q, qd, qdd = differences.copy()
+        integrated = self.flexible & ~self.force_form
+        if integrated.any():
+            tq, tqd, tqdd, tangent = self.trial(forces, step_size)
+            joint = np.vstack((tq, tqd, tqdd))
+            r[integrated] -= np.einsum("rk,kr->r", w, joint)[integrated]
+            blend = w[:, 0] + w[:, 1] * 2.0 / step_size + w[:, 2] * 4.0 / step_size ** 2
+            diagonal[integrated] = (blend / tangent)[integrated]
+            q[integrated], qd[integrated], qdd[integrated] = (
+                tq[integrated], tqd[integrated], tqdd[integrated])
+        fixed = ~self.flexible
+        q[fixed], qd[fixed], qdd[fixed] = 0.0, 0.0, 0.0
+        law = self.force_form
+        if law.any():
+            force, dk, dc = self.law(differences[0], differences[1])
+            k_ref = self._reference_stiffness(step_size)
+            r[law] = ((forces + force) / k_ref)[law]
+            W[law] = np.column_stack((dk / k_ref, dc / k_ref, np.zeros(len(r))))[law]
+            diagonal[law] = (1.0 / k_ref)[law]
+        return r, W, diagonal, (q, qd, qdd)
 
     def start(self, q, qd, qdd) -> None:
         """Initial extension, rate and acceleration (from the ports at t0)."""

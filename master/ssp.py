@@ -104,6 +104,7 @@ class MasterSettings:
     max_iterations: int = 20
     predictor: str = "linear"
     refresh_after: int = 10
+    refresh: str = "adaptive"
     perturbation: float = 1e-3
 
 
@@ -396,7 +397,8 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
     converters = {"step": ("step", float), "tolerance": ("tolerance", float),
                   "relativeTolerance": ("relative_tolerance", float),
                   "maxIterations": ("max_iterations", int), "predictor": ("predictor", str),
-                  "refreshAfter": ("refresh_after", int), "perturbation": ("perturbation", float)}
+                  "refreshAfter": ("refresh_after", int), "refresh": ("refresh", str),
+                  "perturbation": ("perturbation", float)}
     settings = {}
     for key, text in attributes.items():
         if key not in converters:
@@ -408,6 +410,9 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
         except ValueError:
             problems.append(f"{shown}: glue:Master: {key}='{text}' is not a {kind.__name__}")
     master = MasterSettings(**{**defaults.__dict__, **settings})
+    if master.refresh not in ("adaptive", "iterations"):
+        problems.append(f"{shown}: glue:Master: refresh '{master.refresh}' must be "
+                        "adaptive or iterations")
     if master.predictor not in PREDICTORS:
         problems.append(f"{shown}: glue:Master: predictor '{master.predictor}' "
                         f"must be one of {PREDICTORS}")

@@ -13,10 +13,9 @@ A body the parameters cannot make (unknown part, a mesh file that is no mesh, an
 miscounted node set) fails fmi2ExitInitializationMode with the reason logged as an error.
 """
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
-from pythonfmu.enums import Fmi2Status
 
 from fmus.elastic.parts import DOFS, MAX_NODES, PORTS, PartSpec, SlotBody, build_body
-from fmus.fmi_binding import CoreBinding, state_from_bytes, state_to_bytes
+from fmus.fmi_binding import CoreBinding, glued_slave
 
 REALS = {
     "element_size": "element size of the frame parts' structured mesh, m",
@@ -34,6 +33,7 @@ STRINGS = {
 }
 
 
+@glued_slave
 class ElasticBody2D(Fmi2Slave):
     """Plane-stress finite-element body (Newmark average acceleration), glued at node sets."""
 
@@ -93,25 +93,5 @@ class ElasticBody2D(Fmi2Slave):
         pair[index] = float(value)
         setattr(self.spec, name, tuple(pair))
 
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.start_time = start_time
-
-    def exit_initialization_mode(self):
-        try:
-            body = build_body(self.spec, self.resources)
-        except ValueError as error:
-            self.log(f"{self.instance_name}: {error}", Fmi2Status.error)
-            raise
-        self.binding.attach(SlotBody(body), getattr(self, "start_time", 0.0))
-
-    def do_step(self, current_time, step_size):
-        return self.binding.step(current_time, step_size)
-
-    def _get_fmu_state(self):
-        return self.binding.get_state()
-
-    def _set_fmu_state(self, state):
-        self.binding.set_state(state)
-
-    _fmu_state_to_bytes = staticmethod(state_to_bytes)
-    _fmu_state_from_bytes = staticmethod(state_from_bytes)
+    def build_core(self):
+        return SlotBody(build_body(self.spec, self.resources))

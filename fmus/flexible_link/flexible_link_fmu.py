@@ -12,7 +12,7 @@ Outputs: the reference frame's ``reference.x y theta vx vy omega alpha`` (and
 """
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-from fmus.fmi_binding import CoreBinding, state_from_bytes, state_to_bytes
+from fmus.fmi_binding import CoreBinding, glued_slave
 from fmus.flexible_link.core import FlexibleLink
 
 PARAMETERS = {  # name -> (default, description); keyword of FlexibleLink
@@ -31,6 +31,7 @@ OUTPUTS = ("reference.x", "reference.y", "reference.theta", "reference.vx", "ref
            "mean_axis_violation", "pim_iterations")
 
 
+@glued_slave
 class FlexibleLink2D(Fmi2Slave):
     """A flexible planar link glueable at its ends A and B."""
 
@@ -54,10 +55,7 @@ class FlexibleLink2D(Fmi2Slave):
         self.binding = CoreBinding(self, (("A", "x"), ("A", "y"), ("B", "x"), ("B", "y")),
                                    OUTPUTS)
 
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.start_time = start_time
-
-    def exit_initialization_mode(self):
+    def build_core(self):
         v = self.values
         core = _Link(length=v["length"], density=v["density"], area=v["area"],
                      young=v["young"], second_moment=v["second_moment"],
@@ -65,19 +63,7 @@ class FlexibleLink2D(Fmi2Slave):
                      vx=v["vx0"], vy=v["vy0"], omega=v["omega0"],
                      gravity=(v["gravity_x"], v["gravity_y"]),
                      stiffness_damping=v["stiffness_damping"], tolerance=v["tolerance"])
-        self.binding.attach(core, getattr(self, "start_time", 0.0))
-
-    def do_step(self, current_time, step_size):
-        return self.binding.step(current_time, step_size)
-
-    def _get_fmu_state(self):
-        return self.binding.get_state()
-
-    def _set_fmu_state(self, state):
-        self.binding.set_state(state)
-
-    _fmu_state_to_bytes = staticmethod(state_to_bytes)
-    _fmu_state_from_bytes = staticmethod(state_from_bytes)
+        return core
 
 
 # After the FMU class: pythonfmu's loader takes the first class line of the module.

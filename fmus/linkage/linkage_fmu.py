@@ -12,7 +12,7 @@ Outputs: the part's body ``x y theta vx vy omega ax ay alpha``, the driver
 """
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 
-from fmus.fmi_binding import CoreBinding, state_from_bytes, state_to_bytes
+from fmus.fmi_binding import CoreBinding, glued_slave
 from fmus.linkage.parts import PART_OUTPUTS, PartCore, PartParameters, build_part
 
 DESCRIPTIONS = {
@@ -28,6 +28,7 @@ DESCRIPTIONS = {
 }
 
 
+@glued_slave
 class Linkage2D(Fmi2Slave):
     """One rigid part of the crank slider or the four bar, glueable at A, B, P."""
 
@@ -48,21 +49,5 @@ class Linkage2D(Fmi2Slave):
                 **parameter), nested=False)
         self.binding = CoreBinding(self, PartCore.interface, PART_OUTPUTS)
 
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.start_time = start_time
-
-    def exit_initialization_mode(self):
-        core = PartCore(build_part(self.params))
-        self.binding.attach(core, getattr(self, "start_time", 0.0))
-
-    def do_step(self, current_time, step_size):
-        return self.binding.step(current_time, step_size)
-
-    def _get_fmu_state(self):
-        return self.binding.get_state()
-
-    def _set_fmu_state(self, state):
-        self.binding.set_state(state)
-
-    _fmu_state_to_bytes = staticmethod(state_to_bytes)
-    _fmu_state_from_bytes = staticmethod(state_from_bytes)
+    def build_core(self):
+        return PartCore(build_part(self.params))

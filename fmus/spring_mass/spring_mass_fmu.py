@@ -7,7 +7,7 @@ port variables of DESIGN.md.  The FMU state is the chain's complete numerical st
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
-from fmus.fmi_binding import CoreBinding, state_from_bytes, state_to_bytes
+from fmus.fmi_binding import CoreBinding, glued_slave
 from fmus.spring_mass.core import MAX_MASSES, ChainParameters, SpringMassChain
 
 DESCRIPTIONS = {
@@ -21,6 +21,7 @@ DESCRIPTIONS = {
 }
 
 
+@glued_slave
 class SpringMass(Fmi2Slave):
     """A chain of up to four masses with linear or nonlinear springs and dampers."""
 
@@ -55,20 +56,5 @@ class SpringMass(Fmi2Slave):
     def _set(self, name, index, value):
         getattr(self.params, name)[index] = float(value)
 
-    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.start_time = start_time
-
-    def exit_initialization_mode(self):
-        self.binding.attach(SpringMassChain(self.params), getattr(self, "start_time", 0.0))
-
-    def do_step(self, current_time, step_size):
-        return self.binding.step(current_time, step_size)
-
-    def _get_fmu_state(self):
-        return self.binding.get_state()
-
-    def _set_fmu_state(self, state):
-        self.binding.set_state(state)
-
-    _fmu_state_to_bytes = staticmethod(state_to_bytes)
-    _fmu_state_from_bytes = staticmethod(state_from_bytes)
+    def build_core(self):
+        return SpringMassChain(self.params)
