@@ -44,6 +44,7 @@ class RunStatistics:
         self.iterations: list[int] = []
         self.refreshes = 0
         self.failure: str | None = None
+        self.setup_seconds = 0.0
         self.data: dict = {}
 
     def add_step(self, report) -> None:
@@ -74,6 +75,7 @@ class RunStatistics:
             "steps": steps,
             "planned_steps": self.planned_steps,
             "wall_seconds": wall_time,
+            "setup_seconds": self.setup_seconds,
             "seconds_in_fmus": inside,
             "seconds_in_master": wall_time - inside,
             "iterations": {

@@ -213,6 +213,7 @@ def execute(checked: Plan, out: Path, observers=()) -> "RunStatistics":
     try:
         gluing.start(backend.kinematics())
         recorder.write(times[0], backend.outputs(), gluing.forces)
+        statistics.setup_seconds = clock.perf_counter() - wall_start
         for observer in observers:
             observer.start(times)
         for index in range(1, len(times)):
