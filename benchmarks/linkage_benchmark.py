@@ -126,6 +126,9 @@ def drift(out_dir: Path, stop: float | None, docs: Path) -> str:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from master.results import save_figure
+
     for kind, name, unit in (("u", "displacement", "m"), ("a", "acceleration", "m/s^2")):
         figure, axis = plt.subplots(figsize=(8, 4))
         for label, e in errors.items():
@@ -135,9 +138,7 @@ def drift(out_dir: Path, stop: float | None, docs: Path) -> str:
         axis.set_title(f"crank_slider_penalized: interface {name} error at joint A")
         axis.grid(True, alpha=0.3)
         axis.legend()
-        figure.tight_layout()
-        figure.savefig(docs / f"crank_slider_penalized_{name}_error.png", dpi=110)
-        plt.close(figure)
+        save_figure(figure, docs / f"crank_slider_penalized_{name}_error.png")
     return "\n".join(lines)
 
 

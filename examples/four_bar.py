@@ -123,6 +123,8 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from master.results import save_figure
+
     figure, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
     t = result["times"]
     for axis, key, label in zip(axes, ("force", "omega"), ("|F_A| (N)", "rocker omega (rad/s)")):
@@ -134,10 +136,7 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
     axes[0].set_title(title + (f" -- {result['failure']}" if result.get("failure") else ""),
                       fontsize=8 if result.get("failure") else None)
     axes[-1].set_xlabel("time (s)")
-    figure.tight_layout()
-    png.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(png, dpi=110)
-    plt.close(figure)
+    save_figure(figure, png)
 
 
 if __name__ == "__main__":

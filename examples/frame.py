@@ -63,6 +63,8 @@ def plot_comparison(result: dict, png: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from master.results import save_figure
+
     times = result["times"]
     figure, (top, middle, bottom) = plt.subplots(3, 1, sharex=True, figsize=(8, 8))
     top.plot(times, 1e6 * result["reference"], "k-", lw=2.5, label="monolithic (one mesh)")
@@ -81,10 +83,7 @@ def plot_comparison(result: dict, png: Path) -> None:
     bottom.legend(fontsize=7, ncol=2, loc="upper left")
     for axis in (top, middle, bottom):
         axis.grid(True, alpha=0.3)
-    figure.tight_layout()
-    png.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(png, dpi=110)
-    plt.close(figure)
+    save_figure(figure, png)
 
 
 if __name__ == "__main__":

@@ -82,6 +82,8 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from master.results import save_figure
+
     figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(8, 5))
     top.plot(result["times"], result["reference"], "k-", lw=2.5, label="monolithic (eq. 5.37)")
     top.plot(result["times"], result["glued"], "C1--", label="glued (dsim, 2 FMUs)")
@@ -93,10 +95,7 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
     bottom.set_xlabel("time (s)")
     for axis in (top, bottom):
         axis.grid(True, alpha=0.3)
-    figure.tight_layout()
-    png.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(png, dpi=110)
-    plt.close(figure)
+    save_figure(figure, png)
 
 
 if __name__ == "__main__":

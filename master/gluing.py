@@ -144,23 +144,27 @@ class TTGluing:
         worst = int(np.argmax(np.abs(null)))
         return f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]})"
 
-    def _needs_refresh(self, iteration, history, tolerance, local) -> bool:
+    def _needs_refresh(self, iteration, history, refreshed, local) -> bool:
         """Re-measure the interface flexibility now?  Always when there is none;
         after every ``refresh_after`` iterations of one step (the seed's rule); and,
-        with ``refresh = adaptive``, when the contraction seen so far predicts more
+        with ``refresh = adaptive``, once per step when Newton has slowed to linear
+        convergence (two successive contraction rates alike: a stale Lambda, not
+        the superlinear approach of a good one) at a rate that predicts more
         iterations to the tolerance than a refresh costs (one trial step per glued
-        dof of the largest subsystem)."""
+        dof of the largest subsystem), or when the residual grows."""
         settings = self.settings
         if self._flexibility is None:
             return True
         if iteration > 1 and (iteration - 1) % settings.refresh_after == 0:
             return True
-        if settings.refresh != "adaptive" or len(history) < 2 or history[-1] == 0.0:
+        if settings.refresh != "adaptive" or refreshed or len(history) < 3 or history[-1] == 0:
             return False
-        rate = history[-1] / history[-2]
+        rate, previous = history[-1] / history[-2], history[-2] / history[-3]
         if rate >= 1.0:
             return True
-        remaining = np.log(max(history[-1], 1.0 + 1e-12)) / -np.log(max(rate, 1e-300))
+        if rate < 0.5 * previous:
+            return False  # still speeding up
+        remaining = np.log(history[-1]) / -np.log(max(rate, 1e-300))
         return remaining > max((len(f) for f in local), default=0) + 1
 
     # --- the macro step --------------------------------------------------------------
@@ -215,7 +219,7 @@ class TTGluing:
                 self.iterations += iteration
                 self.step_count += 1
                 return StepReport(iteration, refreshed, float(np.max(np.abs(r), initial=0.0)))
-            if self._needs_refresh(iteration, history, tolerance, local):
+            if self._needs_refresh(iteration, history, refreshed, local):
                 self._flexibility = self.backend.flexibility(
                     local, time, step_size, [self._deltas(f) for f in local], kinematics)
                 self._assemble_subsystem_parts()

@@ -125,6 +125,13 @@ def plot_results(csv_path, png_path, title: str = "", max_curves: int = 8) -> No
     axes[-1, 0].set_xlabel("time (s)")
     if title:
         axes[0, 0].set_title(title)
+    save_figure(figure, png_path)
+
+
+def save_figure(figure, png_path) -> None:
+    """Lay out, write as PNG (creating the folder) and release a matplotlib figure."""
+    import matplotlib.pyplot as plt
+
     figure.tight_layout()
     Path(png_path).parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(png_path, dpi=110)
