@@ -2,8 +2,8 @@
 iterations of the four bar glued with fixed and with flexible joints, at
 interface tolerances 1e-7 .. 1e-10 m (H = 0.01 s), once with the seed's refresh
 rule (re-measure Lambda after 10 iterations of a step) and once with dsim's
-default adaptive rule (also when the observed contraction predicts more
-iterations than a refresh costs).
+default adaptive rule (also, once per step, when Newton has slowed to a linear
+rate that predicts more iterations than a refresh costs).
 
 Every case runs the shipped scene archive with :func:`master.run.run` and a
 tolerance override, as ``dsim run build/ssp/four_bar_singular_<joints>.ssp
@@ -118,8 +118,9 @@ def main(argv=None) -> list[dict]:
         "",
         table(rows["iterations"]),
         "",
-        "## dsim's default (`refresh=\"adaptive\"`): also refresh when the observed "
-        "contraction predicts more iterations than a refresh costs",
+        "## dsim's default (`refresh=\"adaptive\"`): also refresh, once per step, when "
+        "Newton has slowed to a linear rate that predicts more iterations than a refresh "
+        "costs",
         "",
         table(rows["adaptive"]),
         "",

@@ -87,8 +87,8 @@ def main(argv=None) -> list[dict]:
         table(rows),
         "",
         "A looser tolerance lets more steps stop after the predicted force's trial (one doStep "
-        "per FMU instead of two) at the price of the error in the last column; a better "
-        "predictor does the same without giving up accuracy.",
+        "per FMU instead of two) at the price of the error in the last column; the predictor "
+        "matters most where the tolerance is tight.",
     ])
     Path(args.out).write_text(text + "\n")
     print(text)

@@ -3,17 +3,19 @@
 Unknowns per macro step: the joint forces F, one entry per glued dof.  The
 subsystem glued at a dof on side b receives +F, on side a -F (eqs. 4.9/4.10:
 equilibrium is built in); the residual is the compatibility of the chosen
-kinematic measure, R = (m_b - m_a) - m(q) with q the joint extension
-(zero for fixed joints).  Newton: F <- F - Lambda R with
+kinematic measure (master.joints: fixed joints, flexible joints in force form
+on the displacement measure, the seed's integrated joint extension otherwise).
+Newton: F <- F - Lambda R with
 
-    Lambda^-1 = dR/dF = sum_i C_i^T W G_i C_i  +  diag(blend / k_joint)
+    Lambda^-1 = dR/dF = sum_k diag(W_k) sum_i C_i^T G_ik C_i  +  diag(d)
 
-where C_i (n_i x n_F, entries +-1) maps joint forces onto subsystem i's glued
-dofs, G_i = d(u, v, a)_i / d f_i its interface flexibility (by perturbation
-and rollback), W the measure weights, and the last term -dq/dF of the flexible
-joints (eq. 5.18).  G is kept across steps and refreshed only when a step
-needs ``refresh_after`` iterations; the joint term is refreshed every iteration
-when a joint law is nonlinear (no FMU call needed).
+where C_i maps joint forces onto subsystem i's glued dofs (entries +-1, or
+moving-least-squares weights on non-matching node sets), G_ik = d(u, v, a)_i / d f_i
+its interface flexibility (by perturbation and rollback), W the rows' weights
+per kinematic kind and d the joints' own term (eq. 5.18).  G is kept across
+steps and re-measured when a step needs ``refresh_after`` iterations or, by
+default, when Newton has slowed to a linear rate that a refresh would beat;
+W and d need no FMU call and follow a nonlinear joint law every iteration.
 """
 from __future__ import annotations
 
