@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from master.gluing import GluingLayout
 from master.joints import JointStates, measure_weights
 from master.mls import transfer_matrix
-from master.ssp import Joint
+from master.scene import Joint
 
 
 def _nodes(port_dofs):

@@ -28,7 +28,7 @@ from scipy.sparse.linalg import splu
 
 from master.errors import SimulationError
 from master.joints import JointStates
-from master.ssp import MasterSettings
+from master.scene import MasterSettings
 
 
 @dataclass

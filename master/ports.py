@@ -18,7 +18,7 @@ from pathlib import Path
 
 from fmpy import read_model_description
 
-from master.ssp import Joint, PortMap, Scene
+from master.scene import Joint, PortMap, Scene
 
 PORT_VARIABLE = re.compile(r"^(?P<port>.+)\.(?P<kind>[fuva])_(?P<dof>x|y|z|rx|ry|rz)$")
 KIND_NAMES = {"f": "force", "u": "position", "v": "velocity", "a": "acceleration"}

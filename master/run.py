@@ -18,7 +18,8 @@ from master.fmu import FmuSubsystem, can_save_state
 from master.gluing import TTGluing
 from master.ports import component_ports, joint_port_dofs, variables_by_name
 from master.results import CsvRecorder, RunStatistics
-from master.ssp import Scene, load_scene
+from master.scene import Scene
+from master.ssp import load_scene
 
 
 @dataclass

@@ -14,12 +14,13 @@ import math
 import shutil
 import tempfile
 import zipfile
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from lxml import etree
 
 from master.errors import InputError
+from master.scene import (DOFS, MEASURES, PREDICTORS, Component, Connection, Joint,
+                          MasterSettings, PortMap, Scene)
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -28,103 +29,6 @@ NS = {
     "glue": "urn:dsim:gluing:1",
 }
 GLUE = "{urn:dsim:gluing:1}"
-DOFS = ("x", "y", "z", "rx", "ry", "rz")
-MEASURES = ("displacement", "velocity", "acceleration", "penalized")
-PREDICTORS = ("none", "constant", "linear", "quadratic")
-
-
-@dataclass(frozen=True)
-class Joint:
-    """A glue joint between port ``a`` and port ``b`` (component path, port).
-
-    Port b receives +F, port a receives -F.  Flexible joints follow the
-    Kelvin-Voigt law (k0 + k1 |q|) q + (c0 + c1 |qd|) qd = -F per dof (eq. 5.3/5.36,
-    with the seed's sign of eq. 5.32); fixed joints have q = 0.
-    """
-
-    name: str
-    a: tuple[str, str]
-    b: tuple[str, str]
-    dofs: tuple[str, ...]
-    kind: str = "fixed"
-    measure: str = "displacement"
-    k0: tuple[float, ...] = ()
-    k1: tuple[float, ...] = ()
-    c0: tuple[float, ...] = ()
-    c1: tuple[float, ...] = ()
-    xi: float = 1.0
-    omega: float = 0.0
-    support: float = 1.0
-    location: str = ""
-
-
-@dataclass(frozen=True)
-class PortMap:
-    """Maps a third-party FMU's variables onto a port (one name per dof)."""
-
-    component: str
-    name: str
-    dofs: tuple[str, ...]
-    force: tuple[str, ...]
-    position: tuple[str, ...]
-    velocity: tuple[str, ...] | None
-    acceleration: tuple[str, ...] | None
-    location: str = ""
-
-
-@dataclass(frozen=True)
-class Component:
-    """An FMU instance: dotted path, FMU file, parameter values, declared connectors."""
-
-    path: str
-    source: Path
-    parameters: dict = field(default_factory=dict)
-    connectors: tuple[tuple[str, str], ...] = ()
-    location: str = ""
-
-
-@dataclass(frozen=True)
-class Connection:
-    """A causal SSP connection: output ``start`` feeds input ``end``."""
-
-    start: tuple[str, str]
-    end: tuple[str, str]
-    factor: float = 1.0
-    offset: float = 0.0
-    location: str = ""
-
-
-@dataclass(frozen=True)
-class MasterSettings:
-    """The master's settings (annotation ``glue:Master``), SI units."""
-
-    step: float = 1e-3
-    tolerance: float = 1e-10
-    relative_tolerance: float = 0.0
-    max_iterations: int = 20
-    predictor: str = "linear"
-    refresh_after: int = 10
-    refresh: str = "adaptive"
-    perturbation: float = 1e-3
-
-
-@dataclass(frozen=True)
-class Scene:
-    """Everything a run needs from the SSP file."""
-
-    name: str
-    file: Path
-    start_time: float
-    stop_time: float
-    components: tuple[Component, ...]
-    connections: tuple[Connection, ...]
-    joints: tuple[Joint, ...]
-    port_maps: tuple[PortMap, ...]
-    master: MasterSettings
-
-    def component(self, path: str) -> Component:
-        """The component at a dotted path."""
-        return next(c for c in self.components if c.path == path)
 
 
 _EXTRACTED: list[str] = []

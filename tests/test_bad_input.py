@@ -5,7 +5,6 @@ import sys
 import zipfile
 
 import numpy as np
-import pytest
 
 from master.cli import main
 from master.results import read_csv

@@ -6,7 +6,7 @@ import pytest
 from fmus.spring_mass.core import ChainParameters, SpringMassChain
 from master.assembly import glue_cores
 from master.errors import SimulationError
-from master.ssp import Joint, MasterSettings
+from master.scene import Joint, MasterSettings
 
 H, STOP = 0.01, 3.0
 

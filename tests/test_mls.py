@@ -75,7 +75,7 @@ def test_non_matching_bar_in_tension_matches_the_one_piece_bar():
     from fmus.elastic.core import ElasticBody, PointLoad
     from fmus.elastic.geometry import in_box, rectangle
     from master.assembly import glue_cores
-    from master.ssp import Joint, MasterSettings
+    from master.scene import Joint, MasterSettings
 
     length, depth, thickness, force = 1.0, 0.1, 0.01, 1e5
     cut = in_box((0.5, 0.0), (0.5, depth))

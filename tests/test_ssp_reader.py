@@ -1,7 +1,6 @@
 """The SSP reader, the shipped archives' validity and the build's up-to-date check."""
 import zipfile
 
-import pytest
 from fmpy.ssp.ssd import read_ssd
 
 from master.cli import main

@@ -4,7 +4,6 @@ Every model quantity is a parameter (``n``, ``m[i]``, ``k[i]``, ..., ``P.mass``)
 one FMU serves every spring-mass scene; outputs ``x[i]``, ``v[i]``, ``a[i]`` and the
 port variables of DESIGN.md.  The FMU state is the chain's complete numerical state.
 """
-import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from fmus.fmi_binding import CoreBinding, glued_slave
