@@ -48,7 +48,8 @@ def _summary(statistics, out: Path, plot: Path | None) -> str:
     data = statistics.data
     header, values = read_csv(out)
     lines = [
-        f"scene       {data['scene']}  ({data['file']})",
+        f"scene       {data['scene']}  ({data['file']}), "
+        f"{data['master']['coupling']} coupling",
         f"time        {data['start_time']:g} .. {data['stop_time']:g} s, "
         f"step {data['master']['step']:g} s, {data['steps']} steps",
         f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
@@ -80,7 +81,7 @@ def _cmd_run(args) -> int:
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
     overrides = dict(stop=args.stop, step=args.step, tolerance=args.tol,
                      max_iterations=args.max_iterations, predictor=args.predictor,
-                     refresh=args.refresh)
+                     refresh=args.refresh, coupling=args.coupling)
     try:
         statistics = run(args.scene, out, observers=[ProgressBar(Path(args.scene).stem)],
                          **overrides)
@@ -174,6 +175,8 @@ def parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--predictor", choices=["none", "constant", "linear", "quadratic"])
     run_parser.add_argument("--refresh", choices=["adaptive", "iterations"],
                             help="when to re-measure the interface flexibility")
+    run_parser.add_argument("--coupling", choices=["iterative", "explicit"],
+                            help="explicit: one trial per step, no iteration (a baseline)")
     run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here)")
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
     run_parser.add_argument("--quiet", action="store_true", help="no summary")

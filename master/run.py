@@ -15,6 +15,7 @@ from master.assembly import assemble
 from master.backends.inprocess import InProcessBackend
 from master.errors import InputError, SimulationError
 from master.fmu import FmuSubsystem, can_save_state
+from master.explicit import ExplicitGluing
 from master.gluing import TTGluing
 from master.ports import component_ports, joint_port_dofs, variables_by_name
 from master.results import CsvRecorder, RunStatistics
@@ -208,7 +209,8 @@ def execute(checked: Plan, out: Path, observers=()) -> "RunStatistics":
             backend.close()
             raise
     by_name = {s.name: s for s in subsystems}
-    gluing = TTGluing(backend, checked.layout, checked.joint_states, master)
+    coupling = ExplicitGluing if master.coupling == "explicit" else TTGluing
+    gluing = coupling(backend, checked.layout, checked.joint_states, master)
     columns = [f"{s.name}.{n}" for s in subsystems for n in s.output_names]
     recorder = CsvRecorder(out, columns + checked.layout.labels)
     try:

@@ -82,6 +82,7 @@ class MasterSettings:
     predictor: str = "linear"
     refresh_after: int = 10
     refresh: str = "adaptive"
+    coupling: str = "iterative"
     perturbation: float = 1e-3
 
 

@@ -58,3 +58,17 @@ def test_stats_file_has_the_results_contract(built, tmp_path):
     header, data = read_csv(out)
     assert header == ["time", "left.x[1]", "right.x[1]", "right.x[2]", "right.a[2]", "j1.f_x"]
     assert data.shape == (51, 6) and data[0, 0] == 0.0 and data[-1, 0] == pytest.approx(0.5)
+
+
+def test_explicit_coupling_is_a_one_trial_baseline(built, tmp_path):
+    """The non-iterative baseline: one doStep per FMU per step (plus the first
+    step's flexibility measurement), compatible only to what the predictor misses."""
+    out = tmp_path / "explicit.csv"
+    statistics = run(built["ssp"] / "spring_mass_linear.ssp", out, coupling="explicit",
+                     predictor="quadratic").data
+    steps = statistics["steps"]
+    for component in statistics["components"].values():
+        assert component["functions"]["fmi2DoStep"]["calls"] == steps + 2  # +perturb, redo
+    result = spring_mass.compare(out, nonlinear=False)
+    assert 1e-8 < result["relative_error"] < 1e-4  # measured 3.6e-6: worse than iterative
+    assert statistics["master"]["coupling"] == "explicit"
