@@ -1,0 +1,171 @@
+"""A third-party FMU, written in C and compiled here (fmpy ships the FMI 2.0
+headers), glued to dsim's own SpringMass FMU through a glue:Port map of its own
+variable names; and the same FMU without state saving, which dsim must refuse."""
+import math
+import shutil
+import subprocess
+import uuid
+import zipfile
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+from fmpy.validation import validate_fmu
+
+from fmus.spring_mass.core import ChainParameters, SpringMassChain
+from master.cli import main
+from master.results import read_csv
+from master.run import run
+
+SOURCE = Path(__file__).parent / "third_party" / "oscillator.c"
+VARIABLES = [("m", "parameter", 1.0), ("k", "parameter", 1.0), ("F_in", "input", 0.0),
+             ("s", "output", None), ("v", "output", None), ("a", "output", None),
+             ("s0", "parameter", 0.0)]
+
+
+def model_description(can_save_state: bool) -> str:
+    rows = []
+    for vr, (name, causality, start) in enumerate(VARIABLES):
+        extra = {"parameter": ' variability="fixed" initial="exact"',
+                 "input": ' variability="continuous"',
+                 "output": ' variability="continuous" initial="calculated"'}[causality]
+        real = "<Real/>" if start is None else f'<Real start="{start}"/>'
+        rows.append(f'    <ScalarVariable name="{name}" valueReference="{vr}" '
+                    f'causality="{causality}"{extra}>{real}</ScalarVariable>')
+    outputs = "".join(f'<Unknown index="{i + 1}"/>' for i, v in enumerate(VARIABLES)
+                      if v[1] == "output")
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="oscillator" guid="{{{uuid.uuid4()}}}"
+    variableNamingConvention="flat" numberOfEventIndicators="0">
+  <CoSimulation modelIdentifier="oscillator" canHandleVariableCommunicationStepSize="true"
+      canGetAndSetFMUstate="{str(can_save_state).lower()}"/>
+  <ModelVariables>
+{chr(10).join(rows)}
+  </ModelVariables>
+  <ModelStructure>
+    <Outputs>{outputs}</Outputs>
+    <InitialUnknowns>{outputs}</InitialUnknowns>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def build(folder: Path, can_save_state: bool) -> Path:
+    """Compile the C source and pack it as an FMI 2.0 co-simulation FMU."""
+    if shutil.which("gcc") is None:
+        pytest.skip("no C compiler")
+    headers = Path(fmpy.__file__).parent / "c-code"
+    library = folder / "oscillator.so"
+    flags = [] if can_save_state else ["-DNO_STATE"]
+    subprocess.run(["gcc", "-shared", "-fPIC", "-O2", *flags, f"-I{headers}", str(SOURCE),
+                    "-o", str(library)], check=True)
+    fmu = folder / ("oscillator.fmu" if can_save_state else "oscillator_nostate.fmu")
+    with zipfile.ZipFile(fmu, "w") as archive:
+        archive.writestr("modelDescription.xml", model_description(can_save_state))
+        archive.write(library, "binaries/linux64/oscillator.so")
+    return fmu
+
+
+@pytest.fixture(scope="module")
+def c_fmus(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("cfmu")
+    return {"state": build(folder, True), "nostate": build(folder, False)}
+
+
+SCENE = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="third_party"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssd:System name="root">
+    <ssd:Elements>
+      <ssd:Component name="third" source="resources/oscillator.fmu">
+        <ssd:Connectors><ssd:Connector name="s" kind="output"><ssc:Real/></ssd:Connector></ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+          <ssv:ParameterSet version="1.0" name="third"><ssv:Parameters>
+            <ssv:Parameter name="m"><ssv:Real value="2"/></ssv:Parameter>
+            <ssv:Parameter name="k"><ssv:Real value="300"/></ssv:Parameter>
+            <ssv:Parameter name="s0"><ssv:Real value="0.01"/></ssv:Parameter>
+          </ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+      <ssd:Component name="mass" source="resources/SpringMass.fmu">
+        <ssd:Connectors><ssd:Connector name="x[1]" kind="output"><ssc:Real/></ssd:Connector></ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+          <ssv:ParameterSet version="1.0" name="mass"><ssv:Parameters>
+            <ssv:Parameter name="m[1]"><ssv:Real value="3"/></ssv:Parameter>
+            <ssv:Parameter name="k_ground[1]"><ssv:Real value="200"/></ssv:Parameter>
+            <ssv:Parameter name="x0[1]"><ssv:Real value="0.01"/></ssv:Parameter>
+            <ssv:Parameter name="Fa[1]"><ssv:Real value="5"/></ssv:Parameter>
+            <ssv:Parameter name="omega[1]"><ssv:Real value="7"/></ssv:Parameter>
+          </ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Annotations>
+      <ssc:Annotation type="org.dsim.gluing">
+        <glue:Gluing xmlns:glue="urn:dsim:gluing:1">
+          <glue:Port component="third" name="P" dofs="x" force="F_in" position="s"
+                     velocity="v" acceleration="a"/>
+          <glue:Joint name="j" a="third.P" b="mass.P" dofs="x"/>
+        </glue:Gluing>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="2">
+    <ssd:Annotations><ssc:Annotation type="org.dsim.master">
+      <glue:Master xmlns:glue="urn:dsim:gluing:1" step="0.005" tolerance="1e-13"/>
+    </ssc:Annotation></ssd:Annotations>
+  </ssd:DefaultExperiment>
+</ssd:SystemStructureDescription>
+"""
+
+
+def scene(folder: Path, built, c_fmu: Path) -> Path:
+    (folder / "resources").mkdir(parents=True)
+    shutil.copy(c_fmu, folder / "resources" / "oscillator.fmu")
+    shutil.copy(built["fmus"] / "SpringMass.fmu", folder / "resources" / "SpringMass.fmu")
+    (folder / "SystemStructure.ssd").write_text(SCENE)
+    return folder
+
+
+def test_the_c_fmu_is_valid_and_runs_alone_in_fmpy(c_fmus):
+    assert validate_fmu(str(c_fmus["state"])) == []
+    result = simulate_fmu(str(c_fmus["state"]), stop_time=1.0, output_interval=1e-3,
+                          start_values={"m": 1.0, "k": 400.0, "s0": 0.01}, output=["s"])
+    w_h = 2.0 / 1e-3 * math.atan(20.0 * 1e-3 / 2.0)  # the trapezoidal rule's frequency
+    assert np.max(np.abs(result["s"] - 0.01 * np.cos(w_h * result["time"]))) < 1e-12
+
+
+def test_third_party_fmu_glued_through_a_port_map_equals_the_merged_model(
+        c_fmus, built, tmp_path):
+    """Fixed joint between the C FMU's mapped port and SpringMass.P: one mass of
+    2 + 3 kg on springs 300 + 200 N/m under the SpringMass load."""
+    out = tmp_path / "run.csv"
+    stats = run(scene(tmp_path / "scene", built, c_fmus["state"]), out).data
+    header, data = read_csv(out)
+    params = ChainParameters(n=1)
+    params.m[0], params.k_ground[0], params.x0[0] = 5.0, 500.0, 0.01
+    params.Fa[0], params.omega[0] = 5.0, 7.0
+    merged = SpringMassChain(params)
+    merged.initialize(0.0)
+    expected = [merged.x[0]]
+    for i in range(len(data) - 1):
+        merged.step(i * 0.005, 0.005)
+        expected.append(merged.x[0])
+    peak = np.max(np.abs(expected))
+    for column in ("third.s", "mass.x[1]"):
+        assert np.max(np.abs(data[:, header.index(column)] - expected)) < 1e-9 * peak
+    assert stats["iterations"]["max_per_step"] <= 2
+    assert stats["components"]["third"]["functions"]["fmi2SetFMUstate"]["calls"] > 0
+
+
+def test_a_fmu_that_cannot_save_state_is_refused_with_one_line(c_fmus, built, tmp_path,
+                                                               capsys):
+    folder = scene(tmp_path / "scene", built, c_fmus["nostate"])
+    assert main(["run", str(folder), "--out", str(tmp_path / "o.csv"), "--quiet"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1
+    assert "component 'third' cannot save and restore its state" in lines[0]

@@ -1,0 +1,151 @@
+/* A third-party FMI 2.0 co-simulation FMU written in plain C, for dsim's tests:
+ * one mass m (kg) on a spring k (N/m) to ground, integrated with the trapezoidal
+ * rule; the force input F_in (N) is held over a step and balanced at its end.
+ * Its variables are named in its own way (F_in, s, v, a), so a glue:Port
+ * annotation has to map them onto a port.  Compiled with -DNO_STATE it declares
+ * and implements no state saving, the case a master must refuse to iterate. */
+#include <stdlib.h>
+#include <string.h>
+#include "fmi2Functions.h"
+
+enum { VR_M, VR_K, VR_F, VR_S, VR_V, VR_A, VR_S0, N_VARS };
+
+typedef struct {
+    double x[N_VARS];
+    double time;
+    fmi2CallbackFunctions cb;
+} Model;
+
+static void update_acceleration(Model *m) {
+    m->x[VR_A] = (m->x[VR_F] - m->x[VR_K] * m->x[VR_S]) / m->x[VR_M];
+}
+
+FMI2_Export const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+FMI2_Export const char *fmi2GetVersion(void) { return fmi2Version; }
+FMI2_Export fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n,
+                                           const fmi2String cats[]) { return fmi2OK; }
+
+FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid,
+                                          fmi2String resources,
+                                          const fmi2CallbackFunctions *functions,
+                                          fmi2Boolean visible, fmi2Boolean logging) {
+    Model *m = calloc(1, sizeof(Model));
+    if (!m) return NULL;
+    m->cb = *functions;
+    m->x[VR_M] = 1.0; m->x[VR_K] = 1.0;
+    return m;
+}
+FMI2_Export void fmi2FreeInstance(fmi2Component c) { free(c); }
+FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined,
+                                           fmi2Real tol, fmi2Real start,
+                                           fmi2Boolean stopDefined, fmi2Real stop) {
+    ((Model *)c)->time = start; return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return fmi2OK; }
+FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Model *m = c;
+    m->x[VR_S] = m->x[VR_S0]; m->x[VR_V] = 0.0;
+    update_acceleration(m);
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) { return fmi2OK; }
+FMI2_Export fmi2Status fmi2Reset(fmi2Component c) { return fmi2OK; }
+
+FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                   fmi2Real value[]) {
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] >= N_VARS) return fmi2Error;
+        value[i] = ((Model *)c)->x[vr[i]];
+    }
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                   const fmi2Real value[]) {
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] >= N_VARS) return fmi2Error;
+        ((Model *)c)->x[vr[i]] = value[i];
+    }
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[],
+                                      size_t n, fmi2Integer v[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[],
+                                      size_t n, const fmi2Integer v[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[],
+                                      size_t n, fmi2Boolean v[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[],
+                                      size_t n, const fmi2Boolean v[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[],
+                                     size_t n, fmi2String v[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[],
+                                     size_t n, const fmi2String v[]) { return fmi2Error; }
+
+#ifdef NO_STATE
+#define STATE_RESULT fmi2Error
+#else
+#define STATE_RESULT fmi2OK
+#endif
+FMI2_Export fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
+#ifdef NO_STATE
+    return fmi2Error;
+#else
+    if (!*state) *state = malloc(sizeof(Model));
+    if (!*state) return fmi2Error;
+    memcpy(*state, c, sizeof(Model));
+    return fmi2OK;
+#endif
+}
+FMI2_Export fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
+#ifdef NO_STATE
+    return fmi2Error;
+#else
+    memcpy(c, state, sizeof(Model));
+    return fmi2OK;
+#endif
+}
+FMI2_Export fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    free(*state); *state = NULL; return STATE_RESULT;
+}
+FMI2_Export fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *n) {
+    return fmi2Error;
+}
+FMI2_Export fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[],
+                                             size_t n) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n,
+                                               fmi2FMUstate *s) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
+        const fmi2ValueReference u[], size_t nu, const fmi2ValueReference z[], size_t nz,
+        const fmi2Real du[], fmi2Real dz[]) { return fmi2Error; }
+
+FMI2_Export fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
+        const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],
+        const fmi2Real value[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
+        const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],
+        fmi2Real value[]) { return fmi2Error; }
+
+/* trapezoidal rule: s1 = s + h v + h^2/4 (a + a1), v1 = v + h/2 (a + a1),
+ * m a1 + k s1 = F  =>  a1 = (F - k (s + h v + h^2/4 a)) / (m + k h^2/4) */
+FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
+                                  fmi2Boolean noSetPrior) {
+    Model *m = c;
+    double *x = m->x;
+    double s_pred = x[VR_S] + h * x[VR_V] + 0.25 * h * h * x[VR_A];
+    double a1 = (x[VR_F] - x[VR_K] * s_pred) / (x[VR_M] + 0.25 * h * h * x[VR_K]);
+    x[VR_V] += 0.5 * h * (x[VR_A] + a1);
+    x[VR_S] = s_pred + 0.25 * h * h * a1;
+    x[VR_A] = a1;
+    m->time = t + h;
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2CancelStep(fmi2Component c) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s,
+                                     fmi2Status *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s,
+                                         fmi2Real *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s,
+                                            fmi2Integer *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s,
+                                            fmi2Boolean *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s,
+                                           fmi2String *v) { return fmi2Error; }
