@@ -59,3 +59,27 @@ def test_rollback_through_the_fmu_is_bit_for_bit(built):
         assert fmu.counters["fmi2GetFMUstate"][0] == 2
     finally:
         fmu.terminate()
+
+
+def test_fmus_run_in_fmpys_own_ssp_master_even_after_another_dsim_fmu(built):
+    """Other masters load dsim's FMUs one after another and delete each FMU's
+    folder when done; a later FMU must not depend on an earlier one's copy of the
+    fmus package.  fmpy's SSP runner ignores the gluing annotation (the parts run
+    unglued), which is enough to show the FMUs run there."""
+    import subprocess
+    import sys
+
+    code = f"""
+import sys, types
+stale = types.ModuleType("fmus")
+stale.__path__ = ["/nonexistent/fmus"]  # what a freed FMU's copy leaves behind
+sys.modules["fmus"] = stale
+from fmpy.ssp.simulation import simulate_ssp
+for scene in ("crank_slider_rigid", "chain_10"):
+    result = simulate_ssp("{built['ssp']}/" + scene + ".ssp", stop_time=0.002, step_size=0.001)
+    print(scene, len(result))
+"""
+    process = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             timeout=300)
+    assert process.returncode == 0, process.stderr[-2000:]
+    assert "crank_slider_rigid 2" in process.stdout and "chain_10 2" in process.stdout

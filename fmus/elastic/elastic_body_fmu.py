@@ -12,6 +12,15 @@ the body's node set when the FMU initialises. Output ``load.u_x``, ``load.u_y``:
 A body the parameters cannot make (unknown part, a mesh file that is no mesh, an empty or
 miscounted node set) fails fmi2ExitInitializationMode with the reason logged as an error.
 """
+import os
+import sys
+
+# Another dsim FMU in this process may have imported the fmus package from its own
+# resources folder, which its master may since have deleted: look in ours first.
+_OWN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fmus")
+if "fmus" in sys.modules and os.path.isdir(_OWN) and _OWN not in sys.modules["fmus"].__path__:
+    sys.modules["fmus"].__path__.insert(0, _OWN)
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 
 from fmus.elastic.parts import DOFS, MAX_NODES, PORTS, PartSpec, SlotBody, build_body

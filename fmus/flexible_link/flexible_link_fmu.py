@@ -10,6 +10,15 @@ Outputs: the reference frame's ``reference.x y theta vx vy omega alpha`` (and
 ``omega``, the same angular velocity, named as in the rigid Linkage2D FMU),
 ``deflection``, ``stretch``, ``mean_axis_violation``, ``pim_iterations``.
 """
+import os
+import sys
+
+# Another dsim FMU in this process may have imported the fmus package from its own
+# resources folder, which its master may since have deleted: look in ours first.
+_OWN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fmus")
+if "fmus" in sys.modules and os.path.isdir(_OWN) and _OWN not in sys.modules["fmus"].__path__:
+    sys.modules["fmus"].__path__.insert(0, _OWN)
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from fmus.fmi_binding import CoreBinding, glued_slave

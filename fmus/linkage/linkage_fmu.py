@@ -10,6 +10,15 @@ follow DESIGN.md; a port the part lacks takes no force and reports zero motion.
 Outputs: the part's body ``x y theta vx vy omega ax ay alpha``, the driver
 ``torque``, ``constraint_violation`` and ``newton_iterations``.
 """
+import os
+import sys
+
+# Another dsim FMU in this process may have imported the fmus package from its own
+# resources folder, which its master may since have deleted: look in ours first.
+_OWN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fmus")
+if "fmus" in sys.modules and os.path.isdir(_OWN) and _OWN not in sys.modules["fmus"].__path__:
+    sys.modules["fmus"].__path__.insert(0, _OWN)
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 
 from fmus.fmi_binding import CoreBinding, glued_slave

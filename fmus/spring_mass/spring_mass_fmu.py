@@ -4,6 +4,15 @@ Every model quantity is a parameter (``n``, ``m[i]``, ``k[i]``, ..., ``P.mass``)
 one FMU serves every spring-mass scene; outputs ``x[i]``, ``v[i]``, ``a[i]`` and the
 port variables of DESIGN.md.  The FMU state is the chain's complete numerical state.
 """
+import os
+import sys
+
+# Another dsim FMU in this process may have imported the fmus package from its own
+# resources folder, which its master may since have deleted: look in ours first.
+_OWN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fmus")
+if "fmus" in sys.modules and os.path.isdir(_OWN) and _OWN not in sys.modules["fmus"].__path__:
+    sys.modules["fmus"].__path__.insert(0, _OWN)
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 
 from fmus.fmi_binding import CoreBinding, glued_slave
