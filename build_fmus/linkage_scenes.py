@@ -74,22 +74,6 @@ def crank_slider(name: str, coupler: str = "rigid", measure: str = "penalized",
     return scene
 
 
-def four_bar_initial_forces() -> dict:
-    """Port input start values that make the parts' initial accelerations those of
-    the whole fixed four bar (the coupler starts on a circular translation, so its
-    joints carry centripetal load at t = 0; the master starts from zero forces)."""
-    from fmus.linkage.scenes import four_bar
-
-    whole = four_bar("whole")
-    whole.initialize(0.0)
-    r = whole.reactions()
-    fa, fb = (r["A.f_x"], r["A.f_y"]), (r["B.f_x"], r["B.f_y"])
-    # b receives +F, a receives -F: A = (crank.A, coupler.A), B = (coupler.B, rocker.B)
-    return {"crank": {"A.f_x": -fa[0], "A.f_y": -fa[1]},
-            "coupler": {"A.f_x": fa[0], "A.f_y": fa[1], "B.f_x": -fb[0], "B.f_y": -fb[1]},
-            "rocker": {"B.f_x": fb[0], "B.f_y": fb[1]}}
-
-
 def four_bar_singular(joints: str) -> SceneWriter:
     """Parallelogram four bar as crank, coupler, rocker glued at A = (crank.A,
     coupler.A) and B = (coupler.B, rocker.B), dofs x y, displacement measure;
@@ -98,12 +82,10 @@ def four_bar_singular(joints: str) -> SceneWriter:
     name = f"four_bar_singular_{joints}"
     scene = SceneWriter(name, f"Seed section 5.3.2: parallelogram four bar through its "
                         f"singular (collinear) configuration, {joints} glue joints")
-    initial = four_bar_initial_forces() if joints == "fixed" else {}
     outputs = {"crank": ["theta", "omega", "torque"], "coupler": ["theta", "omega"],
                "rocker": ["theta", "omega"]}
     for part in ("crank", "coupler", "rocker"):
-        values = {**_part("four_bar", part), **initial.get(part, {})}
-        scene.component(part, "Linkage2D", values, outputs=outputs[part])
+        scene.component(part, "Linkage2D", _part("four_bar", part), outputs=outputs[part])
     law = dict(kind="flexible", spring={"k0": p["k"], "k1": 0.0},
                damper={"c0": p["c"], "c1": 0.0}) if joints == "flexible" else {}
     scene.joint("A", "crank.A", "coupler.A", dofs="x y", **law)
@@ -127,7 +109,10 @@ def scenes() -> list[tuple[SceneWriter, dict]]:
          dict(stop=cs["stop"], **crank_master)),
         (crank_slider("crank_slider_penalized_acceleration", "flexible", "acceleration",
                       True), dict(stop=cs["stop"], **crank_master)),
-        (four_bar_singular("fixed"), dict(stop=fb["stop"], **four_master)),
+        # the crank turns at full speed from t = 0: fixed joints carry centripetal
+        # forces at once, which the master's consistent start finds (master/start.py)
+        (four_bar_singular("fixed"), dict(stop=fb["stop"], start="consistent",
+                                          **four_master)),
         (four_bar_singular("flexible"), dict(stop=fb["stop"], **four_master)),
     ]
 

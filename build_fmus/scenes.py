@@ -93,7 +93,9 @@ class SceneWriter:
                 etree.SubElement(joint, _q(GLUE, tag), {k: repr(v) for k, v in values.items()})
         self.systems[system][2].append(joint)
 
-    def write(self, folder: Path, start: float, stop: float, **master) -> None:
+    def write(self, folder: Path, start_time: float, stop_time: float, **master) -> None:
+        """Write SystemStructure.ssd and the .ssv files into ``folder``; ``master``
+        are the glue:Master attributes."""
         for system, _, joints in self.systems.values():
             if not joints:
                 continue
@@ -103,7 +105,7 @@ class SceneWriter:
             gluing = etree.SubElement(annotation, _q(GLUE, "Gluing"), nsmap={"glue": GLUE})
             gluing.extend(joints)
         experiment = etree.SubElement(self.root, _q(SSD, "DefaultExperiment"),
-                                      startTime=repr(start), stopTime=repr(stop))
+                                      startTime=repr(start_time), stopTime=repr(stop_time))
         annotations = etree.SubElement(experiment, _q(SSD, "Annotations"))
         annotation = etree.SubElement(annotations, _q(SSC, "Annotation"), type="org.dsim.master")
         etree.SubElement(annotation, _q(GLUE, "Master"), {k: str(v) for k, v in master.items()},

@@ -6,6 +6,11 @@ it is this binding object, which a wrapper creates in ``__init__`` and calls fro
 its FMI callbacks.  It registers the port variables of DESIGN.md (``P.f_x`` input,
 ``P.u_x``/``P.v_x``/``P.a_x`` outputs), caches the outputs after every step, and
 implements the complete FMU state (the core's numerical state plus inputs).
+
+In initialization mode the port outputs follow the force inputs (FMI 2.0 lets a
+master read calculated outputs there): the core is built at the first read, and
+every force written recomputes the initial accelerations.  A master can so find
+start forces that make the initial accelerations compatible before the first step.
 """
 from __future__ import annotations
 
@@ -27,6 +32,8 @@ class CoreBinding:
         self.slave = slave
         self.interface = tuple(interface)
         self.core: InterfaceCore | None = None
+        self.initializing = False
+        self.start_time = 0.0
         self.forces = np.zeros(len(self.interface))
         self.kinematics = np.zeros((3, len(self.interface)))
         self.output_values = {name: 0.0 for name in output_names}
@@ -44,7 +51,7 @@ class CoreBinding:
                     f"{port}.{prefix}_{dof}", causality=Fmi2Causality.output,
                     variability=Fmi2Variability.continuous,
                     description=f"global {what} of the port",
-                    getter=lambda row=row, i=i: float(self.kinematics[row, i])),
+                    getter=lambda row=row, i=i: self._kinematic(row, i)),
                     nested=False)
         for name in output_names:
             slave.register_variable(Real(
@@ -56,6 +63,14 @@ class CoreBinding:
         self.forces[index] = value
         if self.core is not None:
             self.core.set_interface_forces(self.forces)
+            if self.initializing:  # the start forces decide the initial accelerations
+                self.core.initialize(self.start_time)
+                self.refresh()
+
+    def _kinematic(self, row: int, index: int) -> float:
+        if self.core is None and self.initializing:
+            self.attach(self.slave.build_core(), self.start_time)
+        return float(self.kinematics[row, index])
 
     def attach(self, core: InterfaceCore, start_time: float) -> None:
         """Take over a freshly built core and initialise it at ``start_time``."""
@@ -113,15 +128,23 @@ def glued_slave(cls):
     from pythonfmu.enums import Fmi2Status
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.start_time = start_time
+        self.binding.start_time = start_time
 
-    def exit_initialization_mode(self):
+    def enter_initialization_mode(self):
+        self.binding.initializing = True
+
+    def build_core_logged(self):
         try:
-            core = self.build_core()
+            return build_core(self)
         except ValueError as error:
             self.log(f"{self.instance_name}: {error}", Fmi2Status.error)
             raise
-        self.binding.attach(core, getattr(self, "start_time", 0.0))
+
+    def exit_initialization_mode(self):
+        binding = self.binding
+        if binding.core is None:
+            binding.attach(self.build_core(), binding.start_time)
+        binding.initializing = False
 
     def do_step(self, current_time, step_size):
         return self.binding.step(current_time, step_size)
@@ -132,10 +155,12 @@ def glued_slave(cls):
     def _set_fmu_state(self, state):
         self.binding.set_state(state)
 
-    for method in (setup_experiment, exit_initialization_mode, do_step, _get_fmu_state,
-                   _set_fmu_state):
+    build_core = cls.build_core
+    for method in (setup_experiment, enter_initialization_mode, exit_initialization_mode,
+                   do_step, _get_fmu_state, _set_fmu_state):
         if method.__name__ not in cls.__dict__:
             setattr(cls, method.__name__, method)
+    cls.build_core = build_core_logged
     cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
     cls._fmu_state_from_bytes = staticmethod(state_from_bytes)
     abc.update_abstractmethods(cls)

@@ -24,7 +24,7 @@ class ExplicitGluing(TTGluing):
         first step); record the residual left at the interface."""
         forces = self.predict()
         self.backend.begin_step()
-        local = np.split(self.layout.stacked @ forces, self.layout.offsets)
+        local = self.layout.local_forces(forces)
         kinematics = self.backend.trial_step(local, time, step_size)
         r, _, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
         if not np.all(np.isfinite(r)):

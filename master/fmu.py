@@ -110,21 +110,21 @@ class FmuSubsystem(Subsystem):
                              modelIdentifier=description.coSimulation.modelIdentifier,
                              instanceName=name)
         _MESSAGES.pop(name, None)
-        try:
-            self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
-                callbacks=_CALLBACKS, loggingOn=True))
-            self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
-                startTime=start_time, stopTime=stop_time))
-            self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
-            self._set_parameters(parameters, variables)
-            self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
-        except SimulationError as error:
-            # No fmi2FreeInstance: after fmi2Fatal the standard allows no further call, and
-            # pythonfmu (0.7) has already released its Python objects when it reports one:
-            # freeing the instance would release them twice and crash the process later.
-            reason = logged_error(name) or str(error)
-            raise InputError(f"{location or name}: FMU {self.path.name} cannot be "
-                             f"initialised with these parameters: {reason}") from None
+        self._location = location or name
+        # until finish_initialization() the instance is in initialization mode, where a
+        # failing call means the model refused the scene's parameters: bad input
+        self._initializing = True
+        self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
+            callbacks=_CALLBACKS, loggingOn=True))
+        self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
+            startTime=start_time, stopTime=stop_time))
+        self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
+        self._set_parameters(parameters, variables)
+
+    def finish_initialization(self) -> None:
+        """Leave initialization mode (the start forces set so far are the FMU's)."""
+        self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+        self._initializing = False
 
     def _call(self, label: str, function, *args):
         try:
@@ -132,6 +132,15 @@ class FmuSubsystem(Subsystem):
         except SimulationError:
             raise
         except Exception as error:  # fmpy raises FMICallException, ctypes errors
+            if self._initializing:
+                # No fmi2FreeInstance: after fmi2Fatal the standard allows no further
+                # call, and pythonfmu (0.7) has already released its Python objects when
+                # it reports one: freeing the instance would release them twice and
+                # crash the process later.
+                self.fmu.component = None
+                reason = logged_error(self.name) or f"{label} failed: {error}"
+                raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
+                                 f"initialised with these parameters: {reason}") from None
             raise SimulationError(f"component '{self.name}': {label} failed: {error}",
                                   time=self.time) from None
 
@@ -193,10 +202,13 @@ class FmuSubsystem(Subsystem):
         self._call("fmi2SetReal", self.fmu.setReal, vrs, values)
 
     def terminate(self):
+        if self.fmu.component is None:  # never instantiated, or failed beyond any call
+            return
         try:
             if self._state is not None:
                 self.fmu.freeFMUstate(self._state)
                 self._state = None
-            self.fmu.terminate()
+            if not self._initializing:  # fmi2Terminate is for the step mode
+                self.fmu.terminate()
         finally:
             self.fmu.freeInstance()

@@ -64,6 +64,21 @@ class GluingLayout:
         self.measures = list(measures or ["displacement"] * len(self.labels))
         self.size = len(self.labels)
 
+    def differences(self, kinematics):
+        """Per kind (u, v, a): sum_i C_i^T x_i (= x_b - x_a per joint dof) and the
+        matching magnitude sum |C_i|^T |x_i| used by the relative tolerance; both 3 x n_F."""
+        stacked = np.zeros((self.stacked.shape[0], 3))
+        for values, start, stop in zip(kinematics, np.r_[0, self.offsets],
+                                       np.r_[self.offsets, self.stacked.shape[0]]):
+            for kind, x in enumerate(values):
+                if x is not None:
+                    stacked[start:stop, kind] = x
+        return (self.stacked_t @ stacked).T, (self.stacked_abs_t @ np.abs(stacked)).T
+
+    def local_forces(self, forces):
+        """Split the joint forces F into each subsystem's glued-dof forces C_i F."""
+        return np.split(self.stacked @ forces, self.offsets)
+
 
 class TTGluing:
     """Newton iteration on the joint forces with step rollback."""
@@ -89,18 +104,7 @@ class TTGluing:
 
     # --- assembly --------------------------------------------------------------------
     def _gather(self, kinematics):
-        """Per kind (u, v, a): sum_i C_i^T x_i (= x_b - x_a per joint dof) and the
-        matching magnitude sum |C_i|^T |x_i| used by the relative tolerance."""
-        layout = self.layout
-        stacked = np.zeros((layout.stacked.shape[0], 3))
-        for values, start, stop in zip(kinematics, np.r_[0, layout.offsets],
-                                       np.r_[layout.offsets, layout.stacked.shape[0]]):
-            for kind, x in enumerate(values):
-                if x is not None:
-                    stacked[start:stop, kind] = x
-        differences = (layout.stacked_t @ stacked).T
-        magnitudes = (layout.stacked_abs_t @ np.abs(stacked)).T
-        return differences, magnitudes
+        return self.layout.differences(kinematics)
 
     def residual(self, kinematics, forces, step_size):
         """Compatibility residual R (eqs. 4.13, 5.6) at ``forces``, its tolerance per
@@ -170,10 +174,14 @@ class TTGluing:
         return remaining > max((len(f) for f in local), default=0) + 1
 
     # --- the macro step --------------------------------------------------------------
-    def start(self, kinematics) -> None:
-        """Initial joint extensions from the ports' kinematics at the start time."""
+    def start(self, kinematics, forces=None) -> None:
+        """Initial joint extensions from the ports' kinematics at the start time, and
+        the start forces (zero unless a consistent start found others)."""
         differences, _ = self._gather(kinematics)
         self.joints.start(*differences)
+        if forces is not None:
+            self.forces = np.array(forces, dtype=float)
+            self._history.append(self.forces.copy())
 
     def predict(self) -> np.ndarray:
         """First guess for F from past converged forces (``settings.predictor``)."""
@@ -204,7 +212,7 @@ class TTGluing:
         refreshed = 0
         history = []  # max |R| / tolerance per iteration
         for iteration in range(1, settings.max_iterations + 1):
-            local = np.split(self.layout.stacked @ forces, self.layout.offsets)
+            local = self.layout.local_forces(forces)
             kinematics = self.backend.trial_step(local, time, step_size)
             r, tolerance, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
             if not np.all(np.isfinite(r)):

@@ -19,6 +19,7 @@ from master.explicit import ExplicitGluing
 from master.gluing import TTGluing
 from master.ports import component_ports, joint_port_dofs, variables_by_name
 from master.results import CsvRecorder, RunStatistics
+from master.start import check_start, consistent_start_forces
 from master.scene import Scene
 from master.ssp import load_scene
 
@@ -202,19 +203,28 @@ def execute(checked: Plan, out: Path, observers=()) -> "RunStatistics":
     wall_start = clock.perf_counter()
     subsystems = _instantiate(checked)
     backend = InProcessBackend(subsystems)
-    if checked.non_matching:
-        try:
+    start_forces = None
+    try:
+        if master.start == "consistent":
+            if checked.non_matching:
+                _with_positions(checked, subsystems, backend.kinematics())
+            start_forces, reported = consistent_start_forces(backend, checked.layout,
+                                                             checked.joint_states)
+        backend.finish_initialization()
+        if start_forces is not None:
+            check_start(backend, reported)
+        if checked.non_matching and master.start != "consistent":
             _with_positions(checked, subsystems, backend.kinematics())
-        except InputError:
-            backend.close()
-            raise
+    except (InputError, SimulationError):
+        backend.close()
+        raise
     by_name = {s.name: s for s in subsystems}
     coupling = ExplicitGluing if master.coupling == "explicit" else TTGluing
     gluing = coupling(backend, checked.layout, checked.joint_states, master)
     columns = [f"{s.name}.{n}" for s in subsystems for n in s.output_names]
     recorder = CsvRecorder(out, columns + checked.layout.labels)
     try:
-        gluing.start(backend.kinematics())
+        gluing.start(backend.kinematics(), start_forces)
         recorder.write(times[0], backend.outputs(), gluing.forces)
         statistics.setup_seconds = clock.perf_counter() - wall_start
         for observer in observers:

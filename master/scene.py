@@ -83,6 +83,7 @@ class MasterSettings:
     refresh_after: int = 10
     refresh: str = "adaptive"
     coupling: str = "iterative"
+    start: str = "rest"
     perturbation: float = 1e-3
 
 

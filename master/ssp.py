@@ -302,7 +302,7 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
                   "relativeTolerance": ("relative_tolerance", float),
                   "maxIterations": ("max_iterations", int), "predictor": ("predictor", str),
                   "refreshAfter": ("refresh_after", int), "refresh": ("refresh", str),
-                  "coupling": ("coupling", str),
+                  "coupling": ("coupling", str), "start": ("start", str),
                   "perturbation": ("perturbation", float)}
     settings = {}
     for key, text in attributes.items():
@@ -318,6 +318,9 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
     if master.refresh not in ("adaptive", "iterations"):
         problems.append(f"{shown}: glue:Master: refresh '{master.refresh}' must be "
                         "adaptive or iterations")
+    if master.start not in ("rest", "consistent"):
+        problems.append(f"{shown}: glue:Master: start '{master.start}' must be rest or "
+                        "consistent")
     if master.coupling not in ("iterative", "explicit"):
         problems.append(f"{shown}: glue:Master: coupling '{master.coupling}' must be "
                         "iterative or explicit")

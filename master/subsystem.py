@@ -103,6 +103,25 @@ class Subsystem(ABC):
         return result
 
 
+    def start_flexibility(self, forces: np.ndarray, deltas: np.ndarray) -> np.ndarray:
+        """d a / d f at the start time, without stepping (initialization mode): for
+        each glued dof k, write the forces with entry k raised by ``deltas[k]`` and
+        read the accelerations; the forces are written back at the end."""
+        n = len(forces)
+        base = self.kinematics()[2]
+        result = np.zeros((n, n))
+        for k in range(n):
+            perturbed = np.array(forces, dtype=float)
+            perturbed[k] += deltas[k]
+            self.set_forces(perturbed)
+            result[:, k] = (self.kinematics()[2] - base) / deltas[k]
+        self.set_forces(forces)
+        return result
+
+    def finish_initialization(self) -> None:
+        """Leave initialization mode (nothing to do for an in-process core)."""
+
+
 class CoreSubsystem(Subsystem):
     """A physics core (:class:`fmus.interface.InterfaceCore`) driven in process,
     glued at the named subset of its interface."""

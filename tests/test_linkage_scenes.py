@@ -154,3 +154,21 @@ def test_penalized_bounds_the_drift_that_acceleration_only_gluing_lets_grow(buil
     assert accelerated[-1] > accelerated[len(accelerated) // 2]   # and it grows
     # acceleration-only keeps its own measure tight, as it should
     assert np.max(errors["crank_slider_penalized_acceleration"]["a"][1:]) < 1e-6
+
+
+def test_consistent_start_finds_the_four_bars_centripetal_joint_forces(built, tmp_path):
+    """The crank turns at full speed from t = 0, so the fixed joints carry load at
+    once; start="consistent" solves the initial acceleration compatibility before
+    the first step: the t = 0 forces are the whole mechanism's reactions."""
+    from fmus.linkage.scenes import four_bar
+
+    out = tmp_path / "start.csv"
+    run(built["ssp"] / "four_bar_singular_fixed.ssp", out, stop=0.05)
+    header, data = read_csv(out)
+    whole = four_bar("whole")
+    whole.initialize(0.0)
+    reactions = whole.reactions()
+    for name in ("A.f_x", "A.f_y", "B.f_x", "B.f_y"):
+        expected = reactions[name]
+        assert abs(expected) > 20.0  # centripetal load, about 28 N per component
+        assert data[0, header.index(name)] == pytest.approx(expected, rel=1e-8)

@@ -42,6 +42,7 @@ def test_rollback_through_the_fmu_is_bit_for_bit(built):
                   "k[1]": ("Real", 100.0), "k1[1]": ("Real", 1000.0),
                   "c1[1]": ("Real", 1.4e4), "F0[2]": ("Real", 10.0)}
     fmu = FmuSubsystem("c", path, glued, parameters, ["x[1]", "x[2]", "v[2]", "a[2]"], 0.0, 1.0)
+    fmu.finish_initialization()
     try:
         for i in range(20):
             fmu.set_forces([0.1 * i])

@@ -169,3 +169,16 @@ def test_a_fmu_that_cannot_save_state_is_refused_with_one_line(c_fmus, built, tm
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1
     assert "component 'third' cannot save and restore its state" in lines[0]
+
+
+def test_consistent_start_needs_fmus_whose_accelerations_follow_their_inputs(
+        c_fmus, built, tmp_path, capsys):
+    """The C FMU computes its outputs only when it leaves initialization mode, so
+    the master cannot find consistent start forces with it: a clear input error."""
+    folder = scene(tmp_path / "scene", built, c_fmus["state"])
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace('tolerance="1e-13"',
+                                           'tolerance="1e-13" start="consistent"'))
+    assert main(["run", str(folder), "--out", str(tmp_path / "o.csv"), "--quiet"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "component 'third' reports other port accelerations" in lines[0]

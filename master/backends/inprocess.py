@@ -28,6 +28,20 @@ class InProcessBackend:
         return [s.flexibility(f, time, step_size, d, b)
                 for s, f, d, b in zip(self.subsystems, forces, deltas, bases)]
 
+    def set_forces(self, forces) -> None:
+        """Write each subsystem's glued-dof forces (no step)."""
+        for subsystem, f in zip(self.subsystems, forces):
+            subsystem.set_forces(f)
+
+    def start_flexibility(self, forces, deltas):
+        """Each subsystem's d a / d f at the start time (no step)."""
+        return [s.start_flexibility(f, d) for s, f, d in zip(self.subsystems, forces, deltas)]
+
+    def finish_initialization(self) -> None:
+        """Every subsystem leaves initialization mode."""
+        for subsystem in self.subsystems:
+            subsystem.finish_initialization()
+
     def kinematics(self):
         """Current interface kinematics of every subsystem."""
         return [s.kinematics() for s in self.subsystems]
