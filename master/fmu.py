@@ -141,7 +141,9 @@ class FmuSubsystem(Subsystem):
                 reason = logged_error(self.name) or f"{label} failed: {error}"
                 raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
                                  f"initialised with these parameters: {reason}") from None
-            raise SimulationError(f"component '{self.name}': {label} failed: {error}",
+            reason = logged_error(self.name)
+            raise SimulationError(f"component '{self.name}': {label} failed: {error}"
+                                  + (f" ({reason})" if reason else ""),
                                   time=self.time) from None
 
     def _set_parameters(self, parameters: dict, variables: dict) -> None:
