@@ -99,7 +99,7 @@ def _cmd_run(args) -> int:
 
 def _cmd_info(args) -> int:
     from master.fmu import can_save_state
-    from master.ports import component_ports, model_description
+    from master.ports import model_description
     from master.run import plan
 
     checked = plan(__import__("master.ssp", fromlist=["load_scene"]).load_scene(args.scene))
@@ -109,7 +109,7 @@ def _cmd_info(args) -> int:
     print(f"master: step {m.step:g} s, tolerance {m.tolerance:g} (relative "
           f"{m.relative_tolerance:g}), maxIterations {m.max_iterations}, predictor "
           f"{m.predictor}, refreshAfter {m.refresh_after}, perturbation {m.perturbation:g}")
-    ports = component_ports(scene, [])
+    ports = checked.ports
     print(f"components ({len(scene.components)}):")
     for component in scene.components:
         description = model_description(component.source)

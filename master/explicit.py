@@ -23,7 +23,7 @@ class ExplicitGluing(TTGluing):
         """Advance every subsystem once with predicted forces (no rollback after the
         first step); record the residual left at the interface."""
         forces = self.predict()
-        self.backend.begin_step()
+        self._begin_step(step_size)
         local = self.layout.local_forces(forces)
         kinematics = self.backend.trial_step(local, time, step_size)
         r, _, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
@@ -33,17 +33,12 @@ class ExplicitGluing(TTGluing):
                                   time=time + step_size, step=step_index)
         refreshed = 0
         if self._flexibility is None:
-            self._flexibility = self.backend.flexibility(
-                local, time, step_size, [self._deltas(f) for f in local], kinematics)
-            self._assemble_subsystem_parts()
-            self.refreshes += 1
+            self._refresh(local, time, step_size, kinematics)
             refreshed = 1
             # the perturbations moved the subsystems: step once more with the forces
             # this step is accepted with, so that the state matches the record
-            kinematics = self.backend.trial_step(local, time, step_size)
-        if self._factor is None or not (np.array_equal(weights, self._factored_with[0])
-                                        and np.array_equal(diagonal, self._factored_with[1])):
-            self._factorize(weights, diagonal)
+            self.backend.trial_step(local, time, step_size)
+        self._ensure_factor(weights, diagonal, time + step_size, step_index)
         self.joints.accept(*trial)
         self.forces = forces
         self._history.append(forces - self._factor.solve(r))

@@ -64,16 +64,20 @@ class GluingLayout:
         self.measures = list(measures or ["displacement"] * len(self.labels))
         self.size = len(self.labels)
 
-    def differences(self, kinematics):
+    def differences(self, kinematics, magnitudes: bool = True):
         """Per kind (u, v, a): sum_i C_i^T x_i (= x_b - x_a per joint dof) and the
-        matching magnitude sum |C_i|^T |x_i| used by the relative tolerance; both 3 x n_F."""
+        matching magnitude sum |C_i|^T |x_i| used by the relative tolerance (None
+        unless asked); both 3 x n_F."""
         stacked = np.zeros((self.stacked.shape[0], 3))
         for values, start, stop in zip(kinematics, np.r_[0, self.offsets],
                                        np.r_[self.offsets, self.stacked.shape[0]]):
             for kind, x in enumerate(values):
                 if x is not None:
                     stacked[start:stop, kind] = x
-        return (self.stacked_t @ stacked).T, (self.stacked_abs_t @ np.abs(stacked)).T
+        differences = (self.stacked_t @ stacked).T
+        if not magnitudes:
+            return differences, None
+        return differences, (self.stacked_abs_t @ np.abs(stacked)).T
 
     def local_forces(self, forces):
         """Split the joint forces F into each subsystem's glued-dof forces C_i F."""
@@ -103,16 +107,15 @@ class TTGluing:
         self.step_count = 0
 
     # --- assembly --------------------------------------------------------------------
-    def _gather(self, kinematics):
-        return self.layout.differences(kinematics)
-
     def residual(self, kinematics, forces, step_size):
         """Compatibility residual R (eqs. 4.13, 5.6) at ``forces``, its tolerance per
         dof, the Jacobian weights and joint diagonal, and the trial joint state."""
-        differences, magnitudes = self._gather(kinematics)
+        relative = self.settings.relative_tolerance
+        differences, magnitudes = self.layout.differences(kinematics, magnitudes=relative > 0)
         r, weights, diagonal, trial = self.joints.evaluate(forces, differences, step_size)
-        scale = np.einsum("rk,kr->r", np.abs(weights), magnitudes)
-        tolerance = self.settings.tolerance + self.settings.relative_tolerance * scale
+        tolerance = np.full(len(r), self.settings.tolerance)
+        if relative > 0:
+            tolerance += relative * np.einsum("rk,kr->r", np.abs(weights), magnitudes)
         return r, tolerance, weights, diagonal, trial
 
     def _assemble_subsystem_parts(self):
@@ -177,7 +180,7 @@ class TTGluing:
     def start(self, kinematics, forces=None) -> None:
         """Initial joint extensions from the ports' kinematics at the start time, and
         the start forces (zero unless a consistent start found others)."""
-        differences, _ = self._gather(kinematics)
+        differences, _ = self.layout.differences(kinematics, magnitudes=False)
         self.joints.start(*differences)
         if forces is not None:
             self.forces = np.array(forces, dtype=float)
@@ -198,17 +201,40 @@ class TTGluing:
     def _deltas(self, local_forces):
         return self.settings.perturbation * np.maximum(1.0, np.abs(local_forces))
 
+    def _begin_step(self, step_size: float) -> None:
+        """Save every subsystem's state; forget G when the step size changed (G is
+        the response over one step)."""
+        previous = self._step_size or step_size
+        if abs(step_size - previous) > 1e-9 * previous:
+            self._flexibility = None
+        if self._flexibility is None:
+            self._step_size = step_size
+        self.backend.begin_step()
+
+    def _refresh(self, local, time, step_size, kinematics) -> None:
+        """Measure every subsystem's interface flexibility around ``local`` forces."""
+        self._flexibility = self.backend.flexibility(
+            local, time, step_size, [self._deltas(f) for f in local], kinematics)
+        self._assemble_subsystem_parts()
+        self.refreshes += 1
+        self._factor = None
+
+    def _ensure_factor(self, weights, diagonal, time: float, step_index: int) -> None:
+        """Factor the gluing matrix unless the held factor has these weights."""
+        if self._factor is not None and np.array_equal(weights, self._factored_with[0]) \
+                and np.array_equal(diagonal, self._factored_with[1]):
+            return
+        try:
+            self._factorize(weights, diagonal)
+        except SimulationError as error:
+            raise SimulationError(str(error), time=time, step=step_index) from None
+
     def step(self, time: float, step_size: float, step_index: int) -> StepReport:
         """Advance every subsystem from ``time`` by ``step_size`` with compatible
         interface forces; raise SimulationError if Newton does not converge."""
         settings = self.settings
         forces = self.predict()
-        previous = self._step_size or step_size
-        if abs(step_size - previous) > 1e-9 * previous:
-            self._flexibility = None  # G is the response over one step: H matters
-        if self._flexibility is None:
-            self._step_size = step_size
-        self.backend.begin_step()
+        self._begin_step(step_size)
         refreshed = 0
         history = []  # max |R| / tolerance per iteration
         for iteration in range(1, settings.max_iterations + 1):
@@ -230,20 +256,9 @@ class TTGluing:
                 self.step_count += 1
                 return StepReport(iteration, refreshed, float(np.max(np.abs(r), initial=0.0)))
             if self._needs_refresh(iteration, history, refreshed, local):
-                self._flexibility = self.backend.flexibility(
-                    local, time, step_size, [self._deltas(f) for f in local], kinematics)
-                self._assemble_subsystem_parts()
-                self.refreshes += 1
+                self._refresh(local, time, step_size, kinematics)
                 refreshed += 1
-                self._factor = None
-            if self._factor is None or not (
-                    np.array_equal(weights, self._factored_with[0])
-                    and np.array_equal(diagonal, self._factored_with[1])):
-                try:
-                    self._factorize(weights, diagonal)
-                except SimulationError as error:
-                    raise SimulationError(str(error), time=time + step_size,
-                                          step=step_index) from None
+            self._ensure_factor(weights, diagonal, time + step_size, step_index)
             forces = forces - self._factor.solve(r)
         worst = int(np.argmax(np.abs(r) - tolerance))
         raise SimulationError(

@@ -35,6 +35,7 @@ class Plan:
     records: dict
     connections: list
     sides: dict
+    ports: dict
 
     @property
     def non_matching(self) -> bool:
@@ -133,7 +134,7 @@ def plan(scene: Scene) -> Plan:
         raise InputError(list(dict.fromkeys(problems)))
     paths = [c.path for c in scene.components]
     layout, joint_states, interfaces = assemble(paths, list(scene.joints), sides)
-    return Plan(scene, layout, joint_states, interfaces, records, connections, sides)
+    return Plan(scene, layout, joint_states, interfaces, records, connections, sides, ports)
 
 
 def _with_positions(checked: Plan, subsystems, kinematics) -> None:
