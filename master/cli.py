@@ -215,6 +215,10 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("dsim: interrupted; the converged steps are kept", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # output piped into `head` and friends: not an error
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":
