@@ -5,9 +5,9 @@ rule (re-measure Lambda after 10 iterations of a step) and once with dsim's
 default adaptive rule (also, once per step, when Newton has slowed to a linear
 rate that predicts more iterations than a refresh costs).
 
-Every case runs the shipped scene archive with :func:`master.run.run` and a
+Every case runs the shipped scene archive with :func:`dsim.simulate` and a
 tolerance override, as ``dsim run build/ssp/four_bar_singular_<joints>.ssp
---tol <tol>`` would.  A run that fails (:class:`master.errors.SimulationError`,
+--tol <tol>`` would.  A run that fails (status ``failed``,
 exit code 1 on the command line) is reported as failed at its step and time,
 with the counts up to the failure.
 
@@ -16,14 +16,12 @@ with the counts up to the failure.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import time
 from pathlib import Path
 
 from build_fmus.linkage_scenes import FOUR_BAR
-from master.errors import SimulationError
-from master.run import run
+from master.api import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The seed's Table 5.1 (refreshes, total iterations; None: failed at a singular point).
@@ -37,13 +35,10 @@ def measure(joints: str, tolerance: float, out_dir: Path, stop: float | None = N
             refresh: str = "iterations") -> dict:
     """One case: refreshes, iterations, steps done, and the failure if any."""
     csv_path = out_dir / f"four_bar_{joints}_{tolerance:g}_{refresh}.csv"
-    failure = None
-    try:
-        run(ROOT / "build" / "ssp" / f"four_bar_singular_{joints}.ssp", csv_path,
-            tolerance=tolerance, stop=stop, refresh=refresh)
-    except SimulationError as error:
-        failure = error
-    stats = json.loads(csv_path.with_suffix(".stats.json").read_text())
+    run = simulate(ROOT / "build" / "ssp" / f"four_bar_singular_{joints}.ssp", out=csv_path,
+                   tolerance=tolerance, stop=stop, refresh=refresh)
+    stats = run.statistics
+    failure = run.error if run.status == "failed" else None
     return {"joints": joints, "tolerance": tolerance, "refresh": refresh,
             "do_steps": stats["do_steps_per_step"] / 3, "steps": stats["steps"],
             "planned": stats["planned_steps"], "refreshes": stats["lambda_refreshes"],

@@ -29,11 +29,11 @@ CB_STEPS = 500
 def glued_versus_monolithic(stop: float) -> dict:
     """Wall times, the error and the run statistics of frame_split over [0, stop]."""
     from examples.frame import compare
-    from master.run import run
+    from master.api import simulate
 
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder) / "frame_split.csv"
-        statistics = run(ROOT / "build" / "ssp" / "frame_split.ssp", out, stop=stop).data
+        statistics = simulate(ROOT / "build" / "ssp" / "frame_split.ssp", out=out, stop=stop).statistics
         reference = frame.monolithic_frame(stop_time=stop)
         result = compare(out, reference)
     return {"statistics": statistics, "monolithic_seconds": reference.wall_time,
@@ -42,12 +42,12 @@ def glued_versus_monolithic(stop: float) -> dict:
 
 def profile_glued(stop: float = 0.01, top: int = 14) -> str:
     """cProfile of a short glued run: the functions with most cumulative time."""
-    from master.run import run
+    from master.api import simulate
 
     profiler = cProfile.Profile()
     with tempfile.TemporaryDirectory() as folder:
         profiler.enable()
-        run(ROOT / "build" / "ssp" / "frame_split.ssp", Path(folder) / "p.csv", stop=stop)
+        simulate(ROOT / "build" / "ssp" / "frame_split.ssp", out=Path(folder) / "p.csv", stop=stop)
         profiler.disable()
     text = io.StringIO()
     pstats.Stats(profiler, stream=text).sort_stats("tottime").print_stats(top)

@@ -18,9 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from examples import crank_slider, four_bar
-from master.errors import SimulationError
+from master.api import simulate
 from master.results import read_csv
-from master.run import run
 
 ROOT = Path(__file__).resolve().parent.parent
 #: scene -> (reference description, function returning (reference, seconds))
@@ -39,13 +38,9 @@ def _reference(scene: str, stop: float):
 def measure(scene: str, out_dir: Path, stop: float | None) -> dict:
     """One glued run and its reference: the table's row."""
     csv_path = out_dir / f"{scene}.csv"
-    failure = None
-    try:
-        statistics = run(ROOT / "build" / "ssp" / f"{scene}.ssp", csv_path, stop=stop).data
-    except SimulationError as error:
-        failure = str(error)
-        import json
-        statistics = json.loads(csv_path.with_suffix(".stats.json").read_text())
+    run = simulate(ROOT / "build" / "ssp" / f"{scene}.ssp", out=csv_path, stop=stop)
+    statistics = run.statistics
+    failure = run.message if run.status == "failed" else None
     reached = statistics["steps"] * statistics["master"]["step"]
     mono, mono_seconds = _reference(scene, max(reached, statistics["master"]["step"]))
     if scene.startswith("crank_slider"):
@@ -107,7 +102,8 @@ def drift(out_dir: Path, stop: float | None, docs: Path) -> str:
     for scene, label in (("crank_slider_penalized_acceleration", "acceleration only"),
                          ("crank_slider_penalized", "penalized (xi 1, omega 1000)")):
         csv_path = out_dir / f"{scene}.csv"
-        statistics = run(ROOT / "build" / "ssp" / f"{scene}.ssp", csv_path, stop=stop).data
+        statistics = simulate(ROOT / "build" / "ssp" / f"{scene}.ssp", out=csv_path,
+                              stop=stop).statistics
         errors[label] = interface_errors(csv_path)
         rows.append((label, statistics))
     lines = ["| measure | quantity at A | " + " | ".join(

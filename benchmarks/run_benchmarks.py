@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from examples import chain, spring_mass
-from master.run import run
+from master.api import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -28,7 +28,7 @@ def _timed(function, *args, **kwargs):
 def measure(scene: str, out_dir: Path, stop=None) -> dict:
     """One glued run and its monolithic reference: the table's row."""
     csv_path = out_dir / f"{scene}.csv"
-    statistics = run(ROOT / "build" / "ssp" / f"{scene}.ssp", csv_path, stop=stop).data
+    statistics = simulate(ROOT / "build" / "ssp" / f"{scene}.ssp", out=csv_path, stop=stop).statistics
     if scene.startswith("spring_mass"):
         nonlinear = scene.endswith("nonlinear")
         _, mono_seconds = _timed(spring_mass.monolithic, nonlinear, stop=statistics["stop_time"])

@@ -10,15 +10,13 @@ which runs once in the same process.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import time
 from pathlib import Path
 
 from examples import frame, spring_mass
 from fmus.elastic.frame import STEP_SIZE, monolithic_frame
-from master.errors import SimulationError
-from master.run import run
+from master.api import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "results" / "tradeoff"
@@ -48,11 +46,8 @@ def measure(scene: str, stop: float, tolerance: float, predictor: str, cache: di
     """One glued run: cost and error relative to the reference's peak (a run that
     fails is reported with the error of its converged part)."""
     csv_path = OUT_DIR / f"{scene}_{tolerance:g}_{predictor}_{coupling}.csv"
-    try:
-        stats = run(ROOT / "build" / "ssp" / f"{scene}.ssp", csv_path, stop=stop,
-                    tolerance=tolerance, predictor=predictor, coupling=coupling).data
-    except SimulationError:
-        stats = json.loads(csv_path.with_suffix(".stats.json").read_text())
+    stats = simulate(ROOT / "build" / "ssp" / f"{scene}.ssp", out=csv_path, stop=stop,
+                     tolerance=tolerance, predictor=predictor, coupling=coupling).statistics
     return {"scene": scene, "coupling": coupling, "tolerance": tolerance,
             "predictor": predictor, "status": stats["status"],
             "iterations": stats["iterations"]["mean_per_step"],
@@ -68,7 +63,7 @@ def table(rows: list[dict]) -> str:
     for r in rows:
         tolerance = f"{r['tolerance']:g}" if r["coupling"] == "iterative" else "-"
         error = f"{r['error']:.2e}" if r["error"] < 1.0 else "diverged"
-        if r["status"] != "ok":
+        if r["status"] != "completed":
             error = "failed (non-finite)"
         lines.append(f"| {r['scene']} | {r['coupling']} | {tolerance} | {r['predictor']} | "
                      f"{r['iterations']:.2f} | {r['do_steps']:.2f} | {r['refreshes']} | "

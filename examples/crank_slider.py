@@ -133,13 +133,13 @@ def main(flexible: bool = False, plot: bool = False, stop: float | None = None,
     """Run crank_slider_rigid (or _flexible) through dsim and compare it with its
     monolithic reference; the flexible scene also with the rigid monolithic model
     (``result["rigid"]``, informational: the coupler's flexibility)."""
-    from master.run import run
+    from master.api import simulate
 
     name = "crank_slider_flexible" if flexible else "crank_slider_rigid"
     csv_path = Path(out_dir) / f"{name}.csv"
-    statistics = run(ROOT / "build" / "ssp" / f"{name}.ssp", csv_path, stop=stop)
+    statistics = simulate(ROOT / "build" / "ssp" / f"{name}.ssp", out=csv_path, stop=stop)
     result = compare(csv_path, flexible=flexible)
-    result["statistics"] = statistics.data
+    result["statistics"] = statistics.statistics
     if flexible:
         result["rigid"] = compare(csv_path, flexible=False)
     if plot:

@@ -100,18 +100,14 @@ def main(joints: str = "flexible", tolerance: float | None = None, plot: bool = 
          stop: float | None = None, out_dir=ROOT / "results") -> dict:
     """Run four_bar_singular_<joints> through dsim; a failure is part of the result
     (``failure``: the message naming the step and joint)."""
-    from master.errors import SimulationError
-    from master.run import run
+    import dsim
 
     name = f"four_bar_singular_{joints}"
     csv_path = Path(out_dir) / f"{name}.csv"
-    failure = None
-    try:
-        run(ROOT / "build" / "ssp" / f"{name}.ssp", csv_path, tolerance=tolerance, stop=stop)
-    except SimulationError as error:
-        failure = str(error)
+    run = dsim.simulate(ROOT / "build" / "ssp" / f"{name}.ssp", out=csv_path,
+                        tolerance=tolerance, stop=stop)
     result = compare(csv_path, joints)
-    result["failure"] = failure
+    result["failure"] = run.message if run.status == "failed" else None
     if plot:
         plot_comparison(result, Path(out_dir) / f"{name}_vs_monolithic.png", name)
     return result

@@ -45,12 +45,12 @@ def compare(csv_path, reference=None) -> dict:
 
 def main(plot: bool = False, stop: float = STOP_TIME, out_dir=ROOT / "results") -> dict:
     """Run build/ssp/frame_split.ssp through dsim and compare it with the monolithic frame."""
-    from master.run import run
+    from master.api import simulate
 
     csv_path = Path(out_dir) / "frame_split.csv"
-    statistics = run(ROOT / "build" / "ssp" / "frame_split.ssp", csv_path, stop=stop)
+    statistics = simulate(ROOT / "build" / "ssp" / "frame_split.ssp", out=csv_path, stop=stop)
     result = compare(csv_path, monolithic_frame(step_size=STEP_SIZE, stop_time=stop))
-    result["statistics"] = statistics.data
+    result["statistics"] = statistics.statistics
     if plot:
         plot_comparison(result, Path(out_dir) / "frame_split_vs_monolithic.png")
     return result

@@ -64,13 +64,13 @@ def compare(csv_path, nonlinear: bool) -> dict:
 
 def main(nonlinear: bool = True, plot: bool = False, out_dir=ROOT / "results") -> dict:
     """Run the glued scene through dsim and compare it with the reference."""
-    from master.run import run
+    from master.api import simulate
 
     name = "spring_mass_nonlinear" if nonlinear else "spring_mass_linear"
     csv_path = Path(out_dir) / f"{name}.csv"
-    statistics = run(ROOT / "build" / "ssp" / f"{name}.ssp", csv_path)
+    statistics = simulate(ROOT / "build" / "ssp" / f"{name}.ssp", out=csv_path)
     result = compare(csv_path, nonlinear)
-    result["statistics"] = statistics.data
+    result["statistics"] = statistics.statistics
     if plot:
         plot_comparison(result, Path(out_dir) / f"{name}_vs_monolithic.png", name)
     return result

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from master.gluing import GluingLayout
+from master.layout import GluingLayout
 from master.joints import JointStates, measure_weights
 from master.mls import transfer_matrix
 from master.scene import Joint
@@ -55,7 +55,8 @@ def assemble(components: list[str], joints: list[Joint], sides: dict, positions=
     initial position of every glued dof (m) -- without them the transfer is
     left zero, which is enough to learn the interfaces.  Returns ``(layout,
     joint_states, interfaces)`` where ``interfaces[component]`` lists the
-    PortDofs it is glued at, in the order of its force vector (a port dof in
+    PortDofs it is glued at (empty for a component in no joint; the layout's
+    incidence lists only the glued components, in ``components`` order), in the order of its force vector (a port dof in
     several joints appears once and receives the sum of their forces: eq. 4.10).
     """
     interfaces: dict[str, list] = {c: [] for c in components}
@@ -94,7 +95,8 @@ def assemble(components: list[str], joints: list[Joint], sides: dict, positions=
             for port_dof, coefficient in terms:
                 enter(port_dof, r, coefficient)
     n = len(labels)
-    per_component = {c: ([], [], []) for c in components}
+    # only the glued components have a C_i: the others are stepped without the algorithm
+    per_component = {c: ([], [], []) for c in components if interfaces[c]}
     for owner, local, r, coefficient in entries:
         rows, cols, data = per_component[owner]
         rows.append(local), cols.append(r), data.append(coefficient)
@@ -128,23 +130,31 @@ def glue_cores(cores: dict, joints: list[Joint], settings, start_time: float = 0
 
     ``cores`` maps component names to :class:`fmus.interface.InterfaceCore`
     objects; joints name them as in an SSP file, node-set ports included
-    (node sets of different sizes are glued by moving least squares).
-    Returns the started :class:`~master.gluing.TTGluing`; its ``backend``
-    holds the subsystems.
+    (node sets of different sizes are glued by moving least squares).  The start
+    forces follow ``settings.start`` (master.start).  Returns the started
+    :class:`~master.couplings.IterativeCoupling`; its ``backend`` holds the
+    subsystems and ``step(time, step_size, step_index)`` advances them.
     """
     from master.backends.inprocess import InProcessBackend
-    from master.gluing import TTGluing
+    from master.couplings import IterativeCoupling
+    from master.start import start_forces
     from master.subsystem import CoreSubsystem
 
     sides = {j.name: tuple(_core_side(cores[getattr(j, s)[0]], *getattr(j, s), j.dofs)
                            for s in ("a", "b")) for j in joints}
-    layout, states, interfaces = assemble(list(cores), joints, sides)
+    names = list(cores)
+    layout, states, interfaces = assemble(names, joints, sides)
     subsystems = [CoreSubsystem(name, core, [(p.port, p.dof) for p in interfaces[name]],
                                 start_time) for name, core in cores.items()]
+    backend = InProcessBackend(subsystems)
+    glued_indices = [i for i, name in enumerate(names) if interfaces[name]]
+    glued = backend.subset(glued_indices)
     if any(len(a) != len(b) for a, b in sides.values()):
-        positions = {(s.name, port, dof): value for s in subsystems
+        positions = {(s.name, port, dof): value for s in glued.subsystems
                      for (port, dof), value in zip(s.interface, s.kinematics()[0])}
-        layout, states, _ = assemble(list(cores), joints, sides, positions)
-    gluing = TTGluing(InProcessBackend(subsystems), layout, states, settings)
-    gluing.start(gluing.backend.kinematics())
-    return gluing
+        layout, states, _ = assemble(names, joints, sides, positions)
+    forces, _ = start_forces(settings.start, glued, layout, states)
+    backend.finish_initialization()
+    coupling = IterativeCoupling(backend, glued_indices, layout, states, settings)
+    coupling.start(glued.kinematics(), forces)
+    return coupling

@@ -1,6 +1,8 @@
-"""``dsim``: run, inspect and build glued co-simulations.
+"""``dsim``: run, inspect and build glued co-simulations (a thin layer over the
+Python API of :mod:`master.api`).
 
-Exit codes: 0 success, 1 the simulation failed, 2 bad input or usage.
+Exit codes: 0 success, 1 the simulation failed, 2 bad input or usage,
+128 + signal when interrupted (SIGINT: 130, SIGTERM: 143).
 """
 from __future__ import annotations
 
@@ -9,120 +11,91 @@ import sys
 from pathlib import Path
 
 from master.errors import InputError, SimulationError
+from master.settings import SETTINGS, choices
 
 
-class ProgressBar:
-    """A rich progress bar on a terminal; silent elsewhere (CI logs, pipes)."""
-
-    def __init__(self, label: str):
-        self.label = label
-        self.progress = None
-
-    def start(self, times):
-        if not sys.stderr.isatty():
-            return
-        from rich.progress import (BarColumn, Progress, TextColumn, TimeElapsedColumn,
-                                   TimeRemainingColumn)
-        self.progress = Progress(TextColumn("{task.description}"), BarColumn(),
-                                 TextColumn("t = {task.fields[t]:.4g} s"),
-                                 TextColumn("it/step {task.fields[it]:.2f}"),
-                                 TimeElapsedColumn(), TimeRemainingColumn(), transient=True)
-        self.progress.start()
-        self.total_iterations = 0
-        self.task = self.progress.add_task(self.label, total=len(times) - 1, t=times[0], it=0.0)
-
-    def step(self, index, time, report):
-        if self.progress:
-            self.total_iterations += report.iterations
-            self.progress.update(self.task, completed=index, t=time,
-                                 it=self.total_iterations / index)
-
-    def finish(self):
-        if self.progress:
-            self.progress.stop()
-
-
-def _summary(statistics, out: Path, plot: Path | None) -> str:
-    from master.results import read_csv
-
-    data = statistics.data
-    header, values = read_csv(out)
+def _summary(result, plot: Path | None) -> str:
+    data = result.statistics
+    components = max(len(data["components"]), 1)
     lines = [
-        f"scene       {data['scene']}  ({data['file']}), "
-        f"{data['master']['coupling']} coupling",
+        f"scene       {data['scene']}  ({data['file']}), {data['coupling']} coupling, "
+        f"{data['backend']} backend",
         f"time        {data['start_time']:g} .. {data['stop_time']:g} s, "
         f"step {data['master']['step']:g} s, {data['steps']} steps",
         f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
         f"(max {data['iterations']['max_per_step']}), "
         f"Lambda refreshes {data['lambda_refreshes']}, "
-        f"doSteps per FMU per step {data['do_steps_per_step'] / max(len(data['components']), 1):.2f}",
+        f"doSteps per FMU per step {data['do_steps_per_step'] / components:.2f}",
         f"wall time   {data['wall_seconds']:.3f} s "
         f"({data['seconds_in_fmus']:.3f} s inside FMUs)",
     ]
-    if len(values):
-        width = max(len(n) for n in header[1:]) if len(header) > 1 else 0
+    signals = result.signals
+    names = [n for n in signals if n != "time"]
+    if names and len(signals["time"]):
+        width = max(len(n) for n in names)
         lines.append(f"{'column':<{width}}  {'final':>13}  {'max |value|':>13}")
-        for i, name in enumerate(header[1:13], start=1):
-            lines.append(f"{name:<{width}}  {values[-1, i]:>13.6g}  "
-                         f"{abs(values[:, i]).max():>13.6g}")
-        if len(header) > 13:
-            lines.append(f"... {len(header) - 13} more columns in the CSV")
-    lines.append(f"results     {out}")
-    lines.append(f"statistics  {out.with_suffix('.stats.json')}")
-    if plot:
-        lines.append(f"plot        {plot}")
+        for name in names[:12]:
+            lines.append(f"{name:<{width}}  {signals[name][-1]:>13.6g}  "
+                         f"{abs(signals[name]).max():>13.6g}")
+        if len(names) > 12:
+            lines.append(f"... {len(names) - 12} more columns in the CSV")
+    for kind in ("csv", "statistics", "plot"):
+        if kind in result.files:
+            lines.append(f"{'results' if kind == 'csv' else kind:<11} {result.files[kind]}")
     return "\n".join(lines)
 
 
 def _cmd_run(args) -> int:
-    from master.results import plot_results
-    from master.run import run
+    from master.api import simulate
+    from master.observers import ProgressBar
 
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
-    overrides = dict(stop=args.stop, step=args.step, tolerance=args.tol,
-                     max_iterations=args.max_iterations, predictor=args.predictor,
-                     refresh=args.refresh, coupling=args.coupling)
-    try:
-        statistics = run(args.scene, out, observers=[ProgressBar(Path(args.scene).stem)],
-                         **overrides)
-    except SimulationError as error:
-        print(f"dsim: simulation failed: {error}", file=sys.stderr)
-        print(f"dsim: the converged steps are in {out}, statistics in "
-              f"{out.with_suffix('.stats.json')}", file=sys.stderr)
-        return 1
-    if args.plot:
-        plot_results(out, args.plot, title=statistics.data["scene"])
-    if not args.quiet:
-        print(_summary(statistics, out, Path(args.plot) if args.plot else None))
-    return 0
+    settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
+    result = simulate(args.scene, out=out, plot=args.plot,
+                      observers=[ProgressBar(Path(args.scene).stem)], **settings)
+    if result.status != "completed":
+        label = "simulation failed" if result.status == "failed" else "interrupted"
+        print(f"dsim: {label}: {result.message}", file=sys.stderr)
+        if "csv" in result.files:
+            print(f"dsim: the {result.steps} converged steps are in {result.files['csv']}, "
+                  f"statistics in {result.files.get('statistics', 'nowhere')}", file=sys.stderr)
+    for warning in result.warnings[len(result.statistics.get("warnings", [])):]:
+        print(f"dsim: warning: {warning}", file=sys.stderr)
+    if result.status == "completed" and not args.quiet:
+        print(_summary(result, args.plot))
+    return result.exit_code
 
 
 def _cmd_info(args) -> int:
+    from master.api import prepare
     from master.fmu import can_save_state
     from master.ports import model_description
-    from master.run import plan
 
-    checked = plan(__import__("master.ssp", fromlist=["load_scene"]).load_scene(args.scene))
+    checked = prepare(args.scene)
     scene = checked.scene
     print(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s")
     m = scene.master
-    print(f"master: step {m.step:g} s, tolerance {m.tolerance:g} (relative "
-          f"{m.relative_tolerance:g}), maxIterations {m.max_iterations}, predictor "
-          f"{m.predictor}, refreshAfter {m.refresh_after}, perturbation {m.perturbation:g}")
-    ports = checked.ports
+    print(f"master: {checked.coupling} coupling, step {m.step:g} s, tolerance {m.tolerance:g} "
+          f"(relative {m.relative_tolerance:g}), maxIterations {m.max_iterations}, predictor "
+          f"{m.predictor}, refresh {m.refresh} (after {m.refresh_after}), start {m.start}, "
+          f"perturbation {m.perturbation:g}")
     print(f"components ({len(scene.components)}):")
-    for component in scene.components:
+    for index, component in enumerate(scene.components):
         description = model_description(component.source)
         cs = description.coSimulation
         flags = [f"state {'yes' if can_save_state(component.source) else 'NO'}",
                  f"serialize {'yes' if cs.canSerializeFMUstate else 'no'}",
                  f"variable step {'yes' if cs.canHandleVariableCommunicationStepSize else 'no'}"]
+        role = ("glued: iterated with rollback" if index in checked.glued
+                else "free: one doStep per macro step, never rolled back")
         port_text = ", ".join(f"{p}({' '.join(sorted(d))})" for p, d in sorted(
-            ports[component.path].items()))
+            checked.ports[component.path].items()))
         print(f"  {component.path}: {component.source.name} "
               f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
+        print(f"      {role}")
         print(f"      ports: {port_text or 'none'}")
-        print(f"      records: {', '.join(checked.records[component.path])}")
+        records = [name for path, name in checked.recorded if path == component.path]
+        print(f"      records: {', '.join(records) or 'nothing'}")
     print(f"joints ({len(scene.joints)}):")
     for joint in scene.joints:
         law = ""
@@ -160,6 +133,17 @@ def _cmd_build(args) -> int:
     return 0
 
 
+def _add_settings(run_parser) -> None:
+    """One option per setting of :mod:`master.settings` (checked there, not here)."""
+    for keyword, setting in SETTINGS.items():
+        names = [setting.option] + (["--tol"] if keyword == "tolerance" else [])
+        text = setting.help
+        if setting.rule == "choice":
+            text += f" ({', '.join(choices(keyword))})"
+        run_parser.add_argument(*names, dest=keyword, metavar=keyword.upper()
+                                if setting.rule != "choice" else "NAME", help=text)
+
+
 def parser() -> argparse.ArgumentParser:
     """The command-line parser."""
     main_parser = argparse.ArgumentParser(
@@ -168,16 +152,9 @@ def parser() -> argparse.ArgumentParser:
     commands = main_parser.add_subparsers(dest="command", required=True)
     run_parser = commands.add_parser("run", help="run a scene (.ssp, folder or .ssd)")
     run_parser.add_argument("scene")
-    run_parser.add_argument("--stop", type=float, help="stop time, s")
-    run_parser.add_argument("--step", type=float, help="macro step H, s")
-    run_parser.add_argument("--tol", type=float, help="absolute interface tolerance")
-    run_parser.add_argument("--max-iterations", type=int, help="Newton iterations per step")
-    run_parser.add_argument("--predictor", choices=["none", "constant", "linear", "quadratic"])
-    run_parser.add_argument("--refresh", choices=["adaptive", "iterations"],
-                            help="when to re-measure the interface flexibility")
-    run_parser.add_argument("--coupling", choices=["iterative", "explicit"],
-                            help="explicit: one trial per step, no iteration (a baseline)")
-    run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here)")
+    _add_settings(run_parser)
+    run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here); the "
+                            "statistics JSON goes beside it")
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
     run_parser.add_argument("--quiet", action="store_true", help="no summary")
     run_parser.set_defaults(handler=_cmd_run)
@@ -213,7 +190,7 @@ def main(argv=None) -> int:
         print(f"dsim: simulation failed: {error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("dsim: interrupted; the converged steps are kept", file=sys.stderr)
+        print("dsim: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # output piped into `head` and friends: not an error
         import os

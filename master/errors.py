@@ -24,5 +24,12 @@ class SimulationError(Exception):
     def __init__(self, message: str, time: float | None = None, step: int | None = None):
         self.time = time
         self.step = step
+        self.message = message
         where = f"step {step} (t = {time:.6g} s): " if step is not None else ""
         super().__init__(where + message)
+
+    def located(self, step: int, time: float) -> "SimulationError":
+        """This error, naming ``step`` and ``time`` unless it names a step already."""
+        if self.step is not None:
+            return self
+        return SimulationError(self.message, time=time, step=step)

@@ -1,42 +1,40 @@
 """One FMI 2.0 co-simulation FMU instance as a :class:`~master.subsystem.Subsystem`.
 
-Value references are resolved once; every read and write of a step is one
-batched fmpy call; every FMI call is counted and timed per function name, and
-an FMI error becomes a :class:`~master.errors.SimulationError` naming the
-component and the function.  An FMU that fails while it is instantiated and
-initialised with the scene's parameters is bad input (an
-:class:`~master.errors.InputError`, exit 2) and the message is the error the FMU
-logged, so that a user learns which parameter it refused.
+fmpy loads the shared library and binds the FMI functions; the calls of the time
+loop go to those raw functions with value-reference and value arrays allocated
+once per batch (fmpy's convenience getters build new ctypes arrays on every call,
+which costs more than a small FMU's whole step).  Every call passes one
+checkpoint that counts and times it per FMI function and turns a status above
+fmi2Warning into a :class:`~master.errors.SimulationError` naming the component,
+the function, the status and what the FMU logged.  An FMU that fails while it is
+instantiated and initialised with the scene's parameters is bad input (an
+:class:`~master.errors.InputError`, exit 2).
 """
 from __future__ import annotations
 
-import atexit
-import shutil
+import ctypes
+import time as clock
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from fmpy import calloc, extract, free
+from fmpy import calloc, free
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2FMUstate,
+                       fmi2ValueReference)
 
 from master.errors import InputError, SimulationError
+from master.fmu_archive import unzipped
 from master.ports import PortDof, model_description, variables_by_name
 from master.subsystem import Subsystem
 
-_UNZIPPED: dict[Path, str] = {}
-
-
-@atexit.register
-def _remove_unzipped() -> None:
-    for folder in _UNZIPPED.values():
-        shutil.rmtree(folder, ignore_errors=True)
-
-
-def unzipped(path: Path) -> str:
-    """Folder holding the extracted FMU (shared by every instance of the file)."""
-    if path not in _UNZIPPED:
-        _UNZIPPED[path] = extract(str(path))
-    return _UNZIPPED[path]
+STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal",
+          5: "fmi2Pending"}
+#: FMI type -> (ctypes value type, get function, set function)
+TYPES = {"Real": (ctypes.c_double, "fmi2GetReal", "fmi2SetReal"),
+         "Integer": (ctypes.c_int, "fmi2GetInteger", "fmi2SetInteger"),
+         "Enumeration": (ctypes.c_int, "fmi2GetInteger", "fmi2SetInteger"),
+         "Boolean": (ctypes.c_int, "fmi2GetBoolean", "fmi2SetBoolean")}
 
 
 def can_save_state(path: Path) -> bool:
@@ -62,10 +60,8 @@ _CALLBACKS.logger = fmi2CallbackLoggerTYPE(_log)
 _CALLBACKS.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
 _CALLBACKS.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
 try:
-    from ctypes import byref as _byref
-
     from fmpy.logging import addLoggerProxy as _add_logger_proxy
-    _add_logger_proxy(_byref(_CALLBACKS))
+    _add_logger_proxy(ctypes.byref(_CALLBACKS))
 except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
     pass
 
@@ -73,78 +69,152 @@ except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
 def logged_error(instance: str) -> str:
     """The first error an instance logged (fmi2Error before fmi2Fatal), or ''."""
     messages = _MESSAGES.get(instance, [])
-    for level in (3, 4):
+    for level in (3, 4, 2):
         for status, text in messages:
             if status == level and text:
                 return text
     return ""
 
 
-class FmuSubsystem(Subsystem):
-    """An FMU instance glued at ``port_dofs``, recording ``record`` outputs.
-    ``location`` names the component in the scene file (for input errors)."""
+@dataclass(frozen=True)
+class SubsystemSpec:
+    """Everything needed to create one FMU subsystem, wherever it runs (picklable).
 
-    def __init__(self, name: str, path: Path, port_dofs: list[PortDof],
-                 parameters: dict, record: list[str], start_time: float, stop_time: float,
-                 location: str = ""):
+    ``reads`` names the variables read after every step (recorded outputs and
+    causal connection sources), ``writes`` the inputs that causal connections set.
+    """
+
+    name: str
+    path: Path
+    port_dofs: tuple[PortDof, ...]
+    parameters: dict
+    reads: tuple[str, ...]
+    writes: tuple[str, ...]
+    start_time: float
+    stop_time: float
+    location: str = ""
+
+
+class _Batch:
+    """Value references of one FMI type and a value array, allocated once."""
+
+    def __init__(self, kind: str, vrs):
+        ctype, self.get_name, self.set_name = TYPES[kind]
+        self.kind = kind
+        self.size = len(vrs)
+        self.vrs = (fmi2ValueReference * self.size)(*vrs)
+        self.values = (ctype * self.size)()
+        self.array = np.ctypeslib.as_array(self.values) if self.size else np.zeros(0)
+
+
+def _batches(variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
+    """Group variables by FMI type: one batch per type, and for each batch where its
+    values go in (or come from) the caller's flat vector."""
+    groups: dict[str, list[int]] = {}
+    for i, variable in enumerate(variables):
+        groups.setdefault(variable.type, []).append(i)
+    batches, places = [], []
+    for kind, indices in groups.items():
+        if kind not in TYPES:
+            raise InputError(f"variable '{variables[indices[0]].name}' is of type {kind}, "
+                             "which dsim cannot read or write yet")
+        batches.append(_Batch(kind, [variables[i].valueReference for i in indices]))
+        places.append(np.array(indices, dtype=int))
+    return batches, places
+
+
+class FmuSubsystem(Subsystem):
+    """An FMU instance made from a :class:`SubsystemSpec`, glued at its port dofs."""
+
+    def __init__(self, spec: SubsystemSpec):
         super().__init__()
-        self.name = name
-        self.path = Path(path)
+        self.name = spec.name
+        self.path = Path(spec.path)
+        self.spec = spec
         description = model_description(self.path)
         variables = variables_by_name(self.path)
+        port_dofs = spec.port_dofs
         self.interface = tuple((p.port, p.dof) for p in port_dofs)
-        self._force_vrs = [p.force for p in port_dofs]
-        self._kinematic_vrs = [[getattr(p, kind) for p in port_dofs]
-                               for kind in ("position", "velocity", "acceleration")]
+        self._forces = _Batch("Real", [p.force for p in port_dofs])
         # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
-        self._kinematic_present = [all(vr is not None for vr in vrs)
-                                   for vrs in self._kinematic_vrs]
-        self._kinematic_read = [vr for vrs, present in zip(self._kinematic_vrs,
-                                                           self._kinematic_present)
-                                if present for vr in vrs]
-        self.output_names = tuple(record)
-        self._record_vrs = [variables[n].valueReference for n in record]
+        kinds = [[getattr(p, kind) for p in port_dofs]
+                 for kind in ("position", "velocity", "acceleration")]
+        self._kinematic_present = [bool(vrs) and all(vr is not None for vr in vrs)
+                                   for vrs in kinds]
+        self._kinematics = _Batch("Real", [vr for vrs, present in zip(
+            kinds, self._kinematic_present) if present for vr in vrs])
+        self.output_names = tuple(spec.reads)
+        self._reads, self._read_places = _batches([variables[n] for n in spec.reads])
+        self._read_values = np.zeros(len(spec.reads))
+        self._writes, self._write_places = _batches([variables[n] for n in spec.writes])
         self._state = None
-        self.time = start_time
-        self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped(self.path),
-                             modelIdentifier=description.coSimulation.modelIdentifier,
-                             instanceName=name)
-        _MESSAGES.pop(name, None)
-        self._location = location or name
+        self.time = spec.start_time
+        self._location = spec.location or spec.name
+        try:
+            self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped(self.path),
+                                 modelIdentifier=description.coSimulation.modelIdentifier,
+                                 instanceName=spec.name)
+        except Exception as error:  # fmpy raises plain Exceptions for a missing library
+            raise InputError(f"{self._location}: FMU {self.path.name} cannot be loaded: "
+                             f"{error}") from None
+        functions = self.fmu._functions  # fmpy's raw ctypes bindings, one per FMI function
+        self._raw = {name: functions[name] for name in functions}
+        _MESSAGES.pop(spec.name, None)
         # until finish_initialization() the instance is in initialization mode, where a
         # failing call means the model refused the scene's parameters: bad input
         self._initializing = True
         self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
             callbacks=_CALLBACKS, loggingOn=True))
         self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
-            startTime=start_time, stopTime=stop_time))
+            startTime=spec.start_time, stopTime=spec.stop_time))
         self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
-        self._set_parameters(parameters, variables)
+        self._set_parameters(spec.parameters, variables)
 
-    def finish_initialization(self) -> None:
-        """Leave initialization mode (the start forces set so far are the FMU's)."""
-        self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
-        self._initializing = False
+    # --- the checkpoint every FMI call passes ----------------------------------------
+    def _fail(self, label: str, detail: str):
+        """Raise the error of a failed call: InputError while initialising."""
+        reason = logged_error(self.name)
+        if self._initializing:
+            # No fmi2FreeInstance: after fmi2Fatal the standard allows no further call,
+            # and pythonfmu (0.7) has already released its Python objects when it
+            # reports one: freeing the instance would release them twice.
+            self.fmu.component = None
+            raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
+                             f"initialised with these parameters: "
+                             f"{reason or f'{label} failed: {detail}'}")
+        raise SimulationError(f"component '{self.name}': {label} failed: {detail}"
+                              + (f" ({reason})" if reason else ""), time=self.time)
 
     def _call(self, label: str, function, *args):
+        """Call through fmpy's convenience layer (set-up, rare calls)."""
         try:
             return self._timed(label, function, *args)
-        except SimulationError:
+        except (InputError, SimulationError):
             raise
         except Exception as error:  # fmpy raises FMICallException, ctypes errors
-            if self._initializing:
-                # No fmi2FreeInstance: after fmi2Fatal the standard allows no further
-                # call, and pythonfmu (0.7) has already released its Python objects when
-                # it reports one: freeing the instance would release them twice and
-                # crash the process later.
-                self.fmu.component = None
-                reason = logged_error(self.name) or f"{label} failed: {error}"
-                raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
-                                 f"initialised with these parameters: {reason}") from None
-            reason = logged_error(self.name)
-            raise SimulationError(f"component '{self.name}': {label} failed: {error}"
-                                  + (f" ({reason})" if reason else ""),
-                                  time=self.time) from None
+            self._fail(label, str(error))
+
+    def _raw_call(self, name: str, *args) -> None:
+        """Call a raw FMI function (the time loop's calls) and check its status."""
+        start = clock.perf_counter()
+        try:
+            status = self._raw[name](self.fmu.component, *args)
+        finally:
+            entry = self.counters[name]
+            entry[0] += 1
+            entry[1] += clock.perf_counter() - start
+        if status > 1:
+            self._fail(name, f"it returned {STATUS.get(status, status)}")
+
+    def _get(self, batch: _Batch) -> np.ndarray:
+        if batch.size:
+            self._raw_call(batch.get_name, batch.vrs, batch.size, batch.values)
+        return batch.array
+
+    def _set(self, batch: _Batch, values) -> None:
+        if batch.size:
+            batch.array[:] = values
+            self._raw_call(batch.set_name, batch.vrs, batch.size, batch.values)
 
     def _set_parameters(self, parameters: dict, variables: dict) -> None:
         setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
@@ -155,53 +225,54 @@ class FmuSubsystem(Subsystem):
             self._call("fmi2Set" + variable.type, setters[variable.type],
                        [variable.valueReference], [value])
 
+    def finish_initialization(self) -> None:
+        """Leave initialization mode (the start forces set so far are the FMU's)."""
+        self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+        self._initializing = False
+
     # --- Subsystem -------------------------------------------------------------------
     def save_state(self):
         # Free the held state before taking the next: asking an FMU to overwrite a state in
         # place (FMI 2.0 allows it) leaks the old one in pythonfmu, which always allocates.
         if self._state is not None:
-            self._call("fmi2FreeFMUstate", self.fmu.freeFMUstate, self._state)
+            self._raw_call("fmi2FreeFMUstate", ctypes.byref(self._state))
             self._state = None
-        self._state = self._call("fmi2GetFMUstate", self.fmu.getFMUstate)
+        state = fmi2FMUstate()
+        self._raw_call("fmi2GetFMUstate", ctypes.byref(state))
+        self._state = state
 
     def restore_state(self):
-        self._call("fmi2SetFMUstate", self.fmu.setFMUstate, self._state)
+        self._raw_call("fmi2SetFMUstate", self._state)
 
     def set_forces(self, forces):
-        if self._force_vrs:
-            self._call("fmi2SetReal", self.fmu.setReal, self._force_vrs, list(forces))
+        self._set(self._forces, forces)
 
     def do_step(self, time, step_size):
         self.time = time
-        self._call("fmi2DoStep", lambda: self.fmu.doStep(
-            currentCommunicationPoint=time, communicationStepSize=step_size))
+        self._raw_call("fmi2DoStep", time, step_size, 1)
 
     def kinematics(self):
-        if not self.interface:  # an unglued component: nothing to read
-            return (np.zeros(0),) * 3
-        values = np.array(self._call("fmi2GetReal", self.fmu.getReal, self._kinematic_read))
         n = len(self.interface)
+        if not n:  # an unglued component: nothing to read
+            return (np.zeros(0),) * 3
+        values = self._get(self._kinematics)
         result, start = [], 0
         for present in self._kinematic_present:
             if present:
-                result.append(values[start:start + n])
+                result.append(values[start:start + n].copy())
                 start += n
             else:
                 result.append(None)
         return tuple(result)
 
-    def outputs(self):
-        if not self._record_vrs:
-            return []
-        return self._call("fmi2GetReal", self.fmu.getReal, self._record_vrs)
+    def read_outputs(self) -> np.ndarray:
+        for batch, places in zip(self._reads, self._read_places):
+            self._read_values[places] = self._get(batch)
+        return self._read_values.copy()
 
-    def get_reals(self, vrs: list[int]) -> list[float]:
-        """Read Real variables by value reference (causal connections)."""
-        return self._call("fmi2GetReal", self.fmu.getReal, vrs)
-
-    def set_reals(self, vrs: list[int], values: list[float]) -> None:
-        """Write Real inputs by value reference (causal connections)."""
-        self._call("fmi2SetReal", self.fmu.setReal, vrs, values)
+    def write_inputs(self, values) -> None:
+        for batch, places in zip(self._writes, self._write_places):
+            self._set(batch, values[places])
 
     def terminate(self):
         if self.fmu.component is None:  # never instantiated, or failed beyond any call

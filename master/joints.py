@@ -61,7 +61,7 @@ class JointStates:
         self.weights = np.asarray(weights, float)
         self.force_form = self.flexible & np.asarray(displacement, bool)
 
-    def _reference_stiffness(self, step_size):
+    def reference_stiffness(self, step_size):
         """k0 + 2 c0 / H: scales a force-form row to metres (1 where it is zero)."""
         k = self.k0 + 2.0 / step_size * self.c0
         return np.where(k > 0, k, 1.0)
@@ -90,7 +90,7 @@ class JointStates:
         law = self.force_form
         if law.any():
             force, dk, dc = self.law(differences[0], differences[1])
-            k_ref = self._reference_stiffness(step_size)
+            k_ref = self.reference_stiffness(step_size)
             r[law] = ((forces + force) / k_ref)[law]
             W[law] = np.column_stack((dk / k_ref, dc / k_ref, np.zeros(len(r))))[law]
             diagonal[law] = (1.0 / k_ref)[law]
@@ -115,13 +115,12 @@ class JointStates:
         h = step_size
         mask = self.flexible
         q = self.q.copy()
-        qd = qdd = None
         tangent = np.full(len(q), np.inf)
         if not mask.any():
             zero = np.zeros(len(q))
             return zero, zero, zero, tangent
         for _ in range(self.max_newton):
-            qd = 2.0 / h * (q - self.q) - self.qd
+            qd, _ = trapezoidal_rates(q, self.q, self.qd, self.qdd, h)
             force, dk, dc = self.law(q, qd)
             stiffness = dk + 2.0 / h * dc
             residual = np.where(mask, force + forces, 0.0)
@@ -137,8 +136,7 @@ class JointStates:
         else:
             raise SimulationError("a flexible joint law has no solution for the "
                                   "current force (Newton on the law did not converge)")
-        qd = 2.0 / h * (q - self.q) - self.qd
-        qdd = 2.0 / h * (qd - self.qd) - self.qdd
+        qd, qdd = trapezoidal_rates(q, self.q, self.qd, self.qdd, h)
         _, dk, dc = self.law(q, qd)
         tangent = np.where(mask, dk + 2.0 / h * dc, np.inf)
         return (np.where(mask, q, 0.0), np.where(mask, qd, 0.0),
@@ -147,3 +145,10 @@ class JointStates:
     def accept(self, q, qd, qdd) -> None:
         """Make a converged trial the joint state."""
         self.q, self.qd, self.qdd = q, qd, qdd
+
+
+def trapezoidal_rates(q, q0, qd0, qdd0, step_size: float):
+    """Rate and acceleration at the step's end by the trapezoidal rule, from the
+    end position ``q`` and the start state (``q0``, ``qd0``, ``qdd0``); any units."""
+    qd = 2.0 / step_size * (q - q0) - qd0
+    return qd, 2.0 / step_size * (qd - qd0) - qdd0

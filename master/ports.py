@@ -128,18 +128,15 @@ def _limit_node_sets(ports: dict, component) -> None:
                 del ports[key]
 
 
-def component_ports(scene: Scene, problems: list) -> dict[str, dict]:
-    """component path -> its ports (conventional names, then annotation maps)."""
+def component_ports(scene: Scene, problems: list, usable=None) -> dict[str, dict]:
+    """component path -> its ports (conventional names, then annotation maps), for
+    the components in ``usable`` (default: every component whose FMU file exists)."""
     result = {}
     for component in scene.components:
-        if not component.source.is_file():
+        if (component.path not in usable) if usable is not None \
+                else not component.source.is_file():
             continue
-        try:
-            ports = conventional_ports(component.source)
-        except Exception as error:  # fmpy raises several kinds for a broken FMU
-            problems.append(f"{component.location}: cannot read FMU "
-                            f"{component.source.name}: {error}")
-            continue
+        ports = conventional_ports(component.source)
         _limit_node_sets(ports, component)
         maps = [m for m in scene.port_maps if m.component == component.path]
         for name, dofs in _mapped_ports(component.source, maps, problems).items():

@@ -1,124 +1,116 @@
-"""Results of a run: the CSV written as the run goes, the statistics JSON beside
-it, and a PNG plot of a results CSV (DESIGN.md, "Results contract")."""
+"""The results of a run (DESIGN.md, "Results contract"): the :class:`RunResult`
+that :func:`dsim.simulate` returns, reading a results CSV back, and plots."""
 from __future__ import annotations
 
 import csv
-import json
-from collections import Counter
+import signal as signals_module
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from master.errors import InputError
 
-class CsvRecorder:
-    """``time``, recorded outputs, joint forces: one row per macro step, flushed
-    at once so that a failed run keeps every converged step."""
-
-    def __init__(self, path: Path, columns: list[str]):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self.file = open(path, "w", newline="")
-        self.writer = csv.writer(self.file)
-        self.writer.writerow(["time"] + list(columns))
-        self.rows = 0
-
-    def write(self, time: float, outputs: list[list[float]], forces) -> None:
-        row = [repr(float(time))]
-        for values in outputs:
-            row += [repr(float(v)) for v in values]
-        row += [repr(float(f)) for f in forces]
-        self.writer.writerow(row)
-        self.file.flush()
-        self.rows += 1
-
-    def close(self) -> None:
-        self.file.close()
+STATUSES = ("completed", "failed", "interrupted")
 
 
-class RunStatistics:
-    """Counters of one run, written as JSON: wall time, steps, iterations per
-    step, Lambda refreshes, FMI calls and seconds per component and function."""
+@dataclass
+class RunResult:
+    """How a run ended and what it produced (returned also when it failed).
 
-    def __init__(self, scene, times):
-        self.scene = scene
-        self.planned_steps = len(times) - 1
-        self.iterations: list[int] = []
-        self.refreshes = 0
-        self.failure: str | None = None
-        self.setup_seconds = 0.0
-        self.data: dict = {}
+    ``status`` is completed, failed or interrupted; ``message`` says why it failed
+    or stopped; ``time`` is the last converged time (s) and ``steps`` the number of
+    converged macro steps; ``statistics`` is the statistics JSON's content;
+    ``files`` maps what was written ("csv", "statistics", "plot") to its path.
+    ``signals`` maps every column (``time``, ``component.variable``,
+    ``joint.f_dof``) to its values over time.
+    """
 
-    def add_step(self, report) -> None:
-        self.iterations.append(report.iterations)
-        self.refreshes += report.refreshed
+    status: str
+    message: str
+    time: float
+    steps: int
+    statistics: dict = field(default_factory=dict)
+    files: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+    error: Exception | None = None
+    #: the signal (SIGINT, SIGTERM) that interrupted the run, if one did
+    signal: int | None = None
+    _signals: object = None
 
-    def finish(self, wall_time: float, gluing, subsystems) -> None:
-        per_component = {}
-        inside = 0.0
-        do_steps = 0
-        for subsystem in subsystems:
-            functions = {name: {"calls": calls, "seconds": seconds}
-                         for name, (calls, seconds) in sorted(subsystem.counters.items())}
-            seconds = sum(f["seconds"] for f in functions.values())
-            inside += seconds
-            do_steps += functions.get("fmi2DoStep", {}).get("calls", 0)
-            per_component[subsystem.name] = {"seconds": seconds, "functions": functions}
-        iterations = np.array(self.iterations or [0])
-        steps = len(self.iterations)
-        self.data = {
-            "scene": self.scene.name,
-            "file": str(self.scene.file),
-            "status": "failed" if self.failure else "ok",
-            "failure": self.failure,
-            "start_time": self.scene.start_time,
-            "stop_time": self.scene.stop_time,
-            "master": self.scene.master.__dict__,
-            "steps": steps,
-            "planned_steps": self.planned_steps,
-            "wall_seconds": wall_time,
-            "setup_seconds": self.setup_seconds,
-            "seconds_in_fmus": inside,
-            "seconds_in_master": wall_time - inside,
-            "iterations": {
-                "total": int(iterations.sum()) if steps else 0,
-                "mean_per_step": float(iterations.mean()) if steps else 0.0,
-                "max_per_step": int(iterations.max()) if steps else 0,
-                "histogram": {str(k): v for k, v in sorted(Counter(self.iterations).items())},
-            },
-            "lambda_refreshes": gluing.refreshes,
-            "do_steps_per_step": do_steps / steps if steps else 0.0,
-            "components": per_component,
-        }
+    @property
+    def ok(self) -> bool:
+        """Whether the run reached its stop time."""
+        return self.status == "completed"
 
-    def write(self, path: Path) -> None:
-        path.write_text(json.dumps(self.data, indent=2))
+    @property
+    def exit_code(self) -> int:
+        """The command line's exit code: 0, 1 (failed), 128 + signal (interrupted)."""
+        if self.status == "completed":
+            return 0
+        if self.status == "interrupted":
+            return 128 + (self.signal or signals_module.SIGINT)
+        return 1
+
+    @property
+    def signals(self) -> dict[str, np.ndarray]:
+        """Column -> values over time (read from the CSV when the run wrote one)."""
+        if callable(self._signals):
+            self._signals = self._signals()
+        if self._signals is None and "csv" in self.files:
+            header, data = read_csv(self.files["csv"])
+            self._signals = {name: data[:, i] for i, name in enumerate(header)}
+        return self._signals or {}
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        return self.signals[column]
 
 
 def read_csv(path) -> tuple[list[str], np.ndarray]:
-    """Column names and the data of a results CSV (rows x columns)."""
+    """Column names and the data of a results CSV (rows x columns); InputError for a
+    file that is not one (no ``time`` column, a row of the wrong length, a last row
+    cut short, a value that is not a number)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
     with open(path, newline="") as file:
-        reader = csv.reader(file)
-        header = next(reader)
-        rows = [[float(v) for v in row] for row in reader]
-    return header, np.array(rows).reshape(-1, len(header))
+        text = file.read()
+    if text and not text.endswith("\n"):
+        raise InputError(f"{path}: the last row is incomplete (no line end): the file was "
+                         "cut short while it was written")
+    rows = list(csv.reader(text.splitlines()))
+    if not rows or not rows[0] or rows[0][0] != "time":
+        raise InputError(f"{path}: not a dsim results CSV (no 'time' column)")
+    header = rows[0]
+    values = []
+    for number, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise InputError(f"{path} line {number}: {len(row)} values for "
+                             f"{len(header)} columns")
+        try:
+            values.append([float(v) for v in row])
+        except ValueError as error:
+            raise InputError(f"{path} line {number}: {error}") from None
+    return header, np.array(values, dtype=float).reshape(-1, len(header))
 
 
-def plot_results(csv_path, png_path, title: str = "", max_curves: int = 8) -> None:
+def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) -> None:
     """Two panels over time: recorded outputs, and joint forces (``*.f_*``)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    header, data = read_csv(csv_path)
-    time = data[:, 0]
-    forces = [i for i, n in enumerate(header) if ".f_" in n and i > 0]
-    outputs = [i for i in range(1, len(header)) if i not in forces]
-    panels = [(outputs, "recorded outputs"), (forces, "joint forces (N, N.m)")]
-    panels = [(columns, label) for columns, label in panels if columns]
-    figure, axes = plt.subplots(len(panels), 1, sharex=True, squeeze=False,
-                                figsize=(8, 3 * len(panels)))
+    time = signals["time"]
+    names = [n for n in signals if n != "time"]
+    forces = [n for n in names if ".f_" in n]
+    outputs = [n for n in names if n not in forces]
+    panels = [(columns, label) for columns, label in
+              ((outputs, "recorded outputs"), (forces, "joint forces (N, N.m)")) if columns]
+    figure, axes = plt.subplots(max(len(panels), 1), 1, sharex=True, squeeze=False,
+                                figsize=(8, 3 * max(len(panels), 1)))
     for axis, (columns, label) in zip(axes[:, 0], panels):
-        for i in columns[:max_curves]:
-            axis.plot(time, data[:, i], label=header[i])
+        for name in columns[:max_curves]:
+            axis.plot(time, signals[name], label=name)
         axis.set_ylabel(label)
         axis.grid(True, alpha=0.3)
         axis.legend(fontsize=8, loc="best")
@@ -126,6 +118,13 @@ def plot_results(csv_path, png_path, title: str = "", max_curves: int = 8) -> No
     if title:
         axes[0, 0].set_title(title)
     save_figure(figure, png_path)
+
+
+def plot_results(csv_path, png_path, title: str = "", max_curves: int = 8) -> None:
+    """:func:`plot_signals` of a results CSV."""
+    header, data = read_csv(csv_path)
+    plot_signals({name: data[:, i] for i, name in enumerate(header)}, png_path, title,
+                 max_curves)
 
 
 def save_figure(figure, png_path) -> None:

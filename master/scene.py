@@ -83,7 +83,7 @@ class MasterSettings:
     refresh_after: int = 10
     refresh: str = "adaptive"
     coupling: str = "iterative"
-    start: str = "rest"
+    start: str = "auto"
     perturbation: float = 1e-3
 
 
@@ -100,6 +100,8 @@ class Scene:
     joints: tuple[Joint, ...]
     port_maps: tuple[PortMap, ...]
     master: MasterSettings
+    #: files read besides ``file`` and the FMUs (SystemStructure.ssd, .ssv files)
+    inputs: tuple[Path, ...] = ()
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

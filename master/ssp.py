@@ -19,8 +19,9 @@ from pathlib import Path
 from lxml import etree
 
 from master.errors import InputError
-from master.scene import (DOFS, MEASURES, PREDICTORS, Component, Connection, Joint,
-                          MasterSettings, PortMap, Scene)
+from master.scene import (DOFS, MEASURES, Component, Connection, Joint, MasterSettings,
+                          PortMap, Scene)
+from master.settings import settings_from_annotation
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -114,6 +115,7 @@ class _Reader:
         self.connections: list[Connection] = []
         self.joints: list[Joint] = []
         self.port_maps: list[PortMap] = []
+        self.files: list[Path] = [ssd]
 
     def where(self, element) -> str:
         tag = etree.QName(element).localname
@@ -129,6 +131,7 @@ class _Reader:
             if not file.is_file():
                 self.problems.append(f"{where}: parameter file '{source}' not found")
                 return {}
+            self.files.append(file)
             try:
                 root = etree.parse(str(file)).getroot()
             except etree.XMLSyntaxError as error:
@@ -291,43 +294,14 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
     start, stop = 0.0, 1.0
     attributes = {}
     if experiment is not None:
-        start = float(experiment.get("startTime", 0.0))
-        stop = float(experiment.get("stopTime", 1.0))
+        where = f"{shown}: DefaultExperiment"
+        start = _floats(experiment.get("startTime"), 1, 0.0, f"{where}: startTime", problems)[0]
+        stop = _floats(experiment.get("stopTime"), 1, 1.0, f"{where}: stopTime", problems)[0]
         node = experiment.find(
             "ssd:Annotations/ssc:Annotation[@type='org.dsim.master']/glue:Master", NS)
         if node is not None:
             attributes = dict(node.attrib)
-    defaults = MasterSettings()
-    converters = {"step": ("step", float), "tolerance": ("tolerance", float),
-                  "relativeTolerance": ("relative_tolerance", float),
-                  "maxIterations": ("max_iterations", int), "predictor": ("predictor", str),
-                  "refreshAfter": ("refresh_after", int), "refresh": ("refresh", str),
-                  "coupling": ("coupling", str), "start": ("start", str),
-                  "perturbation": ("perturbation", float)}
-    settings = {}
-    for key, text in attributes.items():
-        if key not in converters:
-            problems.append(f"{shown}: glue:Master: unknown attribute '{key}'")
-            continue
-        name, kind = converters[key]
-        try:
-            settings[name] = kind(text)
-        except ValueError:
-            problems.append(f"{shown}: glue:Master: {key}='{text}' is not a {kind.__name__}")
-    master = MasterSettings(**{**defaults.__dict__, **settings})
-    if master.refresh not in ("adaptive", "iterations"):
-        problems.append(f"{shown}: glue:Master: refresh '{master.refresh}' must be "
-                        "adaptive or iterations")
-    if master.start not in ("rest", "consistent"):
-        problems.append(f"{shown}: glue:Master: start '{master.start}' must be rest or "
-                        "consistent")
-    if master.coupling not in ("iterative", "explicit"):
-        problems.append(f"{shown}: glue:Master: coupling '{master.coupling}' must be "
-                        "iterative or explicit")
-    if master.predictor not in PREDICTORS:
-        problems.append(f"{shown}: glue:Master: predictor '{master.predictor}' "
-                        f"must be one of {PREDICTORS}")
-    return start, stop, master
+    return start, stop, settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
 
 
 def load_scene(path) -> Scene:
@@ -351,7 +325,7 @@ def load_scene(path) -> Scene:
     name = root.get("name") or path.stem
     return Scene(name, path, start, stop, tuple(reader.components),
                  tuple(reader.connections), tuple(reader.joints),
-                 tuple(reader.port_maps), master)
+                 tuple(reader.port_maps), master, tuple(reader.files))
 
 
 def _check_references(reader: _Reader) -> None:

@@ -1,15 +1,21 @@
-"""A consistent start: joint forces at the start time that make the glued
-accelerations compatible (``glue:Master start="consistent"``).
+"""Start forces: the joint forces at the start time (``start=`` of the master).
 
-A mechanism that starts moving with loaded joints (a crank turning at full speed
-from t = 0 needs centripetal joint forces at once) is inconsistent with zero
-start forces: the first steps then carry a jump.  Before the FMUs leave
-initialization mode, where FMI 2.0 lets a master read calculated outputs after
-writing inputs, the master sets the flexible joints' forces from their law and
-solves the fixed joints' acceleration compatibility a_b - a_a = 0 for theirs, by
-Newton with the accelerations' sensitivity to the forces measured by
-perturbation (no step is taken).  It needs FMUs whose port accelerations follow
-their force inputs in initialization mode, as dsim's own do.
+* ``auto`` (default): every flexible joint starts with the force its law gives for
+  the ports' relative position and velocity at the start time (a joint that starts
+  stretched is preloaded, as in one model); fixed joints start at zero.
+* ``consistent``: as ``auto``, and the fixed joints' forces solve the acceleration
+  compatibility a_b - a_a = 0 (a mechanism moving at t = 0 has loaded joints at
+  once), by Newton with the accelerations' sensitivity to the forces measured by
+  perturbation, no step taken.
+* ``rest``: every joint force starts at zero; a flexible joint that starts
+  stretched is then inconsistent, and a warning names it.
+
+The forces are written while the FMUs are in initialization mode, where FMI 2.0
+lets a master read calculated outputs after writing inputs, so that each FMU's
+start accelerations include them.  An FMU may compute its outputs only when it
+leaves initialization mode (FMI 2.0 allows it): after initialization the master
+reads the kinematics again, and a start that turns out inconsistent is an error
+for ``consistent`` and a warning for ``auto``.
 """
 from __future__ import annotations
 
@@ -17,31 +23,33 @@ import numpy as np
 
 from master.errors import InputError, SimulationError
 
+START_MODES = ("auto", "consistent", "rest")
 
-def consistent_start_forces(backend, layout, joints, max_iterations: int = 5):
-    """Start forces F0 (N, N.m, one per glued dof), already written to the FMUs, and
-    the port kinematics the FMUs reported for them (to check after initialization)."""
+
+def _law_forces(layout, joints, kinematics) -> np.ndarray:
+    """Forces (N) of the flexible joints' laws at the ports' relative motion; 0 elsewhere."""
+    differences, _ = layout.differences(kinematics, magnitudes=False)
     forces = np.zeros(layout.size)
-    differences, _ = layout.differences(backend.kinematics())
-    flexible = joints.flexible
-    law_force, _, _ = joints.law(differences[0], differences[1])
-    forces[flexible] = -law_force[flexible]
-    fixed = ~flexible
+    law, _, _ = joints.law(differences[0], differences[1])
+    forces[joints.flexible] = -law[joints.flexible]
+    return forces
+
+
+def _solve_fixed(backend, layout, joints, forces, max_iterations: int = 5):
+    """Fixed joints' forces from acceleration compatibility (Newton, forces written)."""
+    fixed = ~joints.flexible
     jacobian = None
     for _ in range(max_iterations + 1):
         local = layout.local_forces(forces)
         backend.set_forces(local)
-        kinematics = backend.kinematics()
-        differences, magnitudes = layout.differences(kinematics)
+        differences, magnitudes = layout.differences(backend.kinematics())
         residual = differences[2][fixed]
         if np.all(np.abs(residual) <= 1e-10 * np.maximum(magnitudes[2][fixed], 1.0)):
-            return forces, kinematics
+            return forces
         if jacobian is None:
             sensitivities = backend.start_flexibility(
                 local, [1e-3 * np.maximum(1.0, np.abs(f)) for f in local])
-            full = sum((c.T @ s @ c for c, s in zip(layout.incidence, sensitivities)
-                        if c.shape[0]), np.zeros((layout.size, layout.size)))
-            jacobian = np.asarray(full)[np.ix_(fixed, fixed)]
+            jacobian = layout.project(sensitivities).toarray()[np.ix_(fixed, fixed)]
             if np.linalg.matrix_rank(jacobian) < jacobian.shape[0]:
                 raise SimulationError("start='consistent': the start accelerations do not "
                                       "determine the fixed joints' forces (a singular "
@@ -51,18 +59,60 @@ def consistent_start_forces(backend, layout, joints, max_iterations: int = 5):
                           f"{max_iterations} Newton iterations", time=0.0, step=0)
 
 
-def check_start(backend, expected) -> None:
-    """After initialization mode: every FMU must report the accelerations it reported
-    in it.  One that computes its outputs only when it leaves initialization mode
-    (FMI 2.0 allows it) has been given start forces computed from stale outputs."""
-    for subsystem, before, after in zip(backend.subsystems, expected, backend.kinematics()):
-        a_before, a_after = before[2], after[2]
-        if a_before is None or a_after is None or not len(a_after):
-            continue
-        scale = max(1.0, float(np.max(np.abs(a_after))))
-        if np.max(np.abs(a_after - a_before)) > 1e-8 * scale:
-            raise InputError(
-                f"start='consistent': component '{subsystem.name}' reports other port "
-                "accelerations after initialization mode than in it (it computes its "
-                "outputs only when it leaves initialization mode), so the start forces "
-                "cannot be made consistent for it (use start='rest')")
+def start_forces(mode: str, backend, layout, joints):
+    """In initialization mode: the start forces (N, N.m, one per glued dof), written
+    to the glued subsystems of ``backend``, and the kinematics they reported for
+    them; (None, None) for ``rest``."""
+    if mode == "rest" or not layout.size:
+        return None, None
+    forces = _law_forces(layout, joints, backend.kinematics())
+    if mode == "consistent" and not joints.flexible.all():
+        forces = _solve_fixed(backend, layout, joints, forces)
+    else:
+        backend.set_forces(layout.local_forces(forces))
+    return forces, backend.kinematics()
+
+
+def _stretched(layout, joints, kinematics, forces, settings, step_size) -> list[str]:
+    """Flexible joint dofs whose law force differs from ``forces`` by more than the
+    interface tolerance allows (residual (F + law) / k_ref of the force form)."""
+    differences, _ = layout.differences(kinematics, magnitudes=False)
+    law, _, _ = joints.law(differences[0], differences[1])
+    k_ref = joints.reference_stiffness(step_size)
+    off = joints.flexible & (np.abs(forces + law) / k_ref > settings.tolerance)
+    return [f"joint '{layout.joint_of[r]}' ({layout.labels[r]}): extension "
+            f"{differences[0][r]:.4g}, rate {differences[1][r]:.4g}, law force "
+            f"{-law[r]:.4g} N" for r in np.flatnonzero(off)]
+
+
+def check_start(mode: str, backend, layout, joints, forces, reported, settings,
+                step_size: float) -> list[str]:
+    """After initialization mode: warnings about an inconsistent start (errors for
+    ``consistent``)."""
+    if not layout.size:
+        return []
+    kinematics = backend.kinematics()
+    if mode == "consistent":
+        for name, before, after in zip(backend.names, reported, kinematics):
+            a_before, a_after = before[2], after[2]
+            if a_before is None or a_after is None or not len(a_after):
+                continue
+            scale = max(1.0, float(np.max(np.abs(a_after))))
+            if np.max(np.abs(a_after - a_before)) > 1e-8 * scale:
+                raise InputError(
+                    f"start='consistent': component '{name}' reports other port "
+                    "accelerations after initialization mode than in it (it computes its "
+                    "outputs only when it leaves initialization mode), so the start forces "
+                    "cannot be made consistent for it (use start='auto' or 'rest')")
+        return []
+    written = np.zeros(layout.size) if forces is None else forces
+    off = _stretched(layout, joints, kinematics, written, settings, step_size)
+    if not off:
+        return []
+    if mode == "rest":
+        return [f"start='rest': {entry} starts with zero force: the start is inconsistent "
+                "and the run loses accuracy from its first step (start='auto' preloads it)"
+                for entry in off]
+    return [f"start='auto': {entry} differs from the start force, computed from the outputs "
+            "in initialization mode (an FMU computes them only when it leaves it): the "
+            "start is inconsistent" for entry in off]

@@ -1,11 +1,11 @@
-"""The handle through which the gluing algorithm drives a subsystem.
+"""The handle through which the couplings drive a subsystem.
 
 The algorithm never sees an FMU: it sees a :class:`Subsystem` with a small,
-batched interface (one call moves every glued dof of the subsystem):
-save and restore state, set interface forces, step, read interface kinematics.
-:class:`~master.fmu.FmuSubsystem` implements it over fmpy; :class:`CoreSubsystem`
-over an in-process physics core (algorithm tests without FMI); a Ray backend
-wraps either on a worker.
+batched interface (one call moves every glued dof of the subsystem): save and
+restore state, set interface forces, step, read interface kinematics, read
+outputs and write inputs.  :class:`~master.fmu.FmuSubsystem` implements it over
+fmpy; :class:`CoreSubsystem` over an in-process physics core (algorithm tests
+without FMI); a backend decides where each one runs.
 """
 from __future__ import annotations
 
@@ -19,11 +19,13 @@ Kinematics = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 class Subsystem(ABC):
-    """One glued subsystem.  ``interface`` lists its glued (port, dof) pairs:
-    the order of the force vector it takes and of the kinematics it returns."""
+    """One subsystem.  ``interface`` lists its glued (port, dof) pairs: the order of
+    the force vector it takes and of the kinematics it returns (empty when it is in
+    no joint); ``output_names`` the variables :meth:`read_outputs` returns."""
 
     name: str
-    interface: tuple[tuple[str, str], ...]
+    interface: tuple[tuple[str, str], ...] = ()
+    output_names: tuple[str, ...] = ()
 
     def __init__(self):
         self._dirty = False
@@ -60,16 +62,20 @@ class Subsystem(ABC):
     def kinematics(self) -> Kinematics:
         """Interface positions, velocities, accelerations (None where absent)."""
 
-    def outputs(self) -> list[float]:
-        """Values of the recorded outputs, in ``output_names`` order."""
-        return []
+    def read_outputs(self) -> np.ndarray:
+        """Values of ``output_names`` now (float; Integer and Boolean as numbers)."""
+        return np.zeros(0)
 
-    output_names: tuple[str, ...] = ()
+    def write_inputs(self, values: np.ndarray) -> None:
+        """Set the inputs that causal connections feed (in the subsystem's order)."""
 
     def terminate(self) -> None:
         """Release what the subsystem holds."""
 
-    # --- what the algorithm calls ---------------------------------------------------
+    def finish_initialization(self) -> None:
+        """Leave initialization mode (nothing to do for an in-process core)."""
+
+    # --- what the couplings call ----------------------------------------------------
     def begin_step(self) -> None:
         """Start a macro step: the current state is the one to come back to."""
         self.save_state()
@@ -80,10 +86,21 @@ class Subsystem(ABC):
         The first trial of a macro step needs no restore."""
         if self._dirty:
             self.restore_state()
+        kinematics = self.advance(forces, time, step_size)
+        self._dirty = True
+        return kinematics
+
+    def advance(self, forces: np.ndarray, time: float, step_size: float) -> Kinematics:
+        """Step with ``forces`` from where the subsystem is, with no rollback, and
+        return the kinematics."""
         self.set_forces(forces)
         self.do_step(time, step_size)
-        self._dirty = True
+        self._dirty = False
         return self.kinematics()
+
+    def step(self, time: float, step_size: float) -> None:
+        """One plain step (a subsystem in no joint: never saved nor restored)."""
+        self.do_step(time, step_size)
 
     def flexibility(self, forces: np.ndarray, time: float, step_size: float,
                     deltas: np.ndarray, base: Kinematics) -> list[np.ndarray]:
@@ -102,7 +119,6 @@ class Subsystem(ABC):
                     matrix[:, k] = (new - old) / deltas[k]
         return result
 
-
     def start_flexibility(self, forces: np.ndarray, deltas: np.ndarray) -> np.ndarray:
         """d a / d f at the start time, without stepping (initialization mode): for
         each glued dof k, write the forces with entry k raised by ``deltas[k]`` and
@@ -118,25 +134,29 @@ class Subsystem(ABC):
         self.set_forces(forces)
         return result
 
-    def finish_initialization(self) -> None:
-        """Leave initialization mode (nothing to do for an in-process core)."""
-
 
 class CoreSubsystem(Subsystem):
     """A physics core (:class:`fmus.interface.InterfaceCore`) driven in process,
-    glued at the named subset of its interface."""
+    glued at the named subset of its interface.  Until
+    :meth:`finish_initialization` it behaves as an FMU in initialization mode: the
+    start accelerations follow the forces written."""
 
     def __init__(self, name: str, core, interface=None, start_time: float = 0.0):
         super().__init__()
         self.name = name
         self.core = core
-        self.interface = tuple(interface or core.interface)
+        self.interface = tuple(core.interface if interface is None else interface)
         self._index = [core.interface.index(pair) for pair in self.interface]
         self._all_forces = np.zeros(len(core.interface))
         self._saved = None
+        self._start_time = start_time
+        self._initializing = True
         core.set_interface_forces(self._all_forces)
         core.initialize(start_time)
         self.output_names = tuple(core.outputs())
+
+    def finish_initialization(self) -> None:
+        self._initializing = False
 
     def save_state(self):
         self._saved = self._timed("get_state", self.core.get_state)
@@ -147,6 +167,8 @@ class CoreSubsystem(Subsystem):
     def set_forces(self, forces):
         self._all_forces[self._index] = forces
         self.core.set_interface_forces(self._all_forces)
+        if self._initializing:
+            self.core.initialize(self._start_time)
 
     def do_step(self, time, step_size):
         self._timed("step", self.core.step, time, step_size)
@@ -155,6 +177,6 @@ class CoreSubsystem(Subsystem):
         u, v, a = self.core.interface_kinematics()
         return u[self._index], v[self._index], a[self._index]
 
-    def outputs(self):
+    def read_outputs(self):
         values = self.core.outputs()
-        return [values[name] for name in self.output_names]
+        return np.array([values[name] for name in self.output_names], dtype=float)

@@ -86,7 +86,7 @@ def test_port_that_does_not_exist(capsys, tmp_path, built):
 def test_unknown_parameter_and_bad_master_setting(capsys, tmp_path, built):
     bad = archive_with(tmp_path, built, replace=[('refreshAfter="10"', 'refreshAfter="ten"')])
     code, lines = run_cli(capsys, bad)
-    assert code == 2 and len(lines) == 1 and "refreshAfter='ten' is not a int" in lines[0]
+    assert code == 2 and len(lines) == 1 and "glue:Master: refreshAfter 'ten' is not an integer" in lines[0]
 
 
 def test_bad_input_through_the_console_has_no_traceback(tmp_path):

@@ -5,7 +5,7 @@ import pytest
 
 from fmus.elastic.frame import monolithic_frame
 from master.results import read_csv
-from master.run import run
+from master.api import simulate
 
 STOP = 0.01
 
@@ -16,7 +16,7 @@ def test_frame_nonmatching_equals_the_tied_one_piece_frame(built, tmp_path):
     at the default support (1) is that linear tie, so the two agree to the solver's
     precision; frame_split's response differs by the meshes alone."""
     out = tmp_path / "frame_nonmatching.csv"
-    statistics = run(built["ssp"] / "frame_nonmatching.ssp", out, stop=STOP).data
+    statistics = simulate(built["ssp"] / "frame_nonmatching.ssp", out=out, stop=STOP).statistics
     header, data = read_csv(out)
     glued = data[:, header.index("cross_front.load.u_x")]
     tied = monolithic_frame(stop_time=STOP, cross_element_size=0.0125).load_u_x

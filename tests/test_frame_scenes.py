@@ -15,7 +15,7 @@ from fmus.elastic.frame import monolithic_frame
 from fmus.elastic.parts import PartSpec, build_body, frame_port_nodes
 from master.cli import main
 from master.results import read_csv
-from master.run import plan, run
+from master.api import prepare, simulate
 from master.ssp import load_scene
 
 
@@ -36,7 +36,7 @@ def test_frame_split_glued_equals_monolithic(built, tmp_path):
     """SCENES.md: to 1e-8 of the peak (0.02 s here; the full 0.2 s is in docs/frames.md)."""
     stop = 0.02
     out = tmp_path / "frame_split.csv"
-    statistics = run(built["ssp"] / "frame_split.ssp", out, stop=stop).data
+    statistics = simulate(built["ssp"] / "frame_split.ssp", out=out, stop=stop).statistics
     result = frame_example.compare(out, monolithic_frame(stop_time=stop))
     print(f"frame_split: peak {result['peak']:.3e} m, relative error "
           f"{result['relative_error']:.2e}")
@@ -50,11 +50,12 @@ def test_frame_split_glued_equals_monolithic(built, tmp_path):
 
 
 def test_node_set_ports_glue_only_the_declared_nodes(built):
-    checked = plan(load_scene(built["ssp"] / "frame_split.ssp"))
-    sizes = {name: len(dofs) for name, dofs in checked.interfaces.items()}
+    checked = prepare(built["ssp"] / "frame_split.ssp")
+    sizes = {spec.name: len(spec.port_dofs) for spec in checked.specs}
     assert sizes == {"rail_left": 30, "rail_right": 30, "cross_front": 20, "cross_mid": 20,
                      "cross_rear": 20}
-    assert checked.interfaces["cross_front"][-1].port == "right[5]"
+    front = next(spec for spec in checked.specs if spec.name == "cross_front")
+    assert front.port_dofs[-1].port == "right[5]"
 
 
 def test_frame_nested_equals_flat(built, tmp_path):
@@ -66,7 +67,7 @@ def test_frame_nested_equals_flat(built, tmp_path):
     results = {}
     for name in ("frame_nested", "frame_nested_flat"):
         out = tmp_path / f"{name}.csv"
-        run(built["ssp"] / f"{name}.ssp", out, stop=stop)
+        simulate(built["ssp"] / f"{name}.ssp", out=out, stop=stop)
         results[name] = read_csv(out)
     (header, nested_data), (flat_header, flat_data) = results.values()
     assert [h.replace("frame.", "", 1) for h in header] == flat_header

@@ -7,16 +7,16 @@ import pytest
 
 from examples import chain, spring_mass
 from master.results import read_csv
-from master.run import run
+from master.api import simulate
 
 
 @pytest.mark.parametrize("nonlinear", [False, True], ids=["linear", "nonlinear"])
 def test_spring_mass_glued_equals_monolithic(built, tmp_path, nonlinear):
     name = "spring_mass_nonlinear" if nonlinear else "spring_mass_linear"
     out = tmp_path / f"{name}.csv"
-    statistics = run(built["ssp"] / f"{name}.ssp", out)
+    statistics = simulate(built["ssp"] / f"{name}.ssp", out=out)
     result = spring_mass.compare(out, nonlinear)
-    assert statistics.data["steps"] == 1000
+    assert statistics.statistics["steps"] == 1000
     assert result["peak"] > 0.3  # the scene moves (x3 peaks at 0.57 m / 0.42 m)
     assert result["relative_error"] < 1e-8
 
@@ -25,7 +25,7 @@ def test_linear_joint_needs_two_do_steps_per_macro_step_once_lambda_is_known(bui
     """Once Lambda is known, a linear problem converges in one Newton update:
     one doStep with the predicted force, one with the corrected force."""
     out = tmp_path / "linear.csv"
-    statistics = run(built["ssp"] / "spring_mass_linear.ssp", out).data
+    statistics = simulate(built["ssp"] / "spring_mass_linear.ssp", out=out).statistics
     steps = statistics["steps"]
     assert statistics["lambda_refreshes"] == 1
     for name, component in statistics["components"].items():
@@ -37,7 +37,7 @@ def test_linear_joint_needs_two_do_steps_per_macro_step_once_lambda_is_known(bui
 
 def test_chain_10_follows_the_rigid_monolithic_chain(built, tmp_path):
     out = tmp_path / "chain_10.csv"
-    statistics = run(built["ssp"] / "chain_10.ssp", out, stop=0.2).data
+    statistics = simulate(built["ssp"] / "chain_10.ssp", out=out, stop=0.2).statistics
     result = chain.compare(out, 10)
     header, data = read_csv(out)
     positions = data[:, [header.index(f"m{i}.x[1]") for i in range(1, 11)]]
@@ -49,9 +49,9 @@ def test_chain_10_follows_the_rigid_monolithic_chain(built, tmp_path):
 
 def test_stats_file_has_the_results_contract(built, tmp_path):
     out = tmp_path / "run.csv"
-    run(built["ssp"] / "spring_mass_linear.ssp", out, stop=0.5)
+    simulate(built["ssp"] / "spring_mass_linear.ssp", out=out, stop=0.5)
     stats = json.loads(out.with_suffix(".stats.json").read_text())
-    assert stats["status"] == "ok" and stats["steps"] == 50
+    assert stats["status"] == "completed" and stats["steps"] == 50
     assert set(stats["components"]) == {"left", "right"}
     assert stats["components"]["left"]["functions"]["fmi2DoStep"]["calls"] >= 50
     assert 0 < stats["seconds_in_fmus"] < stats["wall_seconds"]
@@ -64,8 +64,8 @@ def test_explicit_coupling_is_a_one_trial_baseline(built, tmp_path):
     """The non-iterative baseline: one doStep per FMU per step (plus the first
     step's flexibility measurement), compatible only to what the predictor misses."""
     out = tmp_path / "explicit.csv"
-    statistics = run(built["ssp"] / "spring_mass_linear.ssp", out, coupling="explicit",
-                     predictor="quadratic").data
+    statistics = simulate(built["ssp"] / "spring_mass_linear.ssp", out=out, coupling="explicit",
+                     predictor="quadratic").statistics
     steps = statistics["steps"]
     for component in statistics["components"].values():
         assert component["functions"]["fmi2DoStep"]["calls"] == steps + 2  # +perturb, redo

@@ -7,7 +7,7 @@ import pytest
 from examples import crank_slider, four_bar
 from master.cli import main as dsim
 from master.results import read_csv
-from master.run import run
+from master.api import simulate
 
 
 @pytest.mark.parametrize("name", ["Linkage2D", "FlexibleLink2D"])
@@ -74,7 +74,7 @@ def test_crank_slider_rigid_matches_monolithic(built, tmp_path):
     the monolithic discrete equations: joint force at A to 1e-6 of its peak
     (a 0.3 s run; the full 5 s run is in docs/linkage_benchmark.md)."""
     out = tmp_path / "crank_slider_rigid.csv"
-    statistics = run(built["ssp"] / "crank_slider_rigid.ssp", out, stop=0.3).data
+    statistics = simulate(built["ssp"] / "crank_slider_rigid.ssp", out=out, stop=0.3).statistics
     result = crank_slider.compare(out)
     assert statistics["steps"] == 300
     assert result["force_peak"] > 1e3                 # a real load, not zeros
@@ -93,7 +93,7 @@ def test_crank_slider_flexible_matches_monolithic(built, tmp_path):
     (measured 1.3e-8 over 0.3 s; coupler omega 3e-12 rad/s, slider 1.5e-13 m).  The
     rigid monolithic model is 4 % of the peak away (the coupler's flexibility)."""
     out = tmp_path / "crank_slider_flexible.csv"
-    statistics = run(built["ssp"] / "crank_slider_flexible.ssp", out, stop=0.3).data
+    statistics = simulate(built["ssp"] / "crank_slider_flexible.ssp", out=out, stop=0.3).statistics
     assert statistics["steps"] == 300
     result = crank_slider.compare(out, flexible=True)
     assert result["force_peak"] > 1e3
@@ -108,9 +108,9 @@ def test_four_bar_flexible_passes_the_singular_point(built, tmp_path):
     """The crank is collinear with the ground at t = 0.375 s; with flexible joints
     the glued run goes through and the rocker keeps following the crank."""
     out = tmp_path / "four_bar_flexible.csv"
-    statistics = run(built["ssp"] / "four_bar_singular_flexible.ssp", out, stop=0.5,
-                     tolerance=1e-7).data
-    assert statistics["status"] == "ok" and statistics["steps"] == 50
+    statistics = simulate(built["ssp"] / "four_bar_singular_flexible.ssp", out=out, stop=0.5,
+                     tolerance=1e-7).statistics
+    assert statistics["status"] == "completed" and statistics["steps"] == 50
     header, data = read_csv(out)
     assert np.all(np.isfinite(data))
     crank, rocker = data[:, header.index("crank.theta")], data[:, header.index("rocker.theta")]
@@ -145,7 +145,7 @@ def _joint_a_errors(csv_path):
 def test_penalized_bounds_the_drift_that_acceleration_only_gluing_lets_grow(built, tmp_path):
     errors = {}
     for scene in ("crank_slider_penalized", "crank_slider_penalized_acceleration"):
-        run(built["ssp"] / f"{scene}.ssp", tmp_path / f"{scene}.csv", stop=0.4)
+        simulate(built["ssp"] / f"{scene}.ssp", out=tmp_path / f"{scene}.csv", stop=0.4)
         errors[scene] = _joint_a_errors(tmp_path / f"{scene}.csv")
     penalized = errors["crank_slider_penalized"]["u"]
     accelerated = errors["crank_slider_penalized_acceleration"]["u"]
@@ -163,7 +163,7 @@ def test_consistent_start_finds_the_four_bars_centripetal_joint_forces(built, tm
     from fmus.linkage.scenes import four_bar
 
     out = tmp_path / "start.csv"
-    run(built["ssp"] / "four_bar_singular_fixed.ssp", out, stop=0.05)
+    simulate(built["ssp"] / "four_bar_singular_fixed.ssp", out=out, stop=0.05)
     header, data = read_csv(out)
     whole = four_bar("whole")
     whole.initialize(0.0)

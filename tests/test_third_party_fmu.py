@@ -17,7 +17,7 @@ from fmpy.validation import validate_fmu
 from fmus.spring_mass.core import ChainParameters, SpringMassChain
 from master.cli import main
 from master.results import read_csv
-from master.run import run
+from master.api import simulate
 
 SOURCE = Path(__file__).parent / "third_party" / "oscillator.c"
 VARIABLES = [("m", "parameter", 1.0), ("k", "parameter", 1.0), ("F_in", "input", 0.0),
@@ -144,7 +144,7 @@ def test_third_party_fmu_glued_through_a_port_map_equals_the_merged_model(
     """Fixed joint between the C FMU's mapped port and SpringMass.P: one mass of
     2 + 3 kg on springs 300 + 200 N/m under the SpringMass load."""
     out = tmp_path / "run.csv"
-    stats = run(scene(tmp_path / "scene", built, c_fmus["state"]), out).data
+    stats = simulate(scene(tmp_path / "scene", built, c_fmus["state"]), out=out).statistics
     header, data = read_csv(out)
     params = ChainParameters(n=1)
     params.m[0], params.k_ground[0], params.x0[0] = 5.0, 500.0, 0.01

@@ -1,1 +1,12 @@
-"""Where subsystems run: in this process, or on Ray workers (same interface)."""
+"""Backends: where the subsystems run (a registry; ``backend=`` names one).
+
+A backend owns the subsystems of a run and answers the couplings' batched calls
+for all of them (or for a subset: :meth:`Backend.subset`), so that a parallel
+backend can run them side by side without the algorithm knowing.
+"""
+from master.backends.base import Backend
+from master.backends.inprocess import InProcessBackend
+
+BACKENDS = {InProcessBackend.name: InProcessBackend}
+
+__all__ = ["BACKENDS", "Backend", "InProcessBackend"]

@@ -1,62 +1,87 @@
 """Every subsystem in this process, called one after the other."""
 from __future__ import annotations
 
+from master.backends.base import Backend
 
-class InProcessBackend:
-    """The batched calls of the gluing algorithm, run sequentially here.
 
-    A backend owns the subsystems and answers for all of them at once, so a
-    parallel backend can run them side by side without the algorithm knowing.
-    """
+class InProcessBackend(Backend):
+    """The subsystems live in this process and are called in order."""
 
     name = "in-process"
 
     def __init__(self, subsystems):
         self.subsystems = list(subsystems)
 
+    @classmethod
+    def from_specs(cls, specs, **options) -> "InProcessBackend":
+        from master.fmu import FmuSubsystem
+
+        subsystems = []
+        try:
+            for spec in specs:
+                subsystems.append(FmuSubsystem(spec))
+        except BaseException:
+            cls(subsystems).close()
+            raise
+        return cls(subsystems)
+
+    def subset(self, indices) -> "InProcessBackend":
+        return InProcessBackend([self.subsystems[i] for i in indices])
+
+    def __len__(self) -> int:
+        return len(self.subsystems)
+
+    @property
+    def names(self) -> list[str]:
+        return [s.name for s in self.subsystems]
+
     def begin_step(self) -> None:
-        """Every subsystem saves its state as the macro step's start."""
         for subsystem in self.subsystems:
             subsystem.begin_step()
 
     def trial_step(self, forces, time, step_size):
-        """Each subsystem steps from the saved state with its forces."""
         return [s.trial_step(f, time, step_size) for s, f in zip(self.subsystems, forces)]
 
+    def advance(self, forces, time, step_size):
+        return [s.advance(f, time, step_size) for s, f in zip(self.subsystems, forces)]
+
+    def step(self, time, step_size) -> None:
+        for subsystem in self.subsystems:
+            subsystem.step(time, step_size)
+
     def flexibility(self, forces, time, step_size, deltas, bases):
-        """Each subsystem's interface flexibility [Gu, Gv, Ga] by perturbation."""
         return [s.flexibility(f, time, step_size, d, b)
                 for s, f, d, b in zip(self.subsystems, forces, deltas, bases)]
 
     def set_forces(self, forces) -> None:
-        """Write each subsystem's glued-dof forces (no step)."""
         for subsystem, f in zip(self.subsystems, forces):
             subsystem.set_forces(f)
 
     def start_flexibility(self, forces, deltas):
-        """Each subsystem's d a / d f at the start time (no step)."""
         return [s.start_flexibility(f, d) for s, f, d in zip(self.subsystems, forces, deltas)]
 
+    def kinematics(self):
+        return [s.kinematics() for s in self.subsystems]
+
+    def read_outputs(self):
+        return [s.read_outputs() for s in self.subsystems]
+
+    def write_inputs(self, inputs) -> None:
+        for index, values in inputs:
+            self.subsystems[index].write_inputs(values)
+
     def finish_initialization(self) -> None:
-        """Every subsystem leaves initialization mode."""
         for subsystem in self.subsystems:
             subsystem.finish_initialization()
 
-    def kinematics(self):
-        """Current interface kinematics of every subsystem."""
-        return [s.kinematics() for s in self.subsystems]
+    def counters(self):
+        return [dict(s.counters) for s in self.subsystems]
 
-    def outputs(self):
-        """Recorded outputs of every subsystem (list per subsystem)."""
-        return [s.outputs() for s in self.subsystems]
-
-    def close(self) -> None:
-        """Terminate every subsystem, even if one of them fails."""
+    def close(self) -> list[Exception]:
         errors = []
         for subsystem in self.subsystems:
             try:
                 subsystem.terminate()
-            except Exception as error:  # gather, then report the first
+            except Exception as error:  # gather: every subsystem must be released
                 errors.append(error)
-        if errors:
-            raise errors[0]
+        return errors

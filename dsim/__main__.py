@@ -1,0 +1,6 @@
+"""``python -m dsim``: the command line."""
+import sys
+
+from master.cli import main
+
+sys.exit(main())

@@ -1,0 +1,64 @@
+"""The Python API that the command line, sweeps, regression runs and the web front
+end call: :func:`prepare` checks a scene and its settings into a plan,
+:func:`simulate` runs one to the end and returns its :class:`~master.results.RunResult`.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from master.execution import Execution
+from master.observers import (CsvRecorder, MemoryRecorder, PlotWriter, ProgressBar,
+                              StatisticsWriter)
+from master.plan import make_plan
+from master.results import RunResult
+from master.scene import Scene
+from master.settings import resolve
+from master.ssp import load_scene
+
+
+def prepare(scene, **settings):
+    """The checked :class:`~master.plan.Plan` of ``scene`` (an .ssp archive, a scene
+    folder, an .ssd file, or a :class:`~master.scene.Scene`) with ``settings``
+    overriding the scene's ``glue:Master`` annotation (keywords as the command-line
+    options: stop, step, tolerance, relative_tolerance, max_iterations,
+    refresh_after, perturbation, predictor, refresh, coupling, start, backend).
+    Raises :class:`~master.errors.InputError` listing every problem."""
+    scene = scene if isinstance(scene, Scene) else load_scene(scene)
+    master, options = resolve(scene.master, settings)
+    if "stop" in options:
+        scene = replace(scene, stop_time=options["stop"])
+    return make_plan(replace(scene, master=master), options.get("backend", "in-process"))
+
+
+def simulate(scene, *, out=None, statistics=None, plot=None, progress: bool = False,
+             observers=(), handle_signals: bool = True, **settings) -> RunResult:
+    """Run ``scene`` to its stop time and return the :class:`~master.results.RunResult`,
+    also when the run fails or is interrupted (``result.status``).
+
+    ``out``: results CSV to write (its statistics JSON goes beside it, or to
+    ``statistics``); without it the signals are kept in memory.  ``plot``: a PNG of
+    the signals.  ``progress``: a progress bar on a terminal.  ``observers``: more
+    :class:`~master.observers.Observer` objects.  ``handle_signals``: SIGINT and
+    SIGTERM end the run after the current step (main thread only).  Other keywords
+    are settings (see :func:`prepare`).  Raises InputError for bad input, before
+    anything runs.
+    """
+    plan = prepare(scene, **settings)
+    watchers, memory = [], None
+    if out is not None:
+        watchers.append(CsvRecorder(out))
+        watchers.append(StatisticsWriter(statistics or Path(out).with_suffix(".stats.json")))
+    else:
+        memory = MemoryRecorder()
+        watchers.append(memory)
+        if statistics is not None:
+            watchers.append(StatisticsWriter(statistics))
+    if plot is not None:
+        watchers.append(PlotWriter(plot))
+    if progress:
+        watchers.append(ProgressBar())
+    result = Execution(plan, watchers + list(observers)).run(handle_signals)
+    if memory is not None:
+        result._signals = memory.signals
+    return result

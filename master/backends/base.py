@@ -1,0 +1,88 @@
+"""The backend protocol: what the couplings and the execution need from the
+subsystems, in batches over all of them (or over a subset)."""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+
+class Backend(ABC):
+    """The subsystems of one run, wherever they live.
+
+    Lists of per-subsystem values (forces, kinematics, outputs, inputs) follow the
+    backend's order of subsystems; :meth:`subset` gives a backend over some of them
+    in the order asked, sharing the same subsystems.
+    """
+
+    #: registry name
+    name = ""
+
+    @classmethod
+    @abstractmethod
+    def from_specs(cls, specs, **options) -> "Backend":
+        """Create every subsystem of a run from its
+        :class:`~master.fmu.SubsystemSpec` (instantiated, in initialization mode)."""
+
+    @abstractmethod
+    def subset(self, indices) -> "Backend":
+        """A backend over the subsystems at ``indices``."""
+
+    @abstractmethod
+    def __len__(self) -> int:
+        """Number of subsystems."""
+
+    @property
+    @abstractmethod
+    def names(self) -> list[str]:
+        """Subsystem names, in order."""
+
+    @abstractmethod
+    def begin_step(self) -> None:
+        """Every subsystem saves its state as the macro step's start."""
+
+    @abstractmethod
+    def trial_step(self, forces, time: float, step_size: float) -> list:
+        """Each subsystem steps from its saved state with its forces; their kinematics."""
+
+    @abstractmethod
+    def advance(self, forces, time: float, step_size: float) -> list:
+        """Each subsystem steps with its forces, no rollback; their kinematics."""
+
+    @abstractmethod
+    def step(self, time: float, step_size: float) -> None:
+        """Each subsystem takes one plain step (no forces, no state saved)."""
+
+    @abstractmethod
+    def flexibility(self, forces, time: float, step_size: float, deltas, bases) -> list:
+        """Each subsystem's interface flexibility [Gu, Gv, Ga] by perturbation."""
+
+    @abstractmethod
+    def set_forces(self, forces) -> None:
+        """Write each subsystem's glued-dof forces (no step)."""
+
+    @abstractmethod
+    def start_flexibility(self, forces, deltas) -> list:
+        """Each subsystem's d a / d f at the start time (no step)."""
+
+    @abstractmethod
+    def kinematics(self) -> list:
+        """Current interface kinematics of every subsystem."""
+
+    @abstractmethod
+    def read_outputs(self) -> list:
+        """Every subsystem's read values (a float array each)."""
+
+    @abstractmethod
+    def write_inputs(self, inputs) -> None:
+        """Write causal inputs: ``inputs`` is a list of (subsystem index, values)."""
+
+    @abstractmethod
+    def finish_initialization(self) -> None:
+        """Every subsystem leaves initialization mode."""
+
+    @abstractmethod
+    def counters(self) -> list[dict]:
+        """Per subsystem: FMI function -> [calls, seconds]."""
+
+    @abstractmethod
+    def close(self) -> list[Exception]:
+        """Terminate every subsystem, even if some fail; the errors they raised."""

@@ -1,0 +1,102 @@
+"""What every coupling shares: one template macro step.
+
+A coupling decides how the subsystems advance together over a macro step.  The
+template :meth:`Coupling.step` is the same for all of them (seen from the
+execution): causal inputs from the outputs at the step start (Jacobi), then the
+coupling's own advance of the glued subsystems (:meth:`Coupling._advance`: T-T
+Newton with rollback, one explicit trial, or nothing), then one plain doStep of
+every subsystem that is in no joint (never saved nor restored), then one batched
+read of every subsystem's outputs.
+"""
+from __future__ import annotations
+
+import time as clock
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class StepReport:
+    """What one macro step took: Newton iterations (0 when nothing is glued),
+    flexibility refreshes, and the largest residual left (units of the measure)."""
+
+    iterations: int
+    refreshed: int
+    residual: float
+
+
+class Coupling(ABC):
+    """Advances every subsystem of a backend over macro steps.
+
+    ``glued`` lists the backend's subsystems that are in a joint (the layout's
+    incidence follows their order); the others take one doStep per macro step.
+    ``transfer`` moves causal connection values (see :mod:`master.connections`).
+    """
+
+    #: registry name
+    name = ""
+    #: whether the glued subsystems must save and restore their state
+    rolls_back = True
+
+    def __init__(self, backend, glued, layout, joints, settings, transfer=None):
+        self.backend = backend
+        glued = list(glued)
+        self.glued = backend.subset(glued)
+        self.free = backend.subset([i for i in range(len(backend)) if i not in set(glued)])
+        self.layout = layout
+        self.joints = joints
+        self.settings = settings
+        self.transfer = transfer
+        self.forces = np.zeros(layout.size if layout else 0)
+        self.outputs = np.zeros(0)
+        self.refreshes = 0
+        #: seconds spent measuring flexibilities and factoring the gluing matrix
+        self.seconds = {"flexibility": 0.0, "factorization": 0.0}
+
+    def start(self, kinematics=None, forces=None) -> None:
+        """Set up at the start time, after initialization: ``kinematics`` of the
+        glued subsystems and the start forces (None: zero)."""
+        if forces is not None:
+            self.forces = np.array(forces, dtype=float)
+        self.read_outputs()
+
+    def read_outputs(self) -> np.ndarray:
+        """Every subsystem's read values (recorded outputs and connection sources),
+        one flat array in the backend's order."""
+        parts = self.backend.read_outputs()
+        self.outputs = np.concatenate(parts) if parts else np.zeros(0)
+        return self.outputs
+
+    def step(self, time: float, step_size: float, step_index: int) -> StepReport:
+        """Advance every subsystem from ``time`` by ``step_size`` (s)."""
+        if self.transfer is not None and self.transfer.size:
+            self.backend.write_inputs(self.transfer.inputs(self.outputs))
+        report = self._advance(time, step_size, step_index)
+        if len(self.free):
+            self.free.step(time, step_size)
+        self.read_outputs()
+        return report
+
+    @abstractmethod
+    def _advance(self, time: float, step_size: float, step_index: int) -> StepReport:
+        """Advance the glued subsystems (the coupling's own work)."""
+
+    def _timed(self, phase: str, function, *args):
+        start = clock.perf_counter()
+        try:
+            return function(*args)
+        finally:
+            self.seconds[phase] += clock.perf_counter() - start
+
+
+class CausalCoupling(Coupling):
+    """No joints: every subsystem takes one doStep per macro step with inputs from
+    the outputs at the step start; no state is saved, no Newton runs."""
+
+    name = "causal"
+    rolls_back = False
+
+    def _advance(self, time, step_size, step_index) -> StepReport:
+        return StepReport(0, 0, 0.0)

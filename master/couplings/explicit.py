@@ -1,0 +1,57 @@
+"""The explicit (non-iterative) coupling: the baseline that iteration is measured against.
+
+Every macro step takes one trial per glued subsystem with the predicted joint
+forces and accepts it, compatible or not; the Newton correction that step's
+residual asks for, F - Lambda R, is not applied to the step but fed to the
+predictor of the next one.  It costs one doStep per FMU per step (the iterative
+master takes two on linear problems) and leaves the interface incompatible by
+what the predictor misses.  Lambda is measured at the first step (and again when
+the step size changes) by the same perturbation and rollback as the iterative
+master's: only those steps save and restore state.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from master.couplings.base import StepReport
+from master.couplings.iterative import IterativeCoupling
+from master.errors import SimulationError
+
+
+class ExplicitCoupling(IterativeCoupling):
+    """One trial per macro step; the correction goes to the next step's predictor."""
+
+    name = "explicit"
+
+    def _advance(self, time: float, step_size: float, step_index: int) -> StepReport:
+        """Advance every glued subsystem once with predicted forces; record the
+        residual left at the interface."""
+        forces = self.predict()
+        if self._step_size is not None and step_size != self._step_size:
+            self._flexibility = None
+        self._step_size = step_size
+        measuring = self._flexibility is None
+        if measuring:  # the perturbations roll back: save the step's start
+            self.glued.begin_step()
+        local = self.layout.local_forces(forces)
+        if measuring:
+            kinematics = self.glued.trial_step(local, time, step_size)
+        else:
+            kinematics = self.glued.advance(local, time, step_size)
+        r, _, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
+        try:
+            self._check_finite(r, time + step_size, step_index)
+        except SimulationError:
+            raise SimulationError("the explicit coupling diverged (non-finite interface "
+                                  "residual): use a smaller step or the iterative coupling",
+                                  time=time + step_size, step=step_index) from None
+        if measuring:
+            self._refresh(local, time, step_size, kinematics)
+            # the perturbations moved the subsystems: step once more with the forces
+            # this step is accepted with, so that the state matches the record
+            self.glued.trial_step(local, time, step_size)
+        self._ensure_factor(weights, diagonal, time + step_size, step_index)
+        self.joints.accept(*trial)
+        self.forces = forces
+        self._history.append(forces - self._factor.solve(r))
+        return StepReport(1, int(measuring), float(np.max(np.abs(r), initial=0.0)))

@@ -1,0 +1,282 @@
+"""The execution of a checked plan: a coupling, a backend and observers.
+
+:class:`Execution` is for callers that step, watch and stop a run themselves
+(a sweep, a web server); :func:`master.api.simulate` runs one to the end.  The
+flow: observers start (files opened and locked), the backend instantiates the
+subsystems, the start forces are set in initialization mode, then every macro
+step is one template step of the coupling, its outputs checked for non-finite
+values and handed to the observers; whatever the ending, the subsystems are
+released, the statistics made, and the observers finish with the
+:class:`~master.results.RunResult`.
+
+Time is ``start + n * step`` (no drift); the last step is shortened to land on
+the stop time exactly, and every other step is given to the FMUs as exactly
+``step``, so that nothing that depends on the step size (the interface
+flexibility, the gluing matrix's factor) is rebuilt for round-off.
+"""
+from __future__ import annotations
+
+import math
+import signal
+import threading
+import time as clock
+
+import numpy as np
+
+from master.backends import BACKENDS
+from master.couplings import COUPLINGS
+from master.errors import InputError, SimulationError
+from master.observers import RunInfo, StepRecord
+from master.output_files import OutputError
+from master.results import RunResult
+from master.start import check_start, start_forces
+from master.statistics import run_statistics
+
+
+class Execution:
+    """One run of a :class:`~master.plan.Plan` with ``observers``.
+
+    Use :meth:`run` to go to the end, or :meth:`start`, then :meth:`step` until it
+    returns False, then :meth:`finish`.  :meth:`stop` (from an observer, another
+    thread or a signal handler) ends the run after the current step, as
+    interrupted.  Bad input found while starting raises InputError; a failure
+    during the run ends it as failed, and :meth:`finish` returns the result.
+    """
+
+    def __init__(self, plan, observers=()):
+        self.plan = plan
+        self.scene = plan.scene
+        self.settings = plan.scene.master
+        self.observers = list(observers)
+        self.status = "created"
+        self.index = 0
+        self.time = self.scene.start_time
+        self.warnings: list[str] = []
+        self.planned_steps = max(1, math.ceil(
+            (self.scene.stop_time - self.scene.start_time) / self.settings.step - 1e-9))
+        self.backend = None
+        self.coupling = None
+        self.layout = None
+        self.error: Exception | None = None
+        self.signal: int | None = None
+        self._stop_requested: str | None = None
+        self._iterations: list[int] = []
+        self._refreshes = 0
+        self._phases = {"setup": 0.0, "steps": 0.0, "observers": 0.0, "finish": 0.0}
+        self._wall_start = None
+        self._columns: tuple[str, ...] = ()
+
+    # --- time --------------------------------------------------------------------
+    def step_time(self, index: int) -> float:
+        """Communication point ``index`` (s): start + index * step, the last one the
+        stop time."""
+        if index >= self.planned_steps:
+            return self.scene.stop_time
+        return self.scene.start_time + index * self.settings.step
+
+    def _step_size(self, index: int) -> float:
+        """Size of the step from point ``index``: ``step`` unless it is the last one
+        and really shorter."""
+        size = self.step_time(index + 1) - self.step_time(index)
+        nominal = self.settings.step
+        return nominal if abs(size - nominal) <= 1e-9 * nominal else size
+
+    # --- observers ---------------------------------------------------------------
+    def _notify(self, hook: str, *args) -> None:
+        start = clock.perf_counter()
+        try:
+            for observer in self.observers:
+                getattr(observer, hook)(*args)
+        finally:
+            self._phases["observers"] += clock.perf_counter() - start
+
+    def warn(self, message: str) -> None:
+        """Record a warning and pass it to the observers."""
+        self.warnings.append(message)
+        self._notify("warned", message)
+
+    # --- start -------------------------------------------------------------------
+    def start(self) -> None:
+        """Open the observers, instantiate and initialise the subsystems, set the
+        start forces and record the start time (raises InputError on bad input)."""
+        if self.status != "created":
+            raise RuntimeError(f"the execution is {self.status}, it can start only once")
+        self._wall_start = clock.perf_counter()
+        plan = self.plan
+        layout, joints = plan.assemble()
+        self._columns = tuple(plan.columns) + tuple(layout.labels)
+        info = RunInfo(self.scene.name, self.scene.file, self._columns, self.scene.start_time,
+                       self.scene.stop_time, self.settings.step, self.planned_steps,
+                       plan.coupling, plan.backend, tuple(plan.inputs))
+        started = []
+        try:
+            for observer in self.observers:
+                observer.started(info)
+                started.append(observer)
+            self.backend = BACKENDS[plan.backend].from_specs(plan.specs)
+            self._initialize(layout, joints)
+        except BaseException as error:
+            for observer in started:
+                observer.aborted()
+            if self.backend is not None:
+                self.backend.close()
+            self.status = "aborted"
+            if isinstance(error, SimulationError):  # the consistent start failed
+                raise InputError(str(error)) from None
+            raise
+        self.status = "running"
+        self._phases["setup"] = clock.perf_counter() - self._wall_start
+        try:
+            row = self._row()
+            self._check_finite(row)
+            self._record(StepRecord(0, self.time, row))
+        except SimulationError as error:
+            self._fail(error.located(0, self.time))
+        except OutputError as error:
+            self._fail(error)
+
+    def _initialize(self, layout, joints) -> None:
+        plan, settings = self.plan, self.settings
+        glued = self.backend.subset(plan.glued)
+        if plan.non_matching and settings.start != "rest":
+            layout, joints = plan.assemble(self._positions(glued, layout))
+        forces, reported = start_forces(settings.start, glued, layout, joints)
+        self.backend.finish_initialization()
+        if plan.non_matching and settings.start == "rest":
+            layout, joints = plan.assemble(self._positions(glued, layout))
+        for message in check_start(settings.start, glued, layout, joints, forces, reported,
+                                   settings, self._step_size(0)):
+            self.warn(message)
+        self.layout = layout
+        self.coupling = COUPLINGS[plan.coupling](self.backend, plan.glued, layout, joints,
+                                                 settings, plan.transfer)
+        self.coupling.start(glued.kinematics() if layout.size else None, forces)
+
+    def _positions(self, glued, layout) -> dict:
+        """Initial positions of the glued dofs, for non-matching joints."""
+        positions = {}
+        for spec_index, (u, _, _) in zip(self.plan.glued, glued.kinematics()):
+            spec = self.plan.specs[spec_index]
+            for port_dof, value in zip(spec.port_dofs, u):
+                positions[(spec.name, port_dof.port, port_dof.dof)] = value
+        return positions
+
+    # --- steps -------------------------------------------------------------------
+    def _row(self) -> np.ndarray:
+        outputs = self.coupling.outputs[self.plan.record_index]
+        return np.concatenate((outputs, self.coupling.forces))
+
+    def _check_finite(self, row: np.ndarray) -> None:
+        bad = np.flatnonzero(~np.isfinite(row))
+        if not len(bad):
+            return
+        column = self._columns[bad[0]]
+        if bad[0] < len(self.plan.columns):
+            component, variable = self.plan.recorded[bad[0]]
+            what = f"component '{component}' output '{variable}'"
+        else:
+            what = f"joint '{self.layout.joint_of[bad[0] - len(self.plan.columns)]}' " \
+                   f"force '{column}'"
+        raise SimulationError(f"{what} is not finite ({row[bad[0]]})", time=self.time,
+                              step=self.index)
+
+    def _record(self, record: StepRecord) -> None:
+        self._notify("stepped", record)
+
+    def step(self) -> bool:
+        """Take one macro step; False when the run has ended (stop time reached,
+        failed or stopped)."""
+        if self.status != "running":
+            return False
+        if self._stop_requested:
+            self.status = "interrupted"
+            return False
+        index = self.index
+        started = clock.perf_counter()
+        try:
+            time = self.step_time(index)
+            report = self.coupling.step(time, self._step_size(index), index + 1)
+            self.index, self.time = index + 1, self.step_time(index + 1)
+            row = self._row()
+            self._check_finite(row)
+            self._phases["steps"] += clock.perf_counter() - started
+            self._iterations.append(report.iterations)
+            self._record(StepRecord(self.index, self.time, row, report.iterations,
+                                    report.refreshed, report.residual))
+        except SimulationError as error:
+            self._fail(error.located(index + 1, self.step_time(index + 1)))
+            return False
+        except OutputError as error:
+            self._fail(error)
+            return False
+        except KeyboardInterrupt:
+            self._stop_requested = "interrupted by the user"
+            self.signal = signal.SIGINT
+            self.status = "interrupted"
+            return False
+        if self.index >= self.planned_steps:
+            self.status = "completed"
+            return False
+        return True
+
+    def _fail(self, error: Exception) -> None:
+        self.error = error
+        self.status = "failed"
+
+    def stop(self, reason: str = "stopped", signal_number: int | None = None) -> None:
+        """End the run after the current step, as interrupted."""
+        self._stop_requested = reason
+        if signal_number is not None:
+            self.signal = signal_number
+
+    # --- the end -----------------------------------------------------------------
+    def finish(self) -> RunResult:
+        """Release the subsystems, make the statistics and the result, and let every
+        observer finish (also after a failure or an interrupt)."""
+        started = clock.perf_counter()
+        if self.status == "running":
+            self.status = "interrupted"
+            self._stop_requested = self._stop_requested or "stopped before the stop time"
+        if self.backend is not None:
+            for error in self.backend.close():
+                self.warn(f"releasing the subsystems: {error}")
+        self._phases["finish"] = clock.perf_counter() - started
+        message = ""
+        if self.status == "failed":
+            message = str(self.error)
+        elif self.status == "interrupted":
+            message = (f"{self._stop_requested} at t = {self.time:g} s "
+                       f"(step {self.index} of {self.planned_steps})")
+        result = RunResult(self.status, message, self.time, self.index,
+                           warnings=self.warnings, error=self.error, signal=self.signal)
+        result.statistics = run_statistics(self, clock.perf_counter() - self._wall_start)
+        for observer in self.observers:
+            try:
+                observer.finished(result)
+            except Exception as error:  # one observer must not stop the others
+                result.warnings.append(f"{type(observer).__name__}: {error}")
+            result.files.update(getattr(observer, "files", {}))
+        return result
+
+    def run(self, handle_signals: bool = True) -> RunResult:
+        """Start (unless started), step to the end and finish.  With
+        ``handle_signals`` (main thread only), SIGINT and SIGTERM end the run after
+        the current step, as interrupted, with everything written."""
+        previous = {}
+        if handle_signals and threading.current_thread() is threading.main_thread():
+            for number in (signal.SIGINT, signal.SIGTERM):
+                previous[number] = signal.signal(number, self._on_signal)
+        try:
+            if self.status == "created":
+                self.start()
+            while self.step():
+                pass
+        finally:
+            for number, handler in previous.items():
+                signal.signal(number, handler)
+        return self.finish()
+
+    def _on_signal(self, number, frame) -> None:
+        if self._stop_requested and number == signal.SIGINT:
+            raise KeyboardInterrupt  # a second Ctrl-C: do not wait for the step
+        self.stop(f"interrupted by {signal.Signals(number).name}", number)

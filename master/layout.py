@@ -1,0 +1,66 @@
+"""The topology of a glued problem: which glued subsystem dof feels which joint force.
+
+Joint force entry r (one per glued dof of every joint) acts on the subsystem
+dofs named by the incidence matrices C_i (n_i x n_F): +1 on side b, -1 on side a,
+moving-least-squares weights on non-matching node sets (section 2.2.3).  The
+gluing algorithm needs three products of them, all here: the subsystems' forces
+C_i F, the joint-side differences sum_i C_i^T x_i, and the projected flexibility
+sum_i C_i^T G_i C_i (eqs. 4.24-4.27), which costs one sparse product over all
+subsystems together, so that it grows linearly with their number.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+
+class GluingLayout:
+    """Incidence, measure weights and labels of the glued dofs.
+
+    ``incidence[i]`` is C_i of the i-th glued subsystem; ``weights`` is n_F x 3
+    (w_u, w_v, w_a) and ``measures`` the measure's name per dof; ``labels[r]`` names
+    force entry r as ``joint.f_dof`` (the CSV column); ``joint_of[r]`` the joint.
+    """
+
+    def __init__(self, incidence, weights, labels, joint_of, measures=None):
+        self.incidence = [sp.csr_matrix(c) for c in incidence]
+        self.labels = list(labels)
+        self.size = len(self.labels)
+        sizes = [c.shape[0] for c in self.incidence]
+        self.offsets = np.cumsum(sizes)[:-1] if sizes else np.zeros(0, dtype=int)
+        self._bounds = list(zip(np.r_[0, self.offsets].astype(int),
+                                np.r_[self.offsets, sum(sizes)].astype(int)))
+        # one stacked C (all glued dofs x n_F): an iteration costs a few sparse products
+        self.stacked = (sp.vstack(self.incidence).tocsr() if self.incidence
+                        else sp.csr_matrix((0, self.size)))
+        self.stacked_t = self.stacked.T.tocsr()
+        self.stacked_abs_t = abs(self.stacked_t)
+        self.weights = np.asarray(weights, dtype=float).reshape(-1, 3)
+        self.joint_of = list(joint_of)
+        #: the measure's name per dof ("displacement", "velocity", ...)
+        self.measures = list(measures or ["displacement"] * self.size)
+
+    def differences(self, kinematics, magnitudes: bool = True):
+        """Per kind (u, v, a): sum_i C_i^T x_i (= x_b - x_a per joint dof) and the
+        matching magnitude sum |C_i|^T |x_i| used by the relative tolerance (None
+        unless asked); both 3 x n_F."""
+        stacked = np.zeros((self.stacked.shape[0], 3))
+        for values, (start, stop) in zip(kinematics, self._bounds):
+            for kind, x in enumerate(values):
+                if x is not None:
+                    stacked[start:stop, kind] = x
+        differences = (self.stacked_t @ stacked).T
+        if not magnitudes:
+            return differences, None
+        return differences, (self.stacked_abs_t @ np.abs(stacked)).T
+
+    def local_forces(self, forces):
+        """Split the joint forces F into each glued subsystem's forces C_i F."""
+        return np.split(self.stacked @ forces, self.offsets)
+
+    def project(self, matrices) -> sp.csr_matrix:
+        """sum_i C_i^T M_i C_i (n_F x n_F) of one dense n_i x n_i matrix per glued
+        subsystem: a flexibility G_i, or a start sensitivity d a_i / d f_i."""
+        blocks = sp.block_diag([sp.csr_matrix(m) for m in matrices], format="csr") \
+            if len(matrices) else sp.csr_matrix((0, 0))
+        return (self.stacked_t @ blocks @ self.stacked).tocsr()

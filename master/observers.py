@@ -1,0 +1,223 @@
+"""Observers: everything that watches a run goes through one interface, and only
+observers write files.
+
+An execution calls, in order: :meth:`Observer.started` once before any FMU is
+instantiated (an observer that cannot do its job refuses the run here, as bad
+input), :meth:`Observer.stepped` for the start time (index 0) and for every
+converged macro step, :meth:`Observer.warned` for every warning, and
+:meth:`Observer.finished` once with the :class:`~master.results.RunResult`,
+whatever the ending; :meth:`Observer.aborted` instead when the run never started
+(bad input found while initialising).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from master.output_files import OutputError, OutputFile, write_whole
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What an observer learns when a run starts."""
+
+    scene: str
+    file: Path
+    columns: tuple[str, ...]  # of StepRecord.values: recorded outputs, then joint forces
+    start_time: float
+    stop_time: float
+    step_size: float
+    planned_steps: int
+    coupling: str
+    backend: str
+    inputs: tuple = ()
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """One converged macro step (index 0: the start time, nothing stepped)."""
+
+    index: int
+    time: float
+    values: np.ndarray
+    iterations: int = 0
+    refreshed: int = 0
+    residual: float = 0.0
+
+
+class Observer:
+    """Base class: every hook does nothing."""
+
+    #: files this observer wrote, by kind ("csv", "statistics", "plot")
+    files: dict
+
+    def started(self, info: RunInfo) -> None:
+        """The run is about to start (raise InputError to refuse it)."""
+
+    def stepped(self, record: StepRecord) -> None:
+        """A step converged (index 0: the start)."""
+
+    def warned(self, message: str) -> None:
+        """The run warns (an inconsistent start, a cleanup that failed)."""
+
+    def finished(self, result) -> None:
+        """The run ended: completed, failed or interrupted."""
+
+    def aborted(self) -> None:
+        """The run never started; undo what :meth:`started` did."""
+
+
+class CsvRecorder(Observer):
+    """``time``, recorded outputs, joint forces: one whole row per converged step,
+    written at once (a failed run keeps every converged step), under a temporary
+    name renamed to ``path`` when the run ends (see :mod:`master.output_files`)."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.output: OutputFile | None = None
+        self.rows = 0
+        self.files = {}
+
+    def started(self, info: RunInfo) -> None:
+        self.output = OutputFile(self.path, info.inputs)
+        self.output.open()
+        self.output.append((",".join(("time",) + info.columns) + "\n").encode())
+
+    def stepped(self, record: StepRecord) -> None:
+        row = ",".join(map(repr, [record.time] + record.values.tolist()))
+        self.output.append((row + "\n").encode())
+        self.rows += 1
+
+    def finished(self, result) -> None:
+        if self.output and self.output.is_open:
+            self.output.commit()
+            self.files["csv"] = self.path
+
+    def aborted(self) -> None:
+        if self.output:
+            self.output.discard()
+
+
+class StatisticsWriter(Observer):
+    """The statistics JSON of a run (``result.statistics``), written whole when the
+    run ends, also when it failed or was interrupted."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.inputs = ()
+        self.files = {}
+
+    def started(self, info: RunInfo) -> None:
+        from master.output_files import check_not_input
+        self.inputs = info.inputs
+        check_not_input(self.path, self.inputs)
+
+    def finished(self, result) -> None:
+        data = json.dumps(result.statistics, indent=2, default=str).encode()
+        try:
+            write_whole(self.path, data, self.inputs)
+        except Exception as error:  # a full disk must not hide how the run ended
+            result.warnings.append(f"statistics not written to {self.path}: {error}")
+            return
+        self.files["statistics"] = self.path
+
+
+class MemoryRecorder(Observer):
+    """Keeps every row in memory (the signals of a run that writes no CSV)."""
+
+    def __init__(self):
+        self.columns: tuple[str, ...] = ()
+        self.rows: list[np.ndarray] = []
+        self.files = {}
+
+    def started(self, info: RunInfo) -> None:
+        self.columns = info.columns
+        self.rows = []
+
+    def stepped(self, record: StepRecord) -> None:
+        self.rows.append(np.concatenate(([record.time], record.values)))
+
+    def signals(self) -> dict[str, np.ndarray]:
+        """Column name -> values over time (``time`` first)."""
+        data = np.array(self.rows).reshape(-1, len(self.columns) + 1)
+        return {name: data[:, i] for i, name in enumerate(("time",) + self.columns)}
+
+
+class PlotWriter(Observer):
+    """A PNG of the run's signals when it ends (outputs and joint forces)."""
+
+    def __init__(self, path, title: str = ""):
+        self.path = Path(path)
+        self.title = title
+        self.inputs = ()
+        self.files = {}
+
+    def started(self, info: RunInfo) -> None:
+        from master.output_files import check_not_input
+        self.inputs = info.inputs
+        self.title = self.title or info.scene
+        check_not_input(self.path, self.inputs)
+
+    def finished(self, result) -> None:
+        from master.results import plot_signals
+        if result.steps == 0:
+            return
+        try:
+            plot_signals(result.signals, self.path, self.title)
+        except (OSError, OutputError) as error:
+            result.warnings.append(f"plot not written to {self.path}: {error}")
+            return
+        self.files["plot"] = self.path
+
+
+@dataclass
+class ProgressBar(Observer):
+    """A rich progress bar on a terminal (simulated time, iterations per step),
+    nothing elsewhere (CI logs, pipes); warnings go to the stream either way."""
+
+    label: str = ""
+    stream: object = None
+    files: dict = field(default_factory=dict)
+
+    def started(self, info: RunInfo) -> None:
+        self.progress = None
+        stream = self.stream or sys.stderr
+        if not stream.isatty():
+            return
+        from rich.console import Console
+        from rich.progress import (BarColumn, Progress, TextColumn, TimeElapsedColumn,
+                                   TimeRemainingColumn)
+        self.progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                                 TextColumn("t = {task.fields[t]:.4g} s"),
+                                 TextColumn("it/step {task.fields[it]:.2f}"),
+                                 TimeElapsedColumn(), TimeRemainingColumn(), transient=True,
+                                 console=Console(file=stream))
+        self.progress.start()
+        self.iterations = 0
+        self.task = self.progress.add_task(self.label or info.scene, total=info.planned_steps,
+                                           t=info.start_time, it=0.0)
+
+    def stepped(self, record: StepRecord) -> None:
+        if self.progress and record.index:
+            self.iterations += record.iterations
+            self.progress.update(self.task, completed=record.index, t=record.time,
+                                 it=self.iterations / record.index)
+
+    def warned(self, message: str) -> None:
+        if self.progress:
+            self.progress.console.print(f"dsim: warning: {message}", markup=False,
+                                        highlight=False)
+        else:
+            print(f"dsim: warning: {message}", file=self.stream or sys.stderr)
+
+    def finished(self, result=None) -> None:
+        if self.progress:
+            self.progress.stop()
+            self.progress = None
+
+    def aborted(self) -> None:
+        self.finished()

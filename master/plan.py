@@ -1,0 +1,222 @@
+"""The checked plan of a run: everything that can be known and checked about a
+scene and its settings before any FMU is instantiated.
+
+:func:`make_plan` reads each FMU's modelDescription once, resolves ports and
+joints, chooses the variables each component reads after every step (recorded
+outputs and causal connection sources) and writes (causal inputs), resolves the
+causal connections into index arrays, decides which components are glued (in a
+joint: iterated with rollback) and which are free (one doStep per macro step),
+and collects every problem into one :class:`~master.errors.InputError`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from master.assembly import assemble
+from master.connections import Transfer, build_transfer
+from master.errors import InputError
+from master.fmu import SubsystemSpec, can_save_state
+from master.fmu_archive import fmu_problem
+from master.ports import component_ports, joint_port_dofs, variables_by_name
+from master.scene import Scene
+from master.settings import check_span
+
+#: variable types a connection or a recorded column can carry
+NUMERIC = ("Real", "Integer", "Enumeration", "Boolean")
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A checked scene, ready to run (immutable: every run makes its own state)."""
+
+    scene: Scene
+    coupling: str
+    backend: str
+    specs: tuple[SubsystemSpec, ...]
+    #: recorded outputs as (component path, variable), and where each is in the
+    #: run's flat output vector
+    recorded: tuple[tuple[str, str], ...]
+    record_index: np.ndarray
+    transfer: Transfer
+    #: indices of the components in a joint (the glued ones)
+    glued: tuple[int, ...]
+    sides: dict
+    ports: dict
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """CSV columns of the recorded outputs (``component.variable``)."""
+        return tuple(f"{path}.{name}" for path, name in self.recorded)
+
+    @property
+    def non_matching(self) -> bool:
+        """Whether a joint glues node sets of different sizes (needs positions)."""
+        return any(len(a) != len(b) for a, b in self.sides.values())
+
+    def assemble(self, positions=None):
+        """A fresh gluing layout and joint states (``positions``: initial positions
+        of the glued dofs, needed by non-matching joints)."""
+        paths = [spec.name for spec in self.specs]
+        layout, joints, _ = assemble(paths, list(self.scene.joints), self.sides, positions)
+        return layout, joints
+
+    @property
+    def inputs(self) -> list:
+        """Files the run reads (a run must never write over one of them)."""
+        files = [self.scene.file] + [spec.path for spec in self.specs]
+        return files + list(self.scene.inputs)
+
+
+def _usable(scene: Scene, problems: list) -> dict:
+    """component path -> its variables by name, for the components whose FMU can be
+    used; every other component gets one problem line."""
+    usable = {}
+    for component in scene.components:
+        if not component.source.is_file():
+            continue  # the reader has said so
+        problem = fmu_problem(component.source)
+        if problem:
+            problems.append(f"{component.location}: FMU {component.source.name}: {problem}")
+        else:
+            usable[component.path] = variables_by_name(component.source)
+    return usable
+
+
+def _records(scene: Scene, usable: dict, problems: list) -> dict[str, list[str]]:
+    """Outputs to record per component: its declared output connectors, else every
+    numeric output of its FMU that is not port kinematics."""
+    result = {}
+    for component in scene.components:
+        variables = usable.get(component.path)
+        if variables is None:
+            continue
+        declared = [n for n, kind in component.connectors if kind == "output"]
+        for name in declared:
+            if name not in variables:
+                problems.append(f"{component.location}: connector '{name}' is not a "
+                                f"variable of {component.source.name}")
+            elif variables[name].type not in NUMERIC:
+                problems.append(f"{component.location}: connector '{name}' is a "
+                                f"{variables[name].type}, which dsim cannot record")
+        result[component.path] = [n for n in declared if n in variables
+                                  and variables[n].type in NUMERIC] or [
+            n for n, v in variables.items() if v.causality == "output" and v.type in NUMERIC
+            and n.split(".")[-1][:2] not in ("u_", "v_", "a_")]
+    return result
+
+
+def _check_parameters(scene: Scene, usable: dict, problems: list) -> None:
+    for component in scene.components:
+        variables = usable.get(component.path)
+        if variables is None:
+            continue
+        for name in component.parameters:
+            variable = variables.get(name)
+            if variable is None:
+                problems.append(f"{component.location}: parameter '{name}' is not a "
+                                f"variable of {component.source.name}")
+            elif variable.causality not in ("parameter", "input"):
+                problems.append(f"{component.location}: '{name}' is a "
+                                f"{variable.causality}, not a parameter")
+
+
+def _connections(scene: Scene, usable: dict, problems: list) -> list:
+    """Causal connections as (start component, variable, end component, variable,
+    factor, offset), checked for existence, causality and type."""
+    result, fed = [], {}
+    for connection in scene.connections:
+        ends = []
+        for (path, name), role in ((connection.start, "output"), (connection.end, "input")):
+            variables = usable.get(path)
+            variable = variables.get(name) if variables is not None else None
+            if variables is None:
+                continue
+            if variable is None:
+                problems.append(f"{connection.location}: '{path}' has no variable '{name}'")
+            elif role == "input" and variable.causality not in ("input", "parameter"):
+                problems.append(f"{connection.location}: '{path}.{name}' is not an input")
+            elif variable.type not in NUMERIC:
+                problems.append(f"{connection.location}: '{path}.{name}' is a "
+                                f"{variable.type}, which dsim cannot connect")
+            else:
+                ends.append(variable)
+        if len(ends) != 2:
+            continue
+        kinds = {"Boolean" if v.type == "Boolean" else "Real" if v.type == "Real"
+                 else "Integer" for v in ends}
+        if len(kinds) > 1:
+            problems.append(f"{connection.location}: connects a {ends[0].type} to a "
+                            f"{ends[1].type}")
+            continue
+        if connection.end in fed:
+            problems.append(f"{connection.location}: input '{'.'.join(connection.end)}' "
+                            f"is already fed by '{'.'.join(fed[connection.end])}'")
+            continue
+        fed[connection.end] = connection.start
+        result.append((*connection.start, *connection.end, connection.factor,
+                       connection.offset))
+    return result
+
+
+def _sides(scene: Scene, ports: dict, problems: list) -> dict:
+    sides = {}
+    for joint in scene.joints:
+        if joint.a[0] not in ports or joint.b[0] not in ports:
+            continue
+        a = joint_port_dofs(joint, "a", ports[joint.a[0]], problems)
+        b = joint_port_dofs(joint, "b", ports[joint.b[0]], problems)
+        if a and b and len(a) != len(b) and not set(joint.dofs) <= {"x", "y", "z"}:
+            problems.append(f"{joint.location}: node sets of {len(a) // len(joint.dofs)} and "
+                            f"{len(b) // len(joint.dofs)} nodes can be glued by moving least "
+                            "squares on translations only (dofs x y z)")
+        sides[joint.name] = (a, b)
+        for path in (joint.a[0], joint.b[0]):
+            if not can_save_state(scene.component(path).source):
+                problems.append(f"{joint.location}: component '{path}' cannot save and "
+                                "restore its state (canGetAndSetFMUstate is false), so it "
+                                "cannot be iterated in a joint (it can take part through "
+                                "causal connections)")
+    return sides
+
+
+def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
+    """Check everything that can be checked without instantiating an FMU; raise
+    InputError listing every problem."""
+    problems = check_span(scene.start_time, scene.stop_time, scene.master.step,
+                          f"{scene.file}: DefaultExperiment")
+    coupling = scene.master.coupling
+    if scene.joints and coupling == "causal":
+        problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
+                        f"{len(scene.joints)} joints: use iterative or explicit")
+    usable = _usable(scene, problems)
+    ports = component_ports(scene, problems, usable)
+    _check_parameters(scene, usable, problems)
+    records = _records(scene, usable, problems)
+    connections = _connections(scene, usable, problems)
+    sides = _sides(scene, ports, problems)
+    if problems:
+        raise InputError(list(dict.fromkeys(problems)))
+    paths = [c.path for c in scene.components]
+    _, _, interfaces = assemble(paths, list(scene.joints), sides)
+    reads = {p: list(records[p]) for p in paths}
+    for start, name, *_ in connections:
+        if name not in reads[start]:
+            reads[start].append(name)
+    transfer, writes = build_transfer(paths, reads, connections)
+    recorded, record_index, offset = [], [], 0
+    for path in paths:
+        for i, name in enumerate(reads[path]):
+            if name in records[path]:
+                recorded.append((path, name))
+                record_index.append(offset + i)
+        offset += len(reads[path])
+    specs = tuple(SubsystemSpec(
+        c.path, c.source, tuple(interfaces[c.path]), dict(c.parameters), tuple(reads[c.path]),
+        tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location)
+        for c in scene.components)
+    glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
+    return Plan(scene, coupling if scene.joints else "causal", backend, specs,
+                tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
+                ports)

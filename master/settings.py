@@ -1,0 +1,177 @@
+"""The run settings: the one place where every setting is named, converted and checked.
+
+The scene's ``glue:Master`` annotation, the command line (``dsim run --tolerance``) and
+the Python API (``dsim.simulate(scene, tolerance=...)``) all pass through
+:func:`resolve`, so a value is valid in one exactly when it is valid in the others,
+and an invalid one is bad input (:class:`~master.errors.InputError`) that says which
+values are valid.  The names that choose an implementation (coupling, predictor,
+refresh policy, start, backend) are checked against the registries that hold the
+implementations, so a new entry in a registry is a valid setting at once.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+from master.errors import InputError
+from master.scene import MasterSettings
+
+
+def _choices(setting: str) -> tuple[str, ...]:
+    """Valid names of a setting that selects an implementation (from its registry)."""
+    # imported here: the registries import the modules they register, which need settings
+    if setting == "coupling":
+        from master.couplings import COUPLINGS as registry
+    elif setting == "predictor":
+        from master.couplings.predictors import PREDICTORS as registry
+    elif setting == "refresh":
+        from master.couplings.refresh import REFRESH_POLICIES as registry
+    elif setting == "start":
+        from master.start import START_MODES as registry
+    else:
+        from master.backends import BACKENDS as registry
+    return tuple(registry)
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One setting: its Python keyword, ``glue:Master`` attribute, type and rule."""
+
+    keyword: str
+    attribute: str | None
+    kind: type
+    rule: str  # "positive", "non-negative", "at least 1" or "choice"
+    help: str
+
+    @property
+    def option(self) -> str:
+        """The command-line option (``--max-iterations``)."""
+        return "--" + self.keyword.replace("_", "-")
+
+
+SETTINGS = {s.keyword: s for s in (
+    Setting("stop", None, float, "positive", "stop time, s (default: the scene's "
+            "DefaultExperiment stopTime)"),
+    Setting("step", "step", float, "positive", "macro step H, s"),
+    Setting("tolerance", "tolerance", float, "positive",
+            "absolute interface tolerance, in the units of the joints' measure (m for "
+            "displacement)"),
+    Setting("relative_tolerance", "relativeTolerance", float, "non-negative",
+            "tolerance relative to the size of the measure on both sides of a joint"),
+    Setting("max_iterations", "maxIterations", int, "at least 1",
+            "Newton iterations per macro step before the run fails"),
+    Setting("refresh_after", "refreshAfter", int, "at least 1",
+            "re-measure the interface flexibility after this many iterations of one step"),
+    Setting("perturbation", "perturbation", float, "positive",
+            "relative force perturbation that measures the interface flexibility"),
+    Setting("predictor", "predictor", str, "choice",
+            "first guess of the joint forces from past steps"),
+    Setting("refresh", "refresh", str, "choice",
+            "when to re-measure the interface flexibility"),
+    Setting("coupling", "coupling", str, "choice",
+            "iterative: T-T Newton with rollback; explicit: one trial per step (a "
+            "baseline); causal: no joints, causal connections only"),
+    Setting("start", "start", str, "choice",
+            "start forces: auto (flexible joints from their law), consistent (fixed "
+            "joints too, from acceleration compatibility) or rest (zero)"),
+    Setting("backend", None, str, "choice", "where the subsystems run"),
+)}
+
+#: glue:Master attribute -> setting
+BY_ATTRIBUTE = {s.attribute: s for s in SETTINGS.values() if s.attribute}
+
+
+def choices(keyword: str) -> tuple[str, ...]:
+    """The valid values of a setting that names an implementation."""
+    return _choices(keyword)
+
+
+def convert(setting: Setting, value, label: str) -> tuple[object, str | None]:
+    """``value`` (text from a file or the command line, or a Python value) as the
+    setting's type, and the problem with it, which starts with ``label`` (None when
+    the value is valid)."""
+    if setting.kind is str:
+        valid = choices(setting.keyword)
+        if str(value) not in valid:
+            return value, f"{label} '{value}' is not one of: {', '.join(valid)}"
+        return str(value), None
+    try:
+        if isinstance(value, bool):
+            raise ValueError
+        number = float(value) if isinstance(value, str) else value
+        if setting.kind is int and not float(number).is_integer():
+            raise ValueError
+        converted = setting.kind(number)
+    except (TypeError, ValueError, OverflowError):
+        article = "an integer" if setting.kind is int else "a number"
+        return value, f"{label} '{value}' is not {article}"
+    valid = {"positive": math.isfinite(converted) and converted > 0,
+             "non-negative": math.isfinite(converted) and converted >= 0,
+             "at least 1": converted >= 1}[setting.rule]
+    if not valid:
+        wanted = {"positive": "a finite number greater than 0",
+                  "non-negative": "a finite number >= 0", "at least 1": "at least 1"}
+        return value, f"{label} must be {wanted[setting.rule]}, got {value}"
+    return converted, None
+
+
+def settings_from_annotation(attributes: dict, where: str, problems: list) -> MasterSettings:
+    """The master settings of a ``glue:Master`` element's attributes (text); each
+    problem is appended to ``problems`` and its default kept."""
+    values = {}
+    for attribute, text in attributes.items():
+        setting = BY_ATTRIBUTE.get(attribute)
+        if setting is None:
+            problems.append(f"{where}: unknown attribute '{attribute}' (known: "
+                            f"{', '.join(sorted(BY_ATTRIBUTE))})")
+            continue
+        value, problem = convert(setting, text, f"{where}: {attribute}")
+        if problem:
+            problems.append(problem)
+        else:
+            values[setting.keyword] = value
+    return MasterSettings(**values)
+
+
+def resolve(master: MasterSettings, overrides: dict) -> tuple[MasterSettings, dict]:
+    """Apply keyword ``overrides`` (None means: keep the scene's value) to the scene's
+    settings.  Returns the master settings and the run options that are not master
+    settings (``stop``, ``backend``); raises InputError listing every invalid value."""
+    problems, values, run_options = [], {}, {}
+    master_fields = {f.name for f in fields(MasterSettings)}
+    for keyword, value in overrides.items():
+        if value is None:
+            continue
+        setting = SETTINGS.get(keyword)
+        if setting is None:
+            problems.append(f"unknown setting '{keyword}' (known: {', '.join(SETTINGS)})")
+            continue
+        converted, problem = convert(setting, value, f"setting {keyword}")
+        if problem:
+            problems.append(problem)
+        elif keyword in master_fields:
+            values[keyword] = converted
+        else:
+            run_options[keyword] = converted
+    if problems:
+        raise InputError(problems)
+    return replace(master, **values), run_options
+
+
+#: Largest number of macro steps: beyond 2**52 steps of one span, start + n * step
+#: no longer gives distinct times in double precision.
+MAX_STEPS = 2 ** 52
+
+
+def check_span(start: float, stop: float, step: float, where: str) -> list[str]:
+    """Problems with a run from ``start`` to ``stop`` (s) in steps of ``step`` (s)."""
+    problems = []
+    if not (math.isfinite(start) and math.isfinite(stop)):
+        problems.append(f"{where}: start time {start:g} and stop time {stop:g} must be finite")
+    elif not stop > start:
+        problems.append(f"{where}: stop time {stop:g} is not after the start time {start:g}")
+    elif math.isfinite(step) and step > 0 and (stop - start) / step > MAX_STEPS:
+        problems.append(f"{where}: {(stop - start) / step:.3g} steps of {step:g} s from "
+                        f"{start:g} to {stop:g} s: more than {MAX_STEPS:.3g}, the times would "
+                        "not be distinct in double precision")
+    return problems

@@ -1,0 +1,75 @@
+"""The statistics of a run (the JSON beside the CSV, ``RunResult.statistics``):
+wall time per phase, iterations per step, flexibility refreshes, and per component
+the doSteps, state saves and restores, and calls and seconds per FMI function."""
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+#: counter names of the FMI functions (FMU subsystems) and core methods (in-process)
+DO_STEP = ("fmi2DoStep", "step")
+SAVE = ("fmi2GetFMUstate", "get_state")
+RESTORE = ("fmi2SetFMUstate", "set_state")
+
+
+def _count(functions: dict, names) -> int:
+    return sum(functions.get(name, {}).get("calls", 0) for name in names)
+
+
+def _components(execution) -> dict:
+    if execution.backend is None:
+        return {}
+    result = {}
+    for name, counters in zip(execution.backend.names, execution.backend.counters()):
+        functions = {f: {"calls": calls, "seconds": seconds}
+                     for f, (calls, seconds) in sorted(counters.items())}
+        result[name] = {"seconds": sum(f["seconds"] for f in functions.values()),
+                        "do_steps": _count(functions, DO_STEP),
+                        "state_saves": _count(functions, SAVE),
+                        "state_restores": _count(functions, RESTORE),
+                        "functions": functions}
+    return result
+
+
+def run_statistics(execution, wall_seconds: float) -> dict:
+    """The statistics of an ended :class:`~master.execution.Execution` (seconds, counts)."""
+    scene, settings = execution.scene, execution.settings
+    components = _components(execution)
+    inside = sum(c["seconds"] for c in components.values())
+    do_steps = sum(c["do_steps"] for c in components.values())
+    iterations = np.array(execution._iterations or [0])
+    steps = execution.index
+    coupling = execution.coupling
+    phases = dict(execution._phases)
+    if coupling is not None:
+        phases.update({f"steps: {k}": v for k, v in coupling.seconds.items()})
+    return {
+        "scene": scene.name,
+        "file": str(scene.file),
+        "status": execution.status,
+        "message": str(execution.error) if execution.error else None,
+        "start_time": scene.start_time,
+        "stop_time": scene.stop_time,
+        "time_reached": execution.time,
+        "coupling": execution.plan.coupling,
+        "backend": execution.plan.backend,
+        "master": dict(settings.__dict__),
+        "steps": steps,
+        "planned_steps": execution.planned_steps,
+        "wall_seconds": wall_seconds,
+        "setup_seconds": phases["setup"],
+        "phases": phases,
+        "seconds_in_fmus": inside,
+        "seconds_in_master": wall_seconds - inside,
+        "iterations": {
+            "total": int(iterations.sum()) if steps else 0,
+            "mean_per_step": float(iterations.mean()) if steps else 0.0,
+            "max_per_step": int(iterations.max()) if steps else 0,
+            "histogram": {str(k): v for k, v in sorted(Counter(execution._iterations).items())},
+        },
+        "lambda_refreshes": coupling.refreshes if coupling is not None else 0,
+        "do_steps_per_step": do_steps / steps if steps else 0.0,
+        "components": components,
+        "warnings": list(execution.warnings),
+    }
