@@ -1,0 +1,33 @@
+"""Marching in-process cores glued by the master's own T-T algorithm
+(:func:`master.assembly.glue_cores`), for tests that compare parts with a whole."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from master.assembly import glue_cores
+from master.scene import Joint, MasterSettings
+
+
+def penalized_joint(name, a, b, row_coefficients, dofs=("x", "y")) -> Joint:
+    """A fixed joint on the penalized measure that matches a linkage core's own
+    constraint row a + 2 xi w v + w^2 u (``row_coefficients`` = (1, 2 xi w, w^2))."""
+    _, cv, cd = row_coefficients
+    omega = math.sqrt(cd)
+    return Joint(name, a, b, tuple(dofs), "fixed", "penalized", xi=cv / (2.0 * omega),
+                 omega=omega)
+
+
+def march(cores: dict, joints, step_size: float, steps: int, **settings):
+    """Glue ``cores`` with a consistent start and take ``steps`` macro steps; the joint
+    forces per communication point (rows: t0, t0 + h, ...) and iterations per step."""
+    settings = MasterSettings(**{"step": step_size, "start": "consistent",
+                                 "max_iterations": 30, **settings})
+    coupling = glue_cores(cores, list(joints), settings)
+    forces, iterations = [coupling.forces.copy()], []
+    for n in range(steps):
+        report = coupling.step(n * step_size, step_size, n + 1)
+        forces.append(coupling.forces.copy())
+        iterations.append(report.iterations)
+    return np.array(forces), iterations
