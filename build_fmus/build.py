@@ -131,6 +131,20 @@ def pack_scenes(root: Path = ROOT, force: bool = False, log=print) -> list[Path]
     return packed
 
 
+def _command(args) -> int:
+    build_fmus(force=args.force)
+    pack_scenes(force=args.force)
+    return 0
+
+
+def register_command(commands) -> None:
+    """Add ``dsim build-fmus`` to the command line (entry point ``dsim.commands``)."""
+    build_parser = commands.add_parser("build-fmus", help="build dsim's FMUs from fmus/ and "
+                                       "pack the scenes of ssp/ (skips what is up to date)")
+    build_parser.add_argument("--force", action="store_true", help="rebuild everything")
+    build_parser.set_defaults(handler=_command)
+
+
 def main(argv=None) -> int:
     """Command line: build FMUs then pack scenes."""
     parser = argparse.ArgumentParser(prog="dsim build-fmus", description=__doc__.split("\n")[0])

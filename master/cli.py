@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from importlib.metadata import entry_points
 from pathlib import Path
 
 from master.errors import InputError, SimulationError
@@ -125,14 +126,6 @@ def _cmd_compare(args) -> int:
     return 0
 
 
-def _cmd_build(args) -> int:
-    from build_fmus.build import build_fmus, pack_scenes
-
-    build_fmus(force=args.force)
-    pack_scenes(force=args.force)
-    return 0
-
-
 def _add_settings(run_parser) -> None:
     """One option per setting of :mod:`master.settings` (checked there, not here)."""
     for keyword, setting in SETTINGS.items():
@@ -171,9 +164,10 @@ def parser() -> argparse.ArgumentParser:
                                 help="allowed difference relative to the reference's peak")
     compare_parser.add_argument("--atol", type=float, default=0.0, help="absolute allowance")
     compare_parser.set_defaults(handler=_cmd_compare)
-    build_parser = commands.add_parser("build-fmus", help="build FMUs and pack scenes")
-    build_parser.add_argument("--force", action="store_true")
-    build_parser.set_defaults(handler=_cmd_build)
+    # commands of other packages (build_fmus: `dsim build-fmus`), so that the master
+    # imports none of them
+    for entry in entry_points(group="dsim.commands"):
+        entry.load()(commands)
     return main_parser
 
 

@@ -33,6 +33,20 @@ class Transfer:
         values = outputs[self.gather] * self.factor + self.offset
         return [(index, values[start:stop]) for index, start, stop in self.targets]
 
+    def restricted(self, indices) -> "Transfer":
+        """The connections into the subsystems at ``indices``, numbered by their
+        position in ``indices`` (for a backend subset)."""
+        position = {index: local for local, index in enumerate(indices)}
+        gather, factor, offset, targets = [], [], [], []
+        for index, start, stop in self.targets:
+            if index in position:
+                targets.append((position[index], len(gather), len(gather) + stop - start))
+                gather.extend(self.gather[start:stop])
+                factor.extend(self.factor[start:stop])
+                offset.extend(self.offset[start:stop])
+        return Transfer(np.array(gather, dtype=int), np.array(factor, dtype=float),
+                        np.array(offset, dtype=float), tuple(targets))
+
 
 def build_transfer(components: list[str], reads: dict[str, list[str]],
                    connections: list) -> tuple[Transfer, dict[str, list[str]]]:

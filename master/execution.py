@@ -102,6 +102,7 @@ class Execution:
         if self.status != "created":
             raise RuntimeError(f"the execution is {self.status}, it can start only once")
         self._wall_start = clock.perf_counter()
+        self._stepped = [observer.stepped for observer in self.observers]
         plan = self.plan
         layout, joints = plan.assemble()
         self._columns = tuple(plan.columns) + tuple(layout.labels)
@@ -129,7 +130,7 @@ class Execution:
         try:
             row = self._row()
             self._check_finite(row)
-            self._record(StepRecord(0, self.time, row))
+            self._notify("stepped", StepRecord(0, self.time, row))
         except SimulationError as error:
             self._fail(error.located(0, self.time))
         except OutputError as error:
@@ -167,9 +168,9 @@ class Execution:
         return np.concatenate((outputs, self.coupling.forces))
 
     def _check_finite(self, row: np.ndarray) -> None:
-        bad = np.flatnonzero(~np.isfinite(row))
-        if not len(bad):
+        if np.isfinite(row).all():
             return
+        bad = np.flatnonzero(~np.isfinite(row))
         column = self._columns[bad[0]]
         if bad[0] < len(self.plan.columns):
             component, variable = self.plan.recorded[bad[0]]
@@ -180,9 +181,6 @@ class Execution:
         raise SimulationError(f"{what} is not finite ({row[bad[0]]})", time=self.time,
                               step=self.index)
 
-    def _record(self, record: StepRecord) -> None:
-        self._notify("stepped", record)
-
     def step(self) -> bool:
         """Take one macro step; False when the run has ended (stop time reached,
         failed or stopped)."""
@@ -191,20 +189,23 @@ class Execution:
         if self._stop_requested:
             self.status = "interrupted"
             return False
-        index = self.index
+        index, time = self.index, self.time
         started = clock.perf_counter()
+        end = self.step_time(index + 1)
+        size = self.settings.step if index + 1 < self.planned_steps else self._step_size(index)
         try:
-            time = self.step_time(index)
-            report = self.coupling.step(time, self._step_size(index), index + 1)
-            self.index, self.time = index + 1, self.step_time(index + 1)
+            report = self.coupling.step(time, size, index + 1)
+            self.index, self.time = index + 1, end
             row = self._row()
             self._check_finite(row)
             self._phases["steps"] += clock.perf_counter() - started
             self._iterations.append(report.iterations)
-            self._record(StepRecord(self.index, self.time, row, report.iterations,
-                                    report.refreshed, report.residual))
+            record = StepRecord(self.index, end, row, report.iterations, report.refreshed,
+                                report.residual)
+            for stepped in self._stepped:
+                stepped(record)
         except SimulationError as error:
-            self._fail(error.located(index + 1, self.step_time(index + 1)))
+            self._fail(error.located(index + 1, end))
             return False
         except OutputError as error:
             self._fail(error)

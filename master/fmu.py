@@ -95,19 +95,65 @@ class SubsystemSpec:
     location: str = ""
 
 
-class _Batch:
-    """Value references of one FMI type and a value array, allocated once."""
+class _Call:
+    """One FMI function of one instance, called with ready-made ctypes arguments (no
+    per-call argument conversion), counted and timed, its status checked."""
 
-    def __init__(self, kind: str, vrs):
-        ctype, self.get_name, self.set_name = TYPES[kind]
+    __slots__ = ("function", "name", "owner", "calls", "seconds")
+
+    def __init__(self, owner: "FmuSubsystem", name: str):
+        # a fresh function object of the library (fmpy's own carries argtypes, whose
+        # conversion costs as much as the call): arguments are passed as ctypes objects
+        self.function = owner.fmu.dll[name]
+        self.function.restype = ctypes.c_int
+        self.name = name
+        self.owner = owner
+        self.calls = 0
+        self.seconds = 0.0
+
+    def __call__(self, *args) -> None:
+        start = clock.perf_counter()
+        status = self.function(self.owner.handle, *args)
+        self.seconds += clock.perf_counter() - start
+        self.calls += 1
+        if status > 1:
+            self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}")
+
+
+class _Batch:
+    """Value references of one FMI type, a value array (and its numpy view), and the
+    bound get and set calls, allocated once."""
+
+    def __init__(self, owner: "FmuSubsystem", kind: str, vrs):
+        ctype, get_name, set_name = TYPES[kind]
         self.kind = kind
         self.size = len(vrs)
+        self.count = ctypes.c_size_t(self.size)
         self.vrs = (fmi2ValueReference * self.size)(*vrs)
         self.values = (ctype * self.size)()
         self.array = np.ctypeslib.as_array(self.values) if self.size else np.zeros(0)
+        self.get = owner.call(get_name)
+        self.set = owner.call(set_name)
+        self._convert = {"Real": np.asarray, "Boolean": self._as_boolean}.get(kind, np.rint)
+
+    def read(self) -> np.ndarray:
+        """The variables' current values (a view, valid until the next read)."""
+        if self.size:
+            self.get(self.vrs, self.count, self.values)
+        return self.array
+
+    def write(self, values) -> None:
+        """Set the variables (Integer rounded, Boolean true where non-zero)."""
+        if self.size:
+            self.array[:] = self._convert(values)
+            self.set(self.vrs, self.count, self.values)
+
+    @staticmethod
+    def _as_boolean(values):
+        return np.asarray(values) != 0
 
 
-def _batches(variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
+def _batches(owner, variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
     """Group variables by FMI type: one batch per type, and for each batch where its
     values go in (or come from) the caller's flat vector."""
     groups: dict[str, list[int]] = {}
@@ -118,7 +164,7 @@ def _batches(variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
         if kind not in TYPES:
             raise InputError(f"variable '{variables[indices[0]].name}' is of type {kind}, "
                              "which dsim cannot read or write yet")
-        batches.append(_Batch(kind, [variables[i].valueReference for i in indices]))
+        batches.append(_Batch(owner, kind, [variables[i].valueReference for i in indices]))
         places.append(np.array(indices, dtype=int))
     return batches, places
 
@@ -135,18 +181,7 @@ class FmuSubsystem(Subsystem):
         variables = variables_by_name(self.path)
         port_dofs = spec.port_dofs
         self.interface = tuple((p.port, p.dof) for p in port_dofs)
-        self._forces = _Batch("Real", [p.force for p in port_dofs])
-        # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
-        kinds = [[getattr(p, kind) for p in port_dofs]
-                 for kind in ("position", "velocity", "acceleration")]
-        self._kinematic_present = [bool(vrs) and all(vr is not None for vr in vrs)
-                                   for vrs in kinds]
-        self._kinematics = _Batch("Real", [vr for vrs, present in zip(
-            kinds, self._kinematic_present) if present for vr in vrs])
         self.output_names = tuple(spec.reads)
-        self._reads, self._read_places = _batches([variables[n] for n in spec.reads])
-        self._read_values = np.zeros(len(spec.reads))
-        self._writes, self._write_places = _batches([variables[n] for n in spec.writes])
         self._state = None
         self.time = spec.start_time
         self._location = spec.location or spec.name
@@ -157,14 +192,32 @@ class FmuSubsystem(Subsystem):
         except Exception as error:  # fmpy raises plain Exceptions for a missing library
             raise InputError(f"{self._location}: FMU {self.path.name} cannot be loaded: "
                              f"{error}") from None
-        functions = self.fmu._functions  # fmpy's raw ctypes bindings, one per FMI function
-        self._raw = {name: functions[name] for name in functions}
+        self._calls: dict[str, _Call] = {}
+        self.handle = None
         _MESSAGES.pop(spec.name, None)
         # until finish_initialization() the instance is in initialization mode, where a
         # failing call means the model refused the scene's parameters: bad input
         self._initializing = True
         self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
             callbacks=_CALLBACKS, loggingOn=True))
+        self.handle = ctypes.c_void_p(self.fmu.component)
+        self._forces = _Batch(self, "Real", [p.force for p in port_dofs])
+        # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
+        kinds = [[getattr(p, kind) for p in port_dofs]
+                 for kind in ("position", "velocity", "acceleration")]
+        self._kinematic_present = [bool(vrs) and all(vr is not None for vr in vrs)
+                                   for vrs in kinds]
+        self._kinematics = _Batch(self, "Real", [vr for vrs, present in zip(
+            kinds, self._kinematic_present) if present for vr in vrs])
+        self._reads, self._read_places = _batches(self, [variables[n] for n in spec.reads])
+        self._read_values = np.zeros(len(spec.reads))
+        # one Real batch in order (the common case) is read straight into place
+        self._read_direct = (len(self._reads) == 1 and self._reads[0].kind == "Real")
+        self._writes, self._write_places = _batches(self, [variables[n] for n in spec.writes])
+        self._do_step = self.call("fmi2DoStep")
+        self._get_state = self.call("fmi2GetFMUstate")
+        self._set_state = self.call("fmi2SetFMUstate")
+        self._free_state = self.call("fmi2FreeFMUstate")
         self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
             startTime=spec.start_time, stopTime=spec.stop_time))
         self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
@@ -194,27 +247,21 @@ class FmuSubsystem(Subsystem):
         except Exception as error:  # fmpy raises FMICallException, ctypes errors
             self._fail(label, str(error))
 
-    def _raw_call(self, name: str, *args) -> None:
-        """Call a raw FMI function (the time loop's calls) and check its status."""
-        start = clock.perf_counter()
-        try:
-            status = self._raw[name](self.fmu.component, *args)
-        finally:
-            entry = self.counters[name]
-            entry[0] += 1
-            entry[1] += clock.perf_counter() - start
-        if status > 1:
-            self._fail(name, f"it returned {STATUS.get(status, status)}")
+    def call(self, name: str) -> _Call:
+        """The time loop's binding of FMI function ``name`` (one per name)."""
+        if name not in self._calls:
+            self._calls[name] = _Call(self, name)
+        return self._calls[name]
 
-    def _get(self, batch: _Batch) -> np.ndarray:
-        if batch.size:
-            self._raw_call(batch.get_name, batch.vrs, batch.size, batch.values)
-        return batch.array
-
-    def _set(self, batch: _Batch, values) -> None:
-        if batch.size:
-            batch.array[:] = values
-            self._raw_call(batch.set_name, batch.vrs, batch.size, batch.values)
+    def statistics(self) -> dict:
+        """FMI function -> [calls, seconds], set-up and time loop together."""
+        counters = {name: list(entry) for name, entry in self.counters.items()}
+        for name, call in self._calls.items():
+            if call.calls:
+                entry = counters.setdefault(name, [0, 0.0])
+                entry[0] += call.calls
+                entry[1] += call.seconds
+        return counters
 
     def _set_parameters(self, parameters: dict, variables: dict) -> None:
         setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
@@ -235,27 +282,34 @@ class FmuSubsystem(Subsystem):
         # Free the held state before taking the next: asking an FMU to overwrite a state in
         # place (FMI 2.0 allows it) leaks the old one in pythonfmu, which always allocates.
         if self._state is not None:
-            self._raw_call("fmi2FreeFMUstate", ctypes.byref(self._state))
+            self._free_state(ctypes.byref(self._state))
             self._state = None
         state = fmi2FMUstate()
-        self._raw_call("fmi2GetFMUstate", ctypes.byref(state))
+        self._get_state(ctypes.byref(state))
         self._state = state
 
     def restore_state(self):
-        self._raw_call("fmi2SetFMUstate", self._state)
+        self._set_state(self._state)
 
     def set_forces(self, forces):
-        self._set(self._forces, forces)
+        self._forces.write(forces)
 
     def do_step(self, time, step_size):
         self.time = time
-        self._raw_call("fmi2DoStep", time, step_size, 1)
+        self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
+
+    def exchange(self, time, step_size):
+        self.time = time
+        self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
+        if self._read_direct:
+            return self._reads[0].read().copy()
+        return self.read_outputs()
 
     def kinematics(self):
         n = len(self.interface)
         if not n:  # an unglued component: nothing to read
             return (np.zeros(0),) * 3
-        values = self._get(self._kinematics)
+        values = self._kinematics.read()
         result, start = [], 0
         for present in self._kinematic_present:
             if present:
@@ -266,13 +320,18 @@ class FmuSubsystem(Subsystem):
         return tuple(result)
 
     def read_outputs(self) -> np.ndarray:
+        if self._read_direct:
+            return self._reads[0].read().copy()
         for batch, places in zip(self._reads, self._read_places):
-            self._read_values[places] = self._get(batch)
+            self._read_values[places] = batch.read()
         return self._read_values.copy()
 
     def write_inputs(self, values) -> None:
+        if len(self._writes) == 1:  # one type: the values are in the batch's order
+            self._writes[0].write(values)
+            return
         for batch, places in zip(self._writes, self._write_places):
-            self._set(batch, values[places])
+            batch.write(values[places])
 
     def terminate(self):
         if self.fmu.component is None:  # never instantiated, or failed beyond any call

@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import json
 import sys
+import time as clock
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,9 +39,10 @@ class RunInfo:
     inputs: tuple = ()
 
 
-@dataclass(frozen=True)
-class StepRecord:
-    """One converged macro step (index 0: the start time, nothing stepped)."""
+class StepRecord(NamedTuple):
+    """One converged macro step (index 0: the start time, nothing stepped):
+    ``values`` in the order of ``RunInfo.columns``; Newton iterations, flexibility
+    refreshes and the largest residual left (units of the joints' measure)."""
 
     index: int
     time: float
@@ -72,28 +75,48 @@ class Observer:
 
 
 class CsvRecorder(Observer):
-    """``time``, recorded outputs, joint forces: one whole row per converged step,
-    written at once (a failed run keeps every converged step), under a temporary
-    name renamed to ``path`` when the run ends (see :mod:`master.output_files`)."""
+    """``time``, recorded outputs, joint forces: one row per converged step, in full
+    double precision, under a temporary name renamed to ``path`` when the run ends
+    (see :mod:`master.output_files`).  Rows reach the file in whole rows at least
+    every ``flush_seconds`` and when the run ends, however it ends: a failed or
+    interrupted run keeps every converged step (a process killed outright loses at
+    most the last ``flush_seconds``)."""
 
-    def __init__(self, path):
+    def __init__(self, path, flush_seconds: float = 0.05):
         self.path = Path(path)
         self.output: OutputFile | None = None
         self.rows = 0
+        self.flush_seconds = flush_seconds
+        self._pending: list[str] = []
+        self._flushed_at = 0.0
         self.files = {}
 
     def started(self, info: RunInfo) -> None:
         self.output = OutputFile(self.path, info.inputs)
         self.output.open()
         self.output.append((",".join(("time",) + info.columns) + "\n").encode())
+        self._flushed_at = clock.monotonic()
 
     def stepped(self, record: StepRecord) -> None:
-        row = ",".join(map(repr, [record.time] + record.values.tolist()))
-        self.output.append((row + "\n").encode())
+        self._pending.append(",".join(map(repr, [record.time] + record.values.tolist())))
         self.rows += 1
+        if clock.monotonic() - self._flushed_at >= self.flush_seconds:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the pending rows (whole rows, or none of them: OutputError)."""
+        if self._pending:
+            data = ("\n".join(self._pending) + "\n").encode()
+            self._pending = []
+            self.output.append(data)
+        self._flushed_at = clock.monotonic()
 
     def finished(self, result) -> None:
         if self.output and self.output.is_open:
+            try:
+                self.flush()
+            except OutputError as error:
+                result.warnings.append(str(error))
             self.output.commit()
             self.files["csv"] = self.path
 

@@ -72,6 +72,10 @@ class Subsystem(ABC):
     def terminate(self) -> None:
         """Release what the subsystem holds."""
 
+    def statistics(self) -> dict:
+        """FMI function (or core method) -> [calls, seconds]."""
+        return {name: list(entry) for name, entry in self.counters.items()}
+
     def finish_initialization(self) -> None:
         """Leave initialization mode (nothing to do for an in-process core)."""
 
@@ -98,9 +102,11 @@ class Subsystem(ABC):
         self._dirty = False
         return self.kinematics()
 
-    def step(self, time: float, step_size: float) -> None:
-        """One plain step (a subsystem in no joint: never saved nor restored)."""
+    def exchange(self, time: float, step_size: float) -> np.ndarray:
+        """One plain step (a subsystem in no joint: never saved nor restored), then
+        its outputs."""
         self.do_step(time, step_size)
+        return self.read_outputs()
 
     def flexibility(self, forces: np.ndarray, time: float, step_size: float,
                     deltas: np.ndarray, base: Kinematics) -> list[np.ndarray]:

@@ -57,8 +57,8 @@ def test_rollback_through_the_fmu_is_bit_for_bit(built):
         again = fmu.trial_step(np.array([3.0]), 0.2, 0.01)
         assert all(np.array_equal(a, b) for a, b in zip(first, again))
         assert np.array_equal(fmu.read_outputs(), first_outputs)
-        assert fmu.counters["fmi2SetFMUstate"][0] == 2
-        assert fmu.counters["fmi2GetFMUstate"][0] == 2
+        assert fmu.statistics()["fmi2SetFMUstate"][0] == 2
+        assert fmu.statistics()["fmi2GetFMUstate"][0] == 2
     finally:
         fmu.terminate()
 

@@ -48,8 +48,10 @@ class Backend(ABC):
         """Each subsystem steps with its forces, no rollback; their kinematics."""
 
     @abstractmethod
-    def step(self, time: float, step_size: float) -> None:
-        """Each subsystem takes one plain step (no forces, no state saved)."""
+    def step(self, time: float, step_size: float, inputs=()) -> list:
+        """Each subsystem writes its causal inputs (``inputs``: (subsystem index,
+        values) pairs), takes one plain step (no forces, no state saved) and reads
+        its outputs; the outputs of every subsystem."""
 
     @abstractmethod
     def flexibility(self, forces, time: float, step_size: float, deltas, bases) -> list:

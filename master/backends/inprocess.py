@@ -45,9 +45,11 @@ class InProcessBackend(Backend):
     def advance(self, forces, time, step_size):
         return [s.advance(f, time, step_size) for s, f in zip(self.subsystems, forces)]
 
-    def step(self, time, step_size) -> None:
-        for subsystem in self.subsystems:
-            subsystem.step(time, step_size)
+    def step(self, time, step_size, inputs=()):
+        subsystems = self.subsystems
+        for index, values in inputs:
+            subsystems[index].write_inputs(values)
+        return [s.exchange(time, step_size) for s in subsystems]
 
     def flexibility(self, forces, time, step_size, deltas, bases):
         return [s.flexibility(f, time, step_size, d, b)
@@ -75,7 +77,7 @@ class InProcessBackend(Backend):
             subsystem.finish_initialization()
 
     def counters(self):
-        return [dict(s.counters) for s in self.subsystems]
+        return [s.statistics() for s in self.subsystems]
 
     def close(self) -> list[Exception]:
         errors = []

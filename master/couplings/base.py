@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from master.connections import Transfer
+
 
 @dataclass
 class StepReport:
@@ -43,12 +45,17 @@ class Coupling(ABC):
     def __init__(self, backend, glued, layout, joints, settings, transfer=None):
         self.backend = backend
         glued = list(glued)
+        free = [i for i in range(len(backend)) if i not in set(glued)]
         self.glued = backend.subset(glued)
-        self.free = backend.subset([i for i in range(len(backend)) if i not in set(glued)])
+        self.free = backend.subset(free)
+        self._order = (glued, free)
+        transfer = transfer or Transfer(np.zeros(0, int), np.zeros(0), np.zeros(0), ())
+        self._glued_inputs = transfer.restricted(glued)
+        self._free_inputs = transfer.restricted(free)
+        self._outputs_by_subsystem: list[np.ndarray] = [np.zeros(0)] * len(backend)
         self.layout = layout
         self.joints = joints
         self.settings = settings
-        self.transfer = transfer
         self.forces = np.zeros(layout.size if layout else 0)
         self.outputs = np.zeros(0)
         self.refreshes = 0
@@ -65,18 +72,30 @@ class Coupling(ABC):
     def read_outputs(self) -> np.ndarray:
         """Every subsystem's read values (recorded outputs and connection sources),
         one flat array in the backend's order."""
-        parts = self.backend.read_outputs()
-        self.outputs = np.concatenate(parts) if parts else np.zeros(0)
+        self._outputs_by_subsystem = list(self.backend.read_outputs())
+        self.outputs = np.concatenate(self._outputs_by_subsystem) if self._outputs_by_subsystem else np.zeros(0)
         return self.outputs
+
+    def _assemble(self, subset: int, parts) -> None:
+        for index, part in zip(self._order[subset], parts):
+            self._outputs_by_subsystem[index] = part
 
     def step(self, time: float, step_size: float, step_index: int) -> StepReport:
         """Advance every subsystem from ``time`` by ``step_size`` (s)."""
-        if self.transfer is not None and self.transfer.size:
-            self.backend.write_inputs(self.transfer.inputs(self.outputs))
-        report = self._advance(time, step_size, step_index)
-        if len(self.free):
-            self.free.step(time, step_size)
-        self.read_outputs()
+        glued, free = self._order
+        if glued:
+            if self._glued_inputs.size:
+                self.glued.write_inputs(self._glued_inputs.inputs(self.outputs))
+            report = self._advance(time, step_size, step_index)
+        else:
+            report = StepReport(0, 0, 0.0)
+        if free:
+            # write inputs, step, read outputs: one call per subsystem
+            inputs = self._free_inputs.inputs(self.outputs) if self._free_inputs.size else ()
+            self._assemble(1, self.free.step(time, step_size, inputs))
+        if glued:
+            self._assemble(0, self.glued.read_outputs())
+        self.outputs = np.concatenate(self._outputs_by_subsystem)
         return report
 
     @abstractmethod

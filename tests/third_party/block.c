@@ -1,0 +1,171 @@
+/* A third-party FMI 2.0 co-simulation FMU written in plain C, for dsim's tests and
+ * benchmarks: a causal signal block, a first-order lag
+ *
+ *     tau dy/dt = gain (u + extra) - y        (u Real, extra Integer inputs)
+ *
+ * stepped exactly over each communication step with the inputs held.  Outputs: y,
+ * count (Integer: steps taken), positive (Boolean: y > 0).  Boolean input enable:
+ * when false the block holds y.  It can be told to fail at t >= fail_time
+ * (Integer parameter failure): 1 y becomes NaN, 2 fmi2DoStep returns fmi2Error,
+ * 3 fmi2DoStep returns fmi2Discard, 4 the process aborts (a crashing FMU).
+ * Compiled with -DNO_STATE it implements no state saving. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "fmi2Functions.h"
+
+/* value references: Real, Integer and Boolean variables are numbered separately */
+enum { R_GAIN, R_TAU, R_Y0, R_FAIL_TIME, R_U, R_Y, N_REALS };
+enum { I_FAILURE, I_EXTRA, I_COUNT, N_INTEGERS };
+enum { B_ENABLE, B_POSITIVE, N_BOOLEANS };
+
+typedef struct {
+    double r[N_REALS];
+    int i[N_INTEGERS];
+    int b[N_BOOLEANS];
+    double time;
+    char name[128];
+    fmi2CallbackFunctions cb;
+} Model;
+
+static void log_error(Model *m, fmi2Status status, const char *text) {
+    if (m->cb.logger) m->cb.logger(m->cb.componentEnvironment, m->name, status, "error",
+                                   "%s", text);
+}
+
+FMI2_Export const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+FMI2_Export const char *fmi2GetVersion(void) { return fmi2Version; }
+FMI2_Export fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n,
+                                           const fmi2String cats[]) { return fmi2OK; }
+
+FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid,
+                                          fmi2String resources,
+                                          const fmi2CallbackFunctions *functions,
+                                          fmi2Boolean visible, fmi2Boolean logging) {
+    Model *m = calloc(1, sizeof(Model));
+    if (!m) return NULL;
+    m->cb = *functions;
+    snprintf(m->name, sizeof m->name, "%s", name ? name : "block");
+    m->r[R_GAIN] = 0.9; m->r[R_TAU] = 0.1; m->r[R_Y0] = 1.0; m->r[R_FAIL_TIME] = 1e300;
+    m->b[B_ENABLE] = fmi2True;
+    return m;
+}
+FMI2_Export void fmi2FreeInstance(fmi2Component c) { free(c); }
+FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined,
+                                           fmi2Real tol, fmi2Real start,
+                                           fmi2Boolean stopDefined, fmi2Real stop) {
+    ((Model *)c)->time = start; return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return fmi2OK; }
+FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Model *m = c;
+    m->r[R_Y] = m->r[R_Y0];
+    m->b[B_POSITIVE] = m->r[R_Y] > 0.0;
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) { return fmi2OK; }
+FMI2_Export fmi2Status fmi2Reset(fmi2Component c) { return fmi2OK; }
+
+#define ACCESS(NAME, TYPE, FIELD, COUNT, CONST)                                         \
+    FMI2_Export fmi2Status NAME(fmi2Component c, const fmi2ValueReference vr[],        \
+                                size_t n, CONST TYPE value[]) {                         \
+        Model *m = c;                                                                   \
+        for (size_t k = 0; k < n; k++) {                                                \
+            if (vr[k] >= COUNT) return fmi2Error;                                       \
+            GETSET(m->FIELD[vr[k]], value[k]);                                          \
+        }                                                                               \
+        return fmi2OK;                                                                  \
+    }
+#define GETSET(var, val) (val) = (var)
+ACCESS(fmi2GetReal, fmi2Real, r, N_REALS, )
+ACCESS(fmi2GetInteger, fmi2Integer, i, N_INTEGERS, )
+ACCESS(fmi2GetBoolean, fmi2Boolean, b, N_BOOLEANS, )
+#undef GETSET
+#define GETSET(var, val) (var) = (val)
+ACCESS(fmi2SetReal, fmi2Real, r, N_REALS, const)
+ACCESS(fmi2SetInteger, fmi2Integer, i, N_INTEGERS, const)
+ACCESS(fmi2SetBoolean, fmi2Boolean, b, N_BOOLEANS, const)
+#undef GETSET
+
+FMI2_Export fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[],
+                                     size_t n, fmi2String v[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[],
+                                     size_t n, const fmi2String v[]) { return fmi2Error; }
+
+#ifdef NO_STATE
+FMI2_Export fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
+#else
+FMI2_Export fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    if (!*state) *state = malloc(sizeof(Model));
+    if (!*state) return fmi2Error;
+    memcpy(*state, c, sizeof(Model));
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
+    memcpy(c, state, sizeof(Model));
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    free(*state); *state = NULL; return fmi2OK;
+}
+#endif
+FMI2_Export fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *n) {
+    return fmi2Error;
+}
+FMI2_Export fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[],
+                                             size_t n) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n,
+                                               fmi2FMUstate *s) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
+        const fmi2ValueReference u[], size_t nu, const fmi2ValueReference z[], size_t nz,
+        const fmi2Real du[], fmi2Real dz[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
+        const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],
+        const fmi2Real value[]) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
+        const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],
+        fmi2Real value[]) { return fmi2Error; }
+
+FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
+                                  fmi2Boolean noSetPrior) {
+    Model *m = c;
+    double *r = m->r;
+    if (t + h >= r[R_FAIL_TIME]) {
+        char text[160];
+        switch (m->i[I_FAILURE]) {
+        case 1: r[R_Y] = NAN; m->time = t + h; return fmi2OK;
+        case 2:
+            snprintf(text, sizeof text, "block: simulated solver failure at t = %g", t + h);
+            log_error(m, fmi2Error, text);
+            return fmi2Error;
+        case 3:
+            snprintf(text, sizeof text, "block: step to t = %g rejected", t + h);
+            log_error(m, fmi2Discard, text);
+            return fmi2Discard;
+        case 4: abort();
+        default: break;
+        }
+    }
+    if (m->b[B_ENABLE]) {
+        double target = r[R_GAIN] * (r[R_U] + m->i[I_EXTRA]);
+        r[R_Y] = target + (r[R_Y] - target) * exp(-h / r[R_TAU]);
+    }
+    m->i[I_COUNT] += 1;
+    m->b[B_POSITIVE] = r[R_Y] > 0.0;
+    m->time = t + h;
+    return fmi2OK;
+}
+FMI2_Export fmi2Status fmi2CancelStep(fmi2Component c) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s,
+                                     fmi2Status *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s,
+                                         fmi2Real *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s,
+                                            fmi2Integer *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s,
+                                            fmi2Boolean *v) { return fmi2Error; }
+FMI2_Export fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s,
+                                           fmi2String *v) { return fmi2Error; }
