@@ -8,29 +8,28 @@ gather, one multiply-add and one batched write per receiving subsystem.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 
-@dataclass(frozen=True)
 class Transfer:
     """Input values for the causal connections: ``outputs[gather] * factor + offset``,
     split per receiving subsystem (``targets``: (subsystem index, start, stop))."""
 
-    gather: np.ndarray
-    factor: np.ndarray
-    offset: np.ndarray
-    targets: tuple[tuple[int, int, int], ...]
-
-    @property
-    def size(self) -> int:
-        """Number of connections."""
-        return len(self.gather)
+    def __init__(self, gather, factor, offset, targets):
+        self.gather = np.asarray(gather, dtype=int)
+        self.factor = np.asarray(factor, dtype=float)
+        self.offset = np.asarray(offset, dtype=float)
+        self.targets = tuple(targets)
+        #: number of connections
+        self.size = len(self.gather)
+        #: whether every connection copies its value unchanged
+        self.identity = bool(np.all(self.factor == 1.0) and np.all(self.offset == 0.0))
 
     def inputs(self, outputs: np.ndarray) -> list[tuple[int, np.ndarray]]:
         """(subsystem index, its input values) from the flat output vector."""
-        values = outputs[self.gather] * self.factor + self.offset
+        values = outputs[self.gather]
+        if not self.identity:
+            values = values * self.factor + self.offset
         return [(index, values[start:stop]) for index, start, stop in self.targets]
 
     def restricted(self, indices) -> "Transfer":

@@ -106,6 +106,8 @@ class Execution:
         plan = self.plan
         layout, joints = plan.assemble()
         self._columns = tuple(plan.columns) + tuple(layout.labels)
+        self._record_all = np.array_equal(plan.record_index, np.arange(sum(
+            len(spec.reads) for spec in plan.specs)))
         info = RunInfo(self.scene.name, self.scene.file, self._columns, self.scene.start_time,
                        self.scene.stop_time, self.settings.step, self.planned_steps,
                        plan.coupling, plan.backend, tuple(plan.inputs))
@@ -164,11 +166,19 @@ class Execution:
 
     # --- steps -------------------------------------------------------------------
     def _row(self) -> np.ndarray:
-        outputs = self.coupling.outputs[self.plan.record_index]
+        """The recorded values of the step (outputs, then joint forces): a new array."""
+        outputs = self.coupling.outputs
+        if not self._record_all:
+            outputs = outputs[self.plan.record_index]
+        if not len(self.coupling.forces):
+            return outputs  # the coupling makes a new output array every step
         return np.concatenate((outputs, self.coupling.forces))
 
     def _check_finite(self, row: np.ndarray) -> None:
-        if np.isfinite(row).all():
+        # a sum is finite exactly when every term is (or, rarely, when it overflows: then
+        # the full check below runs); for a short row it is the cheapest test there is
+        total = sum(row.tolist()) if len(row) < 64 else np.add.reduce(row)
+        if math.isfinite(total) or np.isfinite(row).all():
             return
         bad = np.flatnonzero(~np.isfinite(row))
         column = self._columns[bad[0]]

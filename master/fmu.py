@@ -214,7 +214,10 @@ class FmuSubsystem(Subsystem):
         # one Real batch in order (the common case) is read straight into place
         self._read_direct = (len(self._reads) == 1 and self._reads[0].kind == "Real")
         self._writes, self._write_places = _batches(self, [variables[n] for n in spec.writes])
+        self._write_direct = (self._writes[0] if len(self._writes) == 1
+                              and self._writes[0].kind == "Real" else None)
         self._do_step = self.call("fmi2DoStep")
+        self._step_size = ctypes.c_double(0.0)
         self._get_state = self.call("fmi2GetFMUstate")
         self._set_state = self.call("fmi2SetFMUstate")
         self._free_state = self.call("fmi2FreeFMUstate")
@@ -300,7 +303,9 @@ class FmuSubsystem(Subsystem):
 
     def exchange(self, time, step_size):
         self.time = time
-        self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
+        if step_size != self._step_size.value:
+            self._step_size = ctypes.c_double(step_size)
+        self._do_step(ctypes.c_double(time), self._step_size, 1)
         if self._read_direct:
             return self._reads[0].read().copy()
         return self.read_outputs()
@@ -327,8 +332,10 @@ class FmuSubsystem(Subsystem):
         return self._read_values.copy()
 
     def write_inputs(self, values) -> None:
-        if len(self._writes) == 1:  # one type: the values are in the batch's order
-            self._writes[0].write(values)
+        if self._write_direct:  # one Real batch: the values are in its order
+            batch = self._write_direct
+            batch.array[:] = values
+            batch.set(batch.vrs, batch.count, batch.values)
             return
         for batch, places in zip(self._writes, self._write_places):
             batch.write(values[places])

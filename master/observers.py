@@ -98,7 +98,7 @@ class CsvRecorder(Observer):
         self._flushed_at = clock.monotonic()
 
     def stepped(self, record: StepRecord) -> None:
-        self._pending.append(",".join(map(repr, [record.time] + record.values.tolist())))
+        self._pending.append((record.time, record.values))
         self.rows += 1
         if clock.monotonic() - self._flushed_at >= self.flush_seconds:
             self.flush()
@@ -106,9 +106,11 @@ class CsvRecorder(Observer):
     def flush(self) -> None:
         """Write the pending rows (whole rows, or none of them: OutputError)."""
         if self._pending:
-            data = ("\n".join(self._pending) + "\n").encode()
+            # repr: the shortest text that reads back as the same double
+            text = "".join(f"{time!r},{','.join(map(repr, values.tolist()))}\n"
+                           if len(values) else f"{time!r}\n" for time, values in self._pending)
             self._pending = []
-            self.output.append(data)
+            self.output.append(text.encode())
         self._flushed_at = clock.monotonic()
 
     def finished(self, result) -> None:
@@ -159,15 +161,19 @@ class MemoryRecorder(Observer):
 
     def started(self, info: RunInfo) -> None:
         self.columns = info.columns
+        self.times: list[float] = []
         self.rows = []
 
     def stepped(self, record: StepRecord) -> None:
-        self.rows.append(np.concatenate(([record.time], record.values)))
+        self.times.append(record.time)
+        self.rows.append(record.values)  # a new array every step: kept, not copied
 
     def signals(self) -> dict[str, np.ndarray]:
         """Column name -> values over time (``time`` first)."""
-        data = np.array(self.rows).reshape(-1, len(self.columns) + 1)
-        return {name: data[:, i] for i, name in enumerate(("time",) + self.columns)}
+        data = np.array(self.rows).reshape(-1, len(self.columns))
+        signals = {"time": np.array(self.times)}
+        signals.update({name: data[:, i] for i, name in enumerate(self.columns)})
+        return signals
 
 
 class PlotWriter(Observer):

@@ -29,6 +29,10 @@ class StepReport:
     residual: float
 
 
+#: the report of a step that glued nothing
+_NOTHING = StepReport(0, 0, 0.0)
+
+
 class Coupling(ABC):
     """Advances every subsystem of a backend over macro steps.
 
@@ -83,6 +87,11 @@ class Coupling(ABC):
     def step(self, time: float, step_size: float, step_index: int) -> StepReport:
         """Advance every subsystem from ``time`` by ``step_size`` (s)."""
         glued, free = self._order
+        if not glued:  # causal: every subsystem free, in order
+            inputs = self._free_inputs.inputs(self.outputs) if self._free_inputs.size else ()
+            self._outputs_by_subsystem = self.free.step(time, step_size, inputs)
+            self.outputs = np.concatenate(self._outputs_by_subsystem)
+            return _NOTHING
         if glued:
             if self._glued_inputs.size:
                 self.glued.write_inputs(self._glued_inputs.inputs(self.outputs))
