@@ -80,7 +80,10 @@ def _library_problem(path: Path) -> str | None:
                             if n.startswith("binaries/") and n.count("/") >= 2})
             return (f"no binary for this platform ({member} missing; the FMU has "
                     f"{', '.join(found) or 'no binaries'})")
-    library = Path(unzipped(path)) / member
+    try:
+        library = Path(unzipped(path)) / member
+    except (OSError, zipfile.BadZipFile, EOFError) as error:
+        return f"cannot be extracted: {getattr(error, 'strerror', None) or error}"
     try:
         probe = subprocess.run([sys.executable, "-I", "-S", "-c", _PROBE, str(library)],
                                capture_output=True, text=True, timeout=120)

@@ -110,7 +110,7 @@ class CsvRecorder(Observer):
             text = "".join(f"{time!r},{','.join(map(repr, values.tolist()))}\n"
                            if len(values) else f"{time!r}\n" for time, values in self._pending)
             self._pending = []
-            self.output.append(text.encode())
+            self.output.append(text.encode(), separator=b"\n")
         self._flushed_at = clock.monotonic()
 
     def finished(self, result) -> None:

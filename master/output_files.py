@@ -60,6 +60,12 @@ class OutputFile:
         check_not_input(self.target, self.inputs)
         if self.target.is_dir():
             raise InputError(f"{self.target}: is a folder, not a file name")
+        for folder in self.target.parents:
+            if folder.exists():
+                if not folder.is_dir():
+                    raise InputError(f"{self.target}: cannot write: {folder} is a file, "
+                                     "not a folder")
+                break
         try:
             self.target.parent.mkdir(parents=True, exist_ok=True)
             fd = os.open(self.partial, os.O_WRONLY | os.O_CREAT, 0o644)
@@ -82,17 +88,20 @@ class OutputFile:
     def is_open(self) -> bool:
         return self._fd is not None
 
-    def append(self, data: bytes) -> None:
-        """Write one whole record; if it cannot be written in full, cut the file back
-        to the last whole record and raise OutputError."""
+    def append(self, data: bytes, separator: bytes | None = None) -> None:
+        """Write records: ``data`` is one record, or several ended by ``separator``.
+        If it cannot be written in full, cut the file back to the last whole record
+        that was written and raise OutputError."""
         view = memoryview(data)
         written = 0
         try:
             while written < len(view):
                 written += os.write(self._fd, view[written:])
         except OSError as error:
+            whole = data.rfind(separator, 0, written) + 1 if separator else 0
             try:
-                os.ftruncate(self._fd, self.size)
+                os.ftruncate(self._fd, self.size + whole)
+                self.size += whole
             except OSError:
                 pass
             raise OutputError(f"cannot write {self.target}: {error.strerror}") from None

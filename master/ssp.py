@@ -59,7 +59,11 @@ def _open(path: Path) -> tuple[Path, str]:
             raise InputError(f"{path}: archive has no SystemStructure.ssd at its root")
         folder = tempfile.mkdtemp(prefix="dsim-ssp-")
         _EXTRACTED.append(folder)
-        archive.extractall(folder)
+        try:
+            archive.extractall(folder)
+        except (OSError, zipfile.BadZipFile, EOFError) as error:
+            raise InputError(f"{path}: cannot extract the archive: "
+                             f"{getattr(error, 'strerror', None) or error}") from None
     return Path(folder) / "SystemStructure.ssd", str(path)
 
 

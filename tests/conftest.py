@@ -15,3 +15,14 @@ def built():
     build_fmus(log=lambda message: None)
     pack_scenes(log=lambda message: None)
     return {"fmus": ROOT / "build" / "fmus", "ssp": ROOT / "build" / "ssp"}
+
+
+@pytest.fixture(scope="session")
+def block_fmus(tmp_path_factory):
+    """The plain-C block FMU (tests/third_party/block.c) compiled with gcc, with and
+    without state saving."""
+    from tests.third_party.build import c_fmu
+
+    folder = tmp_path_factory.mktemp("block")
+    return {"state": c_fmu(folder, "block"),
+            "nostate": c_fmu(folder, "block_nostate", can_save_state=False)}
