@@ -23,21 +23,61 @@ from fmus.elastic.parts import PartSpec, build_body
 
 ROOT = Path(__file__).resolve().parent.parent
 MODES = (5, 10, 20, 40, 60)
+#: the frame parts and the node counts of their glued ports (frame_split's)
+PART_PORTS = {"rail_left": {"front": 5, "mid": 5, "rear": 5},
+              "rail_right": {"front": 5, "mid": 5, "rear": 5},
+              "cross_front": {"left": 5, "right": 5}, "cross_mid": {"left": 5, "right": 5},
+              "cross_rear": {"left": 5, "right": 5}}
 CB_STEPS = 500
 
 
-def glued_versus_monolithic(stop: float) -> dict:
-    """Wall times, the error and the run statistics of frame_split over [0, stop]."""
+def glued_versus_monolithic(stop: float, repetitions: int = 3) -> dict:
+    """Wall times, the error and the run statistics of frame_split over [0, stop].
+
+    After one short warm-up of each (imports, first-use caches), the glued run, the
+    monolithic solve and the floor (the five bare cores, each stepped twice per macro
+    step with a state save and restore: what two doSteps cost without FMI or master)
+    run in turn ``repetitions`` times; the least time of each is the one least
+    disturbed by other work on a shared machine."""
     from examples.frame import compare
     from master.api import simulate
 
+    scene = ROOT / "build" / "ssp" / "frame_split.ssp"
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder) / "frame_split.csv"
-        statistics = simulate(ROOT / "build" / "ssp" / "frame_split.ssp", out=out, stop=stop).statistics
-        reference = frame.monolithic_frame(stop_time=stop)
+        simulate(scene, stop=0.002, handle_signals=False)
+        frame.monolithic_frame(stop_time=0.002)
+        glued, monolithic, floor = [], [], []
+        for _ in range(repetitions):
+            statistics = simulate(scene, out=out, stop=stop, handle_signals=False).statistics
+            glued.append(statistics["wall_seconds"])
+            reference = frame.monolithic_frame(stop_time=stop)
+            monolithic.append(reference.wall_time)
+            floor.append(bare_cores_twice(stop))
         result = compare(out, reference)
-    return {"statistics": statistics, "monolithic_seconds": reference.wall_time,
+    return {"statistics": statistics, "glued_seconds": min(glued),
+            "monolithic_seconds": min(monolithic), "floor_seconds": min(floor),
+            "ratios": [g / m for g, m in zip(glued, monolithic)],
             "relative_error": result["relative_error"], "peak": result["peak"]}
+
+
+def bare_cores_twice(stop: float) -> float:
+    """Seconds to build the five parts' cores and step each twice per macro step (a
+    state save and restore between), no FMI and no master: the glued run's floor."""
+    start = time.perf_counter()
+    bodies = []
+    for part, ports in PART_PORTS.items():
+        spec = PartSpec(part=part)
+        spec.nodes.update(ports)
+        bodies.append(build_body(spec))
+        bodies[-1].initialize(0.0)
+    for n in range(round(stop / frame.STEP_SIZE)):
+        for body in bodies:
+            saved = body.get_state()
+            body.step(n * frame.STEP_SIZE, frame.STEP_SIZE)
+            body.set_state(saved)
+            body.step(n * frame.STEP_SIZE, frame.STEP_SIZE)
+    return time.perf_counter() - start
 
 
 def profile_glued(stop: float = 0.01, top: int = 14) -> str:
@@ -57,9 +97,7 @@ def profile_glued(stop: float = 0.01, top: int = 14) -> str:
 def part_step_seconds(part: str, modes: int | None, steps: int = 300) -> float:
     """Seconds per Newmark step of one frame part alone (ports glued, forces zero)."""
     spec = PartSpec(part=part, modes=modes or 0)
-    for port, count in {"rail": {"front": 5, "mid": 5, "rear": 5},
-                        "cross": {"left": 5, "right": 5}}[part.split("_")[0]].items():
-        spec.nodes[port] = count
+    spec.nodes.update(PART_PORTS[part])
     body = build_body(spec)
     body.initialize(0.0)
     start = time.perf_counter()

@@ -4,8 +4,9 @@ pythonfmu finds the model class by a regular expression that wants
 ``class Name(Fmi2Slave):`` verbatim, so the shared part cannot be a base class;
 it is this binding object, which a wrapper creates in ``__init__`` and calls from
 its FMI callbacks.  It registers the port variables of DESIGN.md (``P.f_x`` input,
-``P.u_x``/``P.v_x``/``P.a_x`` outputs), caches the outputs after every step, and
-implements the complete FMU state (the core's numerical state plus inputs).
+``P.u_x``/``P.v_x``/``P.a_x`` outputs), answers batched reads and writes of them,
+computes outputs when they are read, and implements the complete FMU state (the
+core's numerical state plus inputs).
 
 In initialization mode the port outputs follow the force inputs (FMI 2.0 lets a
 master read calculated outputs there): the core is built at the first read, and
@@ -18,7 +19,7 @@ import abc
 import pickle
 
 import numpy as np
-from pythonfmu import Fmi2Causality, Fmi2Variability, Real
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 from fmus.interface import InterfaceCore
 
@@ -26,7 +27,15 @@ KINEMATIC_PREFIXES = ("u", "v", "a")
 
 
 class CoreBinding:
-    """Port variables, output cache and state of one wrapped core."""
+    """Port variables, output cache and state of one wrapped core.
+
+    The master reads and writes port variables in batches (every glued dof at once);
+    pythonfmu calls one Python getter per variable.  The binding therefore answers a
+    batch of port and output variables itself (:meth:`get_reals`, :meth:`set_reals`):
+    one table lookup and one numpy gather, and one ``set_interface_forces`` per
+    batch of forces.  Outputs are computed when they are read, not after every step
+    and restore (a trial step whose outputs nobody reads costs nothing extra).
+    """
 
     def __init__(self, slave, interface, output_names=()):
         self.slave = slave
@@ -34,60 +43,107 @@ class CoreBinding:
         self.core: InterfaceCore | None = None
         self.initializing = False
         self.start_time = 0.0
-        self.forces = np.zeros(len(self.interface))
-        self.kinematics = np.zeros((3, len(self.interface)))
-        self.output_values = {name: 0.0 for name in output_names}
+        n = len(self.interface)
+        self.forces = np.zeros(n)
+        self.output_names = tuple(output_names)
+        self._stale = True  # kinematics
+        self._stale_outputs = True
+        # readable values: forces, then u, v, a per dof, then the named outputs
+        self._values = np.zeros(4 * n + len(self.output_names))
+        references = []
         for i, (port, dof) in enumerate(self.interface):
-            slave.register_variable(Real(
+            variable = Real(
                 f"{port}.f_{dof}", causality=Fmi2Causality.input,
                 variability=Fmi2Variability.continuous, start=0.0,
                 description="force (moment for r*) applied at the port, N or N.m",
                 getter=lambda i=i: float(self.forces[i]),
-                setter=lambda value, i=i: self._set_force(i, value)), nested=False)
+                setter=lambda value, i=i: self._set_forces([i], [value]))
+            slave.register_variable(variable, nested=False)
+            references.append(variable.value_reference)
         for row, (prefix, what) in enumerate(zip(
                 KINEMATIC_PREFIXES, ("position", "velocity", "acceleration"))):
             for i, (port, dof) in enumerate(self.interface):
-                slave.register_variable(Real(
+                variable = Real(
                     f"{port}.{prefix}_{dof}", causality=Fmi2Causality.output,
                     variability=Fmi2Variability.continuous,
                     description=f"global {what} of the port",
-                    getter=lambda row=row, i=i: self._kinematic(row, i)),
-                    nested=False)
-        for name in output_names:
-            slave.register_variable(Real(
-                name, causality=Fmi2Causality.output,
-                variability=Fmi2Variability.continuous,
-                getter=lambda name=name: self.output_values[name]), nested=False)
+                    getter=lambda k=(row + 1) * n + i: self._readable(False)[k])
+                slave.register_variable(variable, nested=False)
+                references.append(variable.value_reference)
+        for j, name in enumerate(self.output_names):
+            variable = Real(name, causality=Fmi2Causality.output,
+                            variability=Fmi2Variability.continuous,
+                            getter=lambda k=4 * n + j: self._readable(True)[k])
+            slave.register_variable(variable, nested=False)
+            references.append(variable.value_reference)
+        # value reference -> place in the readable values (-1: not a port or output)
+        self._place = np.full(max(references, default=-1) + 1, -1, dtype=int)
+        self._place[references] = np.arange(len(references))
+        self._batches: dict[tuple, np.ndarray | None] = {}
 
-    def _set_force(self, index: int, value: float) -> None:
-        self.forces[index] = value
+    # --- batched access (the master's calls) ----------------------------------------
+    def places(self, vrs, forces_only: bool = False):
+        """Places of value references in the readable values, or None when one of them
+        is not a port variable or output (or, ``forces_only``, not a force input)."""
+        key = (tuple(vrs), forces_only)
+        if key not in self._batches:
+            vrs = np.asarray(vrs, dtype=int)
+            limit = len(self.interface) if forces_only else len(self._values)
+            places = None
+            if vrs.size and vrs.min() >= 0 and vrs.max() < len(self._place):
+                places = self._place[vrs]
+                if places.min() < 0 or places.max() >= limit:
+                    places = None
+            self._batches[key] = places
+        return self._batches[key]
+
+    def get_reals(self, places) -> list[float]:
+        """Values at ``places`` (see :meth:`places`)."""
+        return self._readable(bool(places.max() >= 4 * len(self.interface)))[places].tolist()
+
+    def set_reals(self, places, values) -> None:
+        """Forces at ``places`` (see :meth:`places` with ``forces_only``)."""
+        self._set_forces(places, values)
+
+    # --- values --------------------------------------------------------------------
+    def _set_forces(self, indices, values) -> None:
+        self.forces[indices] = values
+        self._values[:len(self.interface)] = self.forces
         if self.core is not None:
             self.core.set_interface_forces(self.forces)
             if self.initializing:  # the start forces decide the initial accelerations
                 self.core.initialize(self.start_time)
-                self.refresh()
+            self._stale = self._stale_outputs = True
 
-    def _kinematic(self, row: int, index: int) -> float:
+    def _readable(self, outputs: bool) -> np.ndarray:
+        """The readable values, with the kinematics (and, if asked, the outputs)
+        brought up to date."""
         if self.core is None and self.initializing:
             self.attach(self.slave.build_core(), self.start_time)
-        return float(self.kinematics[row, index])
+        if self.core is None:
+            return self._values
+        n = len(self.interface)
+        if self._stale:
+            u, v, a = self.core.interface_kinematics()
+            self._values[n:2 * n], self._values[2 * n:3 * n] = u, v
+            self._values[3 * n:4 * n] = a
+            self._stale = False
+        if outputs and self._stale_outputs:
+            values = self.core.outputs()
+            self._values[4 * n:] = [values[name] for name in self.output_names]
+            self._stale_outputs = False
+        return self._values
 
     def attach(self, core: InterfaceCore, start_time: float) -> None:
         """Take over a freshly built core and initialise it at ``start_time``."""
         self.core = core
         core.set_interface_forces(self.forces)
         core.initialize(start_time)
-        self.refresh()
-
-    def refresh(self) -> None:
-        """Copy the core's kinematics and named outputs into the output cache."""
-        u, v, a = self.core.interface_kinematics()
-        self.kinematics[0], self.kinematics[1], self.kinematics[2] = u, v, a
-        self.output_values.update(self.core.outputs())
+        self._stale = self._stale_outputs = True
 
     def step(self, time: float, step_size: float) -> bool:
         self.core.step(time, step_size)
-        self.refresh()
+        self._stale = self._stale_outputs = True
         return True
 
     def get_state(self) -> dict:
@@ -98,10 +154,11 @@ class CoreBinding:
 
     def set_state(self, state: dict) -> None:
         self.forces = np.array(state["forces"], dtype=float)
+        self._values[:len(self.interface)] = self.forces
         if self.core is not None and state["core"] is not None:
             self.core.set_state(state["core"])
             self.core.set_interface_forces(self.forces)
-            self.refresh()
+            self._stale = self._stale_outputs = True
 
 
 def state_to_bytes(state) -> bytes:
@@ -155,9 +212,21 @@ def glued_slave(cls):
     def _set_fmu_state(self, state):
         self.binding.set_state(state)
 
+    def get_real(self, vrs):
+        places = self.binding.places(vrs)
+        if places is None:  # parameters and the like: one getter per variable
+            return Fmi2Slave.get_real(self, vrs)
+        return self.binding.get_reals(places)
+
+    def set_real(self, vrs, values):
+        places = self.binding.places(vrs, forces_only=True)
+        if places is None:
+            return Fmi2Slave.set_real(self, vrs, values)
+        self.binding.set_reals(places, values)
+
     build_core = cls.build_core
     for method in (setup_experiment, enter_initialization_mode, exit_initialization_mode,
-                   do_step, _get_fmu_state, _set_fmu_state):
+                   do_step, _get_fmu_state, _set_fmu_state, get_real, set_real):
         if method.__name__ not in cls.__dict__:
             setattr(cls, method.__name__, method)
     cls.build_core = build_core_logged

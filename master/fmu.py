@@ -93,6 +93,9 @@ class SubsystemSpec:
     start_time: float
     stop_time: float
     location: str = ""
+    #: the kinematic kinds (u, v, a) the joints need from the first step on (before
+    #: it, for the start forces and their check, every kind the FMU has is read)
+    kinds: tuple[bool, bool, bool] = (True, True, True)
 
 
 class _Call:
@@ -183,6 +186,7 @@ class FmuSubsystem(Subsystem):
         self.interface = tuple((p.port, p.dof) for p in port_dofs)
         self.output_names = tuple(spec.reads)
         self._state = None
+        self._stepped = False
         self.time = spec.start_time
         self._location = spec.location or spec.name
         try:
@@ -205,10 +209,13 @@ class FmuSubsystem(Subsystem):
         # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
         kinds = [[getattr(p, kind) for p in port_dofs]
                  for kind in ("position", "velocity", "acceleration")]
-        self._kinematic_present = [bool(vrs) and all(vr is not None for vr in vrs)
-                                   for vrs in kinds]
-        self._kinematics = _Batch(self, "Real", [vr for vrs, present in zip(
-            kinds, self._kinematic_present) if present for vr in vrs])
+        present = [bool(vrs) and all(vr is not None for vr in vrs) for vrs in kinds]
+        needed = [p and wanted for p, wanted in zip(present, spec.kinds)]
+        # (batch, which kinds it holds): all the FMU has, and the ones the joints need
+        self._kinematics_all = (_Batch(self, "Real", [vr for vrs, p in zip(kinds, present)
+                                                      if p for vr in vrs]), present)
+        self._kinematics_needed = (_Batch(self, "Real", [vr for vrs, p in zip(kinds, needed)
+                                                         if p for vr in vrs]), needed)
         self._reads, self._read_places = _batches(self, [variables[n] for n in spec.reads])
         self._read_values = np.zeros(len(spec.reads))
         # one Real batch in order (the common case) is read straight into place
@@ -299,6 +306,7 @@ class FmuSubsystem(Subsystem):
 
     def do_step(self, time, step_size):
         self.time = time
+        self._stepped = True
         self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
 
     def exchange(self, time, step_size):
@@ -314,9 +322,11 @@ class FmuSubsystem(Subsystem):
         n = len(self.interface)
         if not n:  # an unglued component: nothing to read
             return (np.zeros(0),) * 3
-        values = self._kinematics.read()
+        # until the first step (initialization, the start check) every kind is read
+        batch, kinds = self._kinematics_needed if self._stepped else self._kinematics_all
+        values = batch.read()
         result, start = [], 0
-        for present in self._kinematic_present:
+        for present in kinds:
             if present:
                 result.append(values[start:start + n].copy())
                 start += n

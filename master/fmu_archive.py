@@ -10,11 +10,11 @@ child process, where a crash is only a message.
 from __future__ import annotations
 
 import atexit
+import hashlib
 import shutil
 import subprocess
 import sys
 import zipfile
-from functools import lru_cache
 from pathlib import Path
 
 from fmpy import extract, platform, sharedLibraryExtension
@@ -99,14 +99,15 @@ def _library_problem(path: Path) -> str | None:
     return None
 
 
-@lru_cache(maxsize=256)
-def _problem(path: Path, size: int, modified: float) -> str | None:
-    return _archive_problem(path) or _description_problem(path) or _library_problem(path)
+_CHECKED: dict[str, str | None] = {}
 
 
 def fmu_problem(path: Path) -> str | None:
-    """What is wrong with the FMU file at ``path`` for dsim, or None (checked once
-    per file version)."""
+    """What is wrong with the FMU file at ``path`` for dsim, or None (checked once per
+    content: the same FMU extracted again from a scene archive is not probed again)."""
     path = Path(path)
-    status = path.stat()
-    return _problem(path.resolve(), status.st_size, status.st_mtime)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    if digest not in _CHECKED:
+        _CHECKED[digest] = (_archive_problem(path) or _description_problem(path)
+                            or _library_problem(path))
+    return _CHECKED[digest]

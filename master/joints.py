@@ -60,6 +60,11 @@ class JointStates:
         displacement measure (flexible ones there are solved in force form)."""
         self.weights = np.asarray(weights, float)
         self.force_form = self.flexible & np.asarray(displacement, bool)
+        n = len(self.flexible)
+        # fixed joints only (a frame, a chain): a residual needs nothing but the measure
+        self._all_fixed = not self.flexible.any()
+        self._zeros = np.zeros(n)
+        self._zero_state = (self._zeros, self._zeros, self._zeros)
 
     def reference_stiffness(self, step_size):
         """k0 + 2 c0 / H: scales a force-form row to metres (1 where it is zero)."""
@@ -73,6 +78,8 @@ class JointStates:
         b minus a)."""
         w = self.weights
         r = np.einsum("rk,kr->r", w, differences)
+        if self._all_fixed:  # shared, never written: W, the zero diagonal, a zero state
+            return r, w, self._zeros, self._zero_state
         W = w.copy()
         diagonal = np.zeros(len(r))
         q, qd, qdd = differences.copy()

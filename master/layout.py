@@ -45,10 +45,15 @@ class GluingLayout:
         matching magnitude sum |C_i|^T |x_i| used by the relative tolerance (None
         unless asked); both 3 x n_F."""
         stacked = np.zeros((self.stacked.shape[0], 3))
-        for values, (start, stop) in zip(kinematics, self._bounds):
-            for kind, x in enumerate(values):
-                if x is not None:
-                    stacked[start:stop, kind] = x
+        for kind in range(3):
+            parts = [values[kind] for values in kinematics]
+            if all(x is not None for x in parts):
+                if parts:
+                    stacked[:, kind] = np.concatenate(parts)
+            else:  # a kind some subsystems lack (not read): zero there
+                for x, (start, stop) in zip(parts, self._bounds):
+                    if x is not None:
+                        stacked[start:stop, kind] = x
         differences = (self.stacked_t @ stacked).T
         if not magnitudes:
             return differences, None
@@ -56,7 +61,8 @@ class GluingLayout:
 
     def local_forces(self, forces):
         """Split the joint forces F into each glued subsystem's forces C_i F."""
-        return np.split(self.stacked @ forces, self.offsets)
+        local = self.stacked @ forces
+        return [local[start:stop] for start, stop in self._bounds]
 
     def project(self, matrices) -> sp.csr_matrix:
         """sum_i C_i^T M_i C_i (n_F x n_F) of one dense n_i x n_i matrix per glued

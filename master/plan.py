@@ -19,7 +19,7 @@ from master.connections import Transfer, build_transfer
 from master.errors import InputError
 from master.fmu import SubsystemSpec, can_save_state
 from master.fmu_archive import fmu_problem
-from master.ports import component_ports, joint_port_dofs, variables_by_name
+from master.ports import NEEDED, component_ports, joint_port_dofs, variables_by_name
 from master.scene import Scene
 from master.settings import check_span
 
@@ -181,6 +181,20 @@ def _sides(scene: Scene, ports: dict, problems: list) -> dict:
     return sides
 
 
+def _kinds(scene: Scene) -> dict[str, tuple[bool, bool, bool]]:
+    """component path -> the kinematic kinds (u, v, a) its joints read each iteration:
+    a fixed joint its measure's; a flexible one all three (its law, or its integrated
+    extension, starts from the ports' motion)."""
+    result: dict[str, list[bool]] = {}
+    for joint in scene.joints:
+        wanted = [True] * 3 if joint.kind == "flexible" else [
+            k in NEEDED[joint.measure] for k in ("u", "v", "a")]
+        for path in (joint.a[0], joint.b[0]):
+            current = result.setdefault(path, [False] * 3)
+            result[path] = [x or y for x, y in zip(current, wanted)]
+    return {path: tuple(flags) for path, flags in result.items()}
+
+
 def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem."""
@@ -212,10 +226,11 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
                 recorded.append((path, name))
                 record_index.append(offset + i)
         offset += len(reads[path])
+    kinds = _kinds(scene)
     specs = tuple(SubsystemSpec(
         c.path, c.source, tuple(interfaces[c.path]), dict(c.parameters), tuple(reads[c.path]),
-        tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location)
-        for c in scene.components)
+        tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
+        kinds.get(c.path, (False, False, False))) for c in scene.components)
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
     return Plan(scene, coupling if scene.joints else "causal", backend, specs,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,

@@ -14,6 +14,7 @@ import math
 import shutil
 import tempfile
 import zipfile
+from functools import lru_cache
 from pathlib import Path
 
 from lxml import etree
@@ -76,14 +77,17 @@ def _parse_xml(path: Path, shown: str):
         raise InputError(f"{shown}: cannot read: {error}") from None
 
 
+@lru_cache(maxsize=4)
+def _schema(schema_name: str) -> etree.XMLSchema:
+    """An SSP 1.0 schema that fmpy ships (parsed once)."""
+    import fmpy.ssp.ssd as fmpy_ssd
+
+    return etree.XMLSchema(file=str(Path(fmpy_ssd.__file__).parent / "schema" / schema_name))
+
+
 def _schema_problems(root, shown: str, schema_name: str) -> list[str]:
     """Problems against the SSP 1.0 schema that fmpy ships."""
-    try:
-        import fmpy.ssp.ssd as fmpy_ssd
-    except ImportError:  # pragma: no cover - fmpy is a declared dependency
-        return []
-    schema_file = Path(fmpy_ssd.__file__).parent / "schema" / schema_name
-    schema = etree.XMLSchema(file=str(schema_file))
+    schema = _schema(schema_name)
     if schema.validate(root):
         return []
     return [f"{shown} line {e.line}: not valid SSP 1.0: {e.message}"

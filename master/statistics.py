@@ -69,6 +69,7 @@ def run_statistics(execution, wall_seconds: float) -> dict:
             "histogram": {str(k): v for k, v in sorted(Counter(execution._iterations).items())},
         },
         "lambda_refreshes": coupling.refreshes if coupling is not None else 0,
+        "lambda_factorizations": coupling.factorizations if coupling is not None else 0,
         "do_steps_per_step": do_steps / steps if steps else 0.0,
         "components": components,
         "warnings": list(execution.warnings),

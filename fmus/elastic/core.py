@@ -25,6 +25,7 @@ from ..interface import InterfaceCore
 from .assembly import STEEL, Material, mass_matrix, stiffness_matrix, vector_basis, von_mises
 from .constraints import ROTATIONS, TRANSLATIONS, build_transformation
 from .geometry import NodeSetSpec, check_mesh, nearest_node, resolve_node_set
+from .maps import InterfaceMap
 from .newmark import NewmarkAverageAcceleration
 from .reduction import craig_bampton_basis, generalized_eigen
 
@@ -129,7 +130,7 @@ class ElasticBody(InterfaceCore):
         alpha, beta = rayleigh
         damping = alpha * mass_q + beta * stiffness if (alpha or beta) else None
         self.stiffness, self.mass, self.damping = stiffness, mass_q, damping
-        self._interface_map, self._interface_map_t = interface_map, interface_map.T.tocsr()
+        self._interface_map = InterfaceMap(interface_map)
         self._loads, self._probe_map = loads_q, probe_map
         self.integrator = NewmarkAverageAcceleration(stiffness, mass_q, damping)
 
@@ -218,7 +219,10 @@ class ElasticBody(InterfaceCore):
 
     def interface_kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         B = self._interface_map
-        return self._reference + B @ self._q, B @ self._v, B @ self._a
+        if B.picked is not None:
+            return self._reference + B.apply(self._q), B.apply(self._v), B.apply(self._a)
+        u, v, a = B.apply(np.column_stack((self._q, self._v, self._a))).T
+        return self._reference + u, v, a
 
     def get_state(self) -> dict:
         return {"time": self.time, "q": self._q.copy(), "v": self._v.copy(),
@@ -241,7 +245,7 @@ class ElasticBody(InterfaceCore):
     def _force(self, time: float) -> np.ndarray:
         """Generalized force: point loads at ``time`` plus the interface forces (N)."""
         values = np.array([load.value(time) for load in self.loads])
-        force = self._interface_map_t @ self._forces
+        force = self._interface_map.apply_transpose(self._forces)
         return force + self._loads @ values if self.loads else force
 
     def displacement(self) -> np.ndarray:

@@ -48,13 +48,21 @@ class NewmarkAverageAcceleration:
         """Displacement, velocity, acceleration at t + h from those at t and f(t + h)."""
         self.factor(step_size)
         h = self.step_size  # the factored step (equal to step_size up to SAME_STEP)
-        rhs = force_next + self.mass @ ((4.0 / h ** 2) * u + (4.0 / h) * v + a)
+        # in place where it is safe: these arrays are a step's temporaries
+        predictor = (4.0 / h ** 2) * u
+        predictor += (4.0 / h) * v
+        predictor += a
+        rhs = self.mass @ predictor
+        rhs += force_next
         if self.damping is not None:
-            rhs = rhs + self.damping @ ((2.0 / h) * u + v)
+            rhs += self.damping @ ((2.0 / h) * u + v)
         u_next = self._effective.solve(rhs)
         du = u_next - u
-        v_next = (2.0 / h) * du - v
-        a_next = (4.0 / h ** 2) * du - (4.0 / h) * v - a
+        v_next = (2.0 / h) * du
+        v_next -= v
+        a_next = (4.0 / h ** 2) * du
+        a_next -= (4.0 / h) * v
+        a_next -= a
         return u_next, v_next, a_next
 
     def acceleration(self, u: np.ndarray, v: np.ndarray, force: np.ndarray) -> np.ndarray:

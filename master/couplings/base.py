@@ -63,6 +63,8 @@ class Coupling(ABC):
         self.forces = np.zeros(layout.size if layout else 0)
         self.outputs = np.zeros(0)
         self.refreshes = 0
+        #: times the gluing matrix was factored
+        self.factorizations = 0
         #: seconds spent measuring flexibilities and factoring the gluing matrix
         self.seconds = {"flexibility": 0.0, "factorization": 0.0}
 

@@ -45,6 +45,7 @@ class IterativeCoupling(Coupling):
         self._factor = None
         self._factored_with = None
         self._step_size = None
+        self._tolerance = np.full(layout.size, settings.tolerance)
         joints.configure(layout.weights,
                          np.array([m == "displacement" for m in layout.measures], dtype=bool))
 
@@ -65,9 +66,10 @@ class IterativeCoupling(Coupling):
         relative = self.settings.relative_tolerance
         differences, magnitudes = self.layout.differences(kinematics, magnitudes=relative > 0)
         r, weights, diagonal, trial = self.joints.evaluate(forces, differences, step_size)
-        tolerance = np.full(len(r), self.settings.tolerance)
+        tolerance = self._tolerance
         if relative > 0:
-            tolerance += relative * np.einsum("rk,kr->r", np.abs(weights), magnitudes)
+            tolerance = tolerance + relative * np.einsum("rk,kr->r", np.abs(weights),
+                                                         magnitudes)
         return r, tolerance, weights, diagonal, trial
 
     def _factorize(self, weights, diagonal):
@@ -82,6 +84,7 @@ class IterativeCoupling(Coupling):
                                   "is singular (a singular configuration of the mechanism, "
                                   "or a joint dof that no subsystem can move)") from None
         self._factored_with = (weights, diagonal)
+        self.factorizations += 1
 
     def _singular_direction(self, jacobian) -> str:
         """Name the joint dof that dominates the gluing matrix's null direction."""
@@ -130,9 +133,11 @@ class IterativeCoupling(Coupling):
 
     def _ensure_factor(self, weights, diagonal, time: float, step_index: int) -> None:
         """Factor the gluing matrix unless the held factor has these weights."""
-        if self._factor is not None and np.array_equal(weights, self._factored_with[0]) \
-                and np.array_equal(diagonal, self._factored_with[1]):
-            return
+        if self._factor is not None:
+            held_weights, held_diagonal = self._factored_with
+            if (weights is held_weights or np.array_equal(weights, held_weights)) and (
+                    diagonal is held_diagonal or np.array_equal(diagonal, held_diagonal)):
+                return
         try:
             self._timed("factorization", self._factorize, weights, diagonal)
         except SimulationError as error:
