@@ -46,8 +46,9 @@ class CoreBinding:
         n = len(self.interface)
         self.forces = np.zeros(n)
         self.output_names = tuple(output_names)
-        self._stale = True  # kinematics
-        self._stale_outputs = True
+        # sections of the readable values out of date: positions, velocities,
+        # accelerations, named outputs (each computed only when read)
+        self._stale = [True] * 4
         # readable values: forces, then u, v, a per dof, then the named outputs
         self._values = np.zeros(4 * n + len(self.output_names))
         references = []
@@ -67,43 +68,48 @@ class CoreBinding:
                     f"{port}.{prefix}_{dof}", causality=Fmi2Causality.output,
                     variability=Fmi2Variability.continuous,
                     description=f"global {what} of the port",
-                    getter=lambda k=(row + 1) * n + i: self._readable(False)[k])
+                    getter=lambda k=(row + 1) * n + i, row=row: self._readable((row,))[k])
                 slave.register_variable(variable, nested=False)
                 references.append(variable.value_reference)
         for j, name in enumerate(self.output_names):
             variable = Real(name, causality=Fmi2Causality.output,
                             variability=Fmi2Variability.continuous,
-                            getter=lambda k=4 * n + j: self._readable(True)[k])
+                            getter=lambda k=4 * n + j: self._readable((3,))[k])
             slave.register_variable(variable, nested=False)
             references.append(variable.value_reference)
         # value reference -> place in the readable values (-1: not a port or output)
         self._place = np.full(max(references, default=-1) + 1, -1, dtype=int)
         self._place[references] = np.arange(len(references))
-        self._batches: dict[tuple, np.ndarray | None] = {}
+        self._batches: dict[tuple, tuple | None] = {}
 
     # --- batched access (the master's calls) ----------------------------------------
     def places(self, vrs, forces_only: bool = False):
-        """Places of value references in the readable values, or None when one of them
-        is not a port variable or output (or, ``forces_only``, not a force input)."""
+        """(places of value references in the readable values, the sections they fall
+        in), or None when one of them is not a port variable or output (or,
+        ``forces_only``, not a force input)."""
         key = (tuple(vrs), forces_only)
         if key not in self._batches:
             vrs = np.asarray(vrs, dtype=int)
-            limit = len(self.interface) if forces_only else len(self._values)
-            places = None
+            n = len(self.interface)
+            limit = n if forces_only else len(self._values)
+            found = None
             if vrs.size and vrs.min() >= 0 and vrs.max() < len(self._place):
                 places = self._place[vrs]
-                if places.min() < 0 or places.max() >= limit:
-                    places = None
-            self._batches[key] = places
+                if places.min() >= 0 and places.max() < limit:
+                    sections = tuple(sorted({min((int(p) - n) // n, 3) if n else 3
+                                             for p in places if p >= n}))
+                    found = (places, sections)
+            self._batches[key] = found
         return self._batches[key]
 
-    def get_reals(self, places) -> list[float]:
-        """Values at ``places`` (see :meth:`places`)."""
-        return self._readable(bool(places.max() >= 4 * len(self.interface)))[places].tolist()
+    def get_reals(self, found) -> list[float]:
+        """Values at the places :meth:`places` found."""
+        places, sections = found
+        return self._readable(sections)[places].tolist()
 
-    def set_reals(self, places, values) -> None:
-        """Forces at ``places`` (see :meth:`places` with ``forces_only``)."""
-        self._set_forces(places, values)
+    def set_reals(self, found, values) -> None:
+        """Forces at the places :meth:`places` (``forces_only``) found."""
+        self._set_forces(found[0], values)
 
     # --- values --------------------------------------------------------------------
     def _set_forces(self, indices, values) -> None:
@@ -113,25 +119,28 @@ class CoreBinding:
             self.core.set_interface_forces(self.forces)
             if self.initializing:  # the start forces decide the initial accelerations
                 self.core.initialize(self.start_time)
-            self._stale = self._stale_outputs = True
+            self._stale = [True] * 4
 
-    def _readable(self, outputs: bool) -> np.ndarray:
-        """The readable values, with the kinematics (and, if asked, the outputs)
-        brought up to date."""
+    def _readable(self, sections) -> np.ndarray:
+        """The readable values, with ``sections`` (0 positions, 1 velocities,
+        2 accelerations, 3 named outputs) brought up to date."""
         if self.core is None and self.initializing:
             self.attach(self.slave.build_core(), self.start_time)
         if self.core is None:
             return self._values
         n = len(self.interface)
-        if self._stale:
-            u, v, a = self.core.interface_kinematics()
-            self._values[n:2 * n], self._values[2 * n:3 * n] = u, v
-            self._values[3 * n:4 * n] = a
-            self._stale = False
-        if outputs and self._stale_outputs:
+        kinds = [s for s in sections if s < 3 and self._stale[s]]
+        if len(kinds) > 1:  # several kinds: the core computes them together
+            self._values[n:4 * n].reshape(3, n)[...] = self.core.interface_kinematics()
+            self._stale[:3] = [False] * 3
+        elif kinds:
+            start = (kinds[0] + 1) * n
+            self._values[start:start + n] = self.core.interface_kinematic(kinds[0])
+            self._stale[kinds[0]] = False
+        if 3 in sections and self._stale[3]:
             values = self.core.outputs()
             self._values[4 * n:] = [values[name] for name in self.output_names]
-            self._stale_outputs = False
+            self._stale[3] = False
         return self._values
 
     def attach(self, core: InterfaceCore, start_time: float) -> None:
@@ -139,11 +148,11 @@ class CoreBinding:
         self.core = core
         core.set_interface_forces(self.forces)
         core.initialize(start_time)
-        self._stale = self._stale_outputs = True
+        self._stale = [True] * 4
 
     def step(self, time: float, step_size: float) -> bool:
         self.core.step(time, step_size)
-        self._stale = self._stale_outputs = True
+        self._stale = [True] * 4
         return True
 
     def get_state(self) -> dict:
@@ -158,7 +167,7 @@ class CoreBinding:
         if self.core is not None and state["core"] is not None:
             self.core.set_state(state["core"])
             self.core.set_interface_forces(self.forces)
-            self._stale = self._stale_outputs = True
+            self._stale = [True] * 4
 
 
 def state_to_bytes(state) -> bytes:

@@ -50,6 +50,11 @@ class InterfaceCore(ABC):
     def interface_kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions (m, rad), velocities and accelerations at the interface."""
 
+    def interface_kinematic(self, kind: int) -> np.ndarray:
+        """One part of :meth:`interface_kinematics`: 0 positions, 1 velocities,
+        2 accelerations (a core that can compute one alone overrides this)."""
+        return self.interface_kinematics()[kind]
+
     @abstractmethod
     def get_state(self) -> dict:
         """A deep copy of the complete numerical state (restoring it and

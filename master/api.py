@@ -8,8 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from master.execution import Execution
-from master.observers import (CsvRecorder, MemoryRecorder, PlotWriter, ProgressBar,
-                              StatisticsWriter)
+from master.observers import CsvRecorder, PlotWriter, ProgressBar, StatisticsWriter
 from master.plan import make_plan
 from master.results import RunResult
 from master.scene import Scene
@@ -45,20 +44,14 @@ def simulate(scene, *, out=None, statistics=None, plot=None, progress: bool = Fa
     anything runs.
     """
     plan = prepare(scene, **settings)
-    watchers, memory = [], None
+    watchers = []
     if out is not None:
         watchers.append(CsvRecorder(out))
         watchers.append(StatisticsWriter(statistics or Path(out).with_suffix(".stats.json")))
-    else:
-        memory = MemoryRecorder()
-        watchers.append(memory)
-        if statistics is not None:
-            watchers.append(StatisticsWriter(statistics))
+    elif statistics is not None:
+        watchers.append(StatisticsWriter(statistics))
     if plot is not None:
         watchers.append(PlotWriter(plot))
     if progress:
         watchers.append(ProgressBar())
-    result = Execution(plan, watchers + list(observers)).run(handle_signals)
-    if memory is not None:
-        result._signals = memory.signals
-    return result
+    return Execution(plan, watchers + list(observers)).run(handle_signals)

@@ -26,7 +26,7 @@ import numpy as np
 from master.backends import BACKENDS
 from master.couplings import COUPLINGS
 from master.errors import InputError, SimulationError
-from master.observers import RunInfo, StepRecord
+from master.observers import CsvRecorder, MemoryRecorder, RunInfo, StepRecord
 from master.output_files import OutputError
 from master.results import RunResult
 from master.start import check_start, start_forces
@@ -34,7 +34,9 @@ from master.statistics import run_statistics
 
 
 class Execution:
-    """One run of a :class:`~master.plan.Plan` with ``observers``.
+    """One run of a :class:`~master.plan.Plan` with ``observers`` (and, unless one of
+    them records the signals or ``keep_signals`` is False, a memory recorder for the
+    result's signals).
 
     Use :meth:`run` to go to the end, or :meth:`start`, then :meth:`step` until it
     returns False, then :meth:`finish`.  :meth:`stop` (from an observer, another
@@ -43,11 +45,14 @@ class Execution:
     during the run ends it as failed, and :meth:`finish` returns the result.
     """
 
-    def __init__(self, plan, observers=()):
+    def __init__(self, plan, observers=(), keep_signals: bool = True):
         self.plan = plan
         self.scene = plan.scene
         self.settings = plan.scene.master
         self.observers = list(observers)
+        if keep_signals and not any(isinstance(o, (CsvRecorder, MemoryRecorder))
+                                    for o in self.observers):
+            self.observers.insert(0, MemoryRecorder())  # the result's signals
         self.status = "created"
         self.index = 0
         self.time = self.scene.start_time
@@ -256,8 +261,8 @@ class Execution:
         if self.status == "failed":
             message = str(self.error)
         elif self.status == "interrupted":
-            message = (f"{self._stop_requested} at t = {self.time:g} s "
-                       f"(step {self.index} of {self.planned_steps})")
+            message = (f"{self._stop_requested} (stopped at t = {self.time:g} s, "
+                       f"step {self.index} of {self.planned_steps})")
         result = RunResult(self.status, message, self.time, self.index,
                            warnings=self.warnings, error=self.error, signal=self.signal)
         result.statistics = run_statistics(self, clock.perf_counter() - self._wall_start)

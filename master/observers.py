@@ -11,6 +11,7 @@ whatever the ending; :meth:`Observer.aborted` instead when the run never started
 """
 from __future__ import annotations
 
+import io
 import json
 import sys
 import time as clock
@@ -168,6 +169,10 @@ class MemoryRecorder(Observer):
         self.times.append(record.time)
         self.rows.append(record.values)  # a new array every step: kept, not copied
 
+    def finished(self, result) -> None:
+        if result._signals is None:
+            result._signals = self.signals  # made when first asked for
+
     def signals(self) -> dict[str, np.ndarray]:
         """Column name -> values over time (``time`` first)."""
         data = np.array(self.rows).reshape(-1, len(self.columns))
@@ -195,9 +200,11 @@ class PlotWriter(Observer):
         from master.results import plot_signals
         if result.steps == 0:
             return
+        image = io.BytesIO()
+        plot_signals(result.signals, image, self.title)
         try:
-            plot_signals(result.signals, self.path, self.title)
-        except (OSError, OutputError) as error:
+            write_whole(self.path, image.getvalue(), self.inputs)
+        except Exception as error:  # a full disk must not hide how the run ended
             result.warnings.append(f"plot not written to {self.path}: {error}")
             return
         self.files["plot"] = self.path

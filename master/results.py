@@ -95,7 +95,8 @@ def read_csv(path) -> tuple[list[str], np.ndarray]:
 
 
 def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) -> None:
-    """Two panels over time: recorded outputs, and joint forces (``*.f_*``)."""
+    """Two panels over time: recorded outputs, and joint forces (``*.f_*``); ``png_path``
+    is a path or a binary file object."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -132,6 +133,7 @@ def save_figure(figure, png_path) -> None:
     import matplotlib.pyplot as plt
 
     figure.tight_layout()
-    Path(png_path).parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(png_path, dpi=110)
+    if isinstance(png_path, (str, Path)):
+        Path(png_path).parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(png_path, dpi=110, format="png")
     plt.close(figure)

@@ -130,7 +130,8 @@ def test_an_execution_is_stepped_watched_and_stopped(built):
     assert not execution.step()
     result = execution.finish()
     assert result.status == "interrupted" and result.steps == 10
-    assert "the caller had seen enough at t = 0.1 s (step 10 of 100)" in result.message
+    assert "the caller had seen enough (stopped at t = 0.1 s, step 10 of 100)" in \
+        result.message
     assert [r.index for r in watcher.records] == list(range(11))
     assert watcher.result is result
     assert sum(r.iterations for r in watcher.records) == \

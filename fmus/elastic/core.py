@@ -218,11 +218,11 @@ class ElasticBody(InterfaceCore):
         self.time = end
 
     def interface_kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        B = self._interface_map
-        if B.picked is not None:
-            return self._reference + B.apply(self._q), B.apply(self._v), B.apply(self._a)
-        u, v, a = B.apply(np.column_stack((self._q, self._v, self._a))).T
-        return self._reference + u, v, a
+        return tuple(self.interface_kinematic(kind) for kind in range(3))
+
+    def interface_kinematic(self, kind: int) -> np.ndarray:
+        values = self._interface_map.apply((self._q, self._v, self._a)[kind])
+        return self._reference + values if kind == 0 else values
 
     def get_state(self) -> dict:
         return {"time": self.time, "q": self._q.copy(), "v": self._v.copy(),

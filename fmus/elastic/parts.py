@@ -226,12 +226,12 @@ class SlotBody(InterfaceCore):
         self.time = self.body.time
 
     def interface_kinematics(self):
-        result = []
-        for values in self.body.interface_kinematics():
-            full = np.zeros(len(self.interface))
-            full[self._slots] = values
-            result.append(full)
-        return tuple(result)
+        return tuple(self.interface_kinematic(kind) for kind in range(3))
+
+    def interface_kinematic(self, kind: int) -> np.ndarray:
+        full = np.zeros(len(self.interface))
+        full[self._slots] = self.body.interface_kinematic(kind)
+        return full
 
     def get_state(self) -> dict:
         return {"body": self.body.get_state(), "forces": self._forces.copy()}

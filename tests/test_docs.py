@@ -1,0 +1,24 @@
+"""The documentation's examples are tests: every python block of docs/api.md runs, in
+order, in the repository folder (as a reader would run them after `make fmus`)."""
+import os
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def python_blocks(page: Path) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)
+
+
+@pytest.mark.parametrize("page", ["api.md"])
+def test_every_example_of_the_page_runs(built, page, monkeypatch):
+    blocks = python_blocks(ROOT / "docs" / page)
+    assert len(blocks) >= 4
+    monkeypatch.chdir(ROOT)
+    namespace: dict = {}
+    for block in blocks:
+        exec(compile(block, f"docs/{page}", "exec"), namespace)  # noqa: S102 (our own docs)
+    assert os.getcwd() == str(ROOT)
