@@ -18,16 +18,36 @@ W and d need no FMU call and follow a nonlinear joint law every iteration.
 """
 from __future__ import annotations
 
+import warnings
 from collections import deque
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from scipy.sparse.linalg import splu
 
 from master.couplings.base import Coupling, StepReport
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
 from master.errors import SimulationError
+
+
+#: gluing matrices of at most this many joint dofs are factored dense
+DENSE_UP_TO = 64
+
+
+class DenseFactor:
+    """LU factors of a small dense matrix, with the ``solve`` of a sparse factor."""
+
+    def __init__(self, matrix: np.ndarray):
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", LinAlgWarning)  # singular: said by .singular
+            self.lu, self.pivots = lu_factor(matrix, check_finite=False)
+        diagonal = np.abs(np.diag(self.lu))
+        self.singular = bool(not np.all(np.isfinite(self.lu)) or np.any(diagonal == 0.0))
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return lu_solve((self.lu, self.pivots), rhs, check_finite=False)
 
 
 class IterativeCoupling(Coupling):
@@ -73,16 +93,29 @@ class IterativeCoupling(Coupling):
         return r, tolerance, weights, diagonal, trial
 
     def _factorize(self, weights, diagonal):
-        jacobian = sp.diags(diagonal)
-        for kind, part in enumerate(self._parts):
-            if np.any(weights[:, kind]):
-                jacobian = jacobian + sp.diags(weights[:, kind]) @ part
-        try:
-            self._factor = splu(jacobian.tocsc())
-        except RuntimeError:
+        if self.layout.size <= DENSE_UP_TO:
+            # a few joint dofs: dense LU (scipy's sparse one costs ~100 us of set-up
+            # however small the matrix, and a nonlinear joint refactors every iteration)
+            jacobian = np.diag(diagonal)
+            for kind, part in enumerate(self._dense_parts):
+                if np.any(weights[:, kind]):
+                    jacobian += weights[:, kind, None] * part
+            factor = DenseFactor(jacobian)
+            singular = factor.singular
+        else:
+            jacobian = sp.diags(diagonal)
+            for kind, part in enumerate(self._parts):
+                if np.any(weights[:, kind]):
+                    jacobian = jacobian + sp.diags(weights[:, kind]) @ part
+            try:
+                factor, singular = splu(jacobian.tocsc()), False
+            except RuntimeError:
+                singular = True
+        if singular:
             raise SimulationError(f"{self._singular_direction(jacobian)}: the gluing matrix "
                                   "is singular (a singular configuration of the mechanism, "
-                                  "or a joint dof that no subsystem can move)") from None
+                                  "or a joint dof that no subsystem can move)")
+        self._factor = factor
         self._factored_with = (weights, diagonal)
         self.factorizations += 1
 
@@ -90,7 +123,7 @@ class IterativeCoupling(Coupling):
         """Name the joint dof that dominates the gluing matrix's null direction."""
         if self.layout.size > 2000:
             return "joints " + ", ".join(sorted(set(self.layout.joint_of)))
-        dense = jacobian.toarray()
+        dense = jacobian.toarray() if sp.issparse(jacobian) else np.array(jacobian)
         dense[~np.isfinite(dense)] = 0.0
         null = np.linalg.svd(dense)[2][-1]
         worst = int(np.argmax(np.abs(null)))
@@ -128,6 +161,8 @@ class IterativeCoupling(Coupling):
                                         kinematics)
         self._parts = [self.layout.project([g[kind] for g in self._flexibility])
                        for kind in range(3)]
+        if self.layout.size <= DENSE_UP_TO:
+            self._dense_parts = [part.toarray() for part in self._parts]
         self.refreshes += 1
         self._factor = None
 
