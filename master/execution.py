@@ -143,8 +143,20 @@ class Execution:
         except OutputError as error:
             self._fail(error)
 
+    def _carry_start_values(self) -> None:
+        """In initialization mode, carry connected values along every chain of
+        connections (outputs calculated from parameters feed inputs and parameters
+        downstream), pass after pass in dependency order."""
+        transfer = self.plan.start_transfer
+        if transfer is None or not transfer.size:
+            return
+        for _ in range(self.plan.start_passes):
+            outputs = np.concatenate(self.backend.read_outputs())
+            self.backend.write_inputs(transfer.inputs(outputs), start=True)
+
     def _initialize(self, layout, joints) -> None:
         plan, settings = self.plan, self.settings
+        self._carry_start_values()
         glued = self.backend.subset(plan.glued)
         if plan.non_matching and settings.start != "rest":
             layout, joints = plan.assemble(self._positions(glued, layout))

@@ -96,6 +96,9 @@ class SubsystemSpec:
     #: the kinematic kinds (u, v, a) the joints need from the first step on (before
     #: it, for the start forces and their check, every kind the FMU has is read)
     kinds: tuple[bool, bool, bool] = (True, True, True)
+    #: the variables connections set at initialization (``writes`` and the fixed
+    #: parameters connections feed)
+    start_writes: tuple[str, ...] = ()
 
 
 class _Call:
@@ -223,6 +226,7 @@ class FmuSubsystem(Subsystem):
         self._writes, self._write_places = _batches(self, [variables[n] for n in spec.writes])
         self._write_direct = (self._writes[0] if len(self._writes) == 1
                               and self._writes[0].kind == "Real" else None)
+        self._start_writes = _batches(self, [variables[n] for n in spec.start_writes])
         self._do_step = self.call("fmi2DoStep")
         self._step_size = ctypes.c_double(0.0)
         self._get_state = self.call("fmi2GetFMUstate")
@@ -340,6 +344,11 @@ class FmuSubsystem(Subsystem):
         for batch, places in zip(self._reads, self._read_places):
             self._read_values[places] = batch.read()
         return self._read_values.copy()
+
+    def write_start_inputs(self, values) -> None:
+        """Set what connections feed at initialization (``spec.start_writes`` order)."""
+        for batch, places in zip(*self._start_writes):
+            batch.write(values[places])
 
     def write_inputs(self, values) -> None:
         if self._write_direct:  # one Real batch: the values are in its order

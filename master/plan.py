@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from master.assembly import assemble
-from master.connections import Transfer, build_transfer
+from master.connections import Transfer, build_transfer, check_connections
 from master.errors import InputError
 from master.fmu import SubsystemSpec, can_save_state
 from master.fmu_archive import fmu_problem
@@ -23,7 +23,7 @@ from master.ports import NEEDED, component_ports, joint_port_dofs, variables_by_
 from master.scene import Scene
 from master.settings import check_span
 
-#: variable types a connection or a recorded column can carry
+#: variable types a recorded column can carry
 NUMERIC = ("Real", "Integer", "Enumeration", "Boolean")
 
 
@@ -44,6 +44,10 @@ class Plan:
     glued: tuple[int, ...]
     sides: dict
     ports: dict
+    #: every connection (fixed parameters too), carried at initialization in
+    #: ``start_passes`` read-and-write passes (dependency order)
+    start_transfer: Transfer = None
+    start_passes: int = 0
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -92,7 +96,7 @@ def _records(scene: Scene, usable: dict, problems: list) -> dict[str, list[str]]
         variables = usable.get(component.path)
         if variables is None:
             continue
-        declared = [n for n, kind in component.connectors if kind == "output"]
+        declared = [c.name for c in component.connectors if c.kind == "output"]
         for name in declared:
             if name not in variables:
                 problems.append(f"{component.location}: connector '{name}' is not a "
@@ -108,56 +112,25 @@ def _records(scene: Scene, usable: dict, problems: list) -> dict[str, list[str]]
 
 
 def _check_parameters(scene: Scene, usable: dict, problems: list) -> None:
+    """Every parameter value must reach a variable that FMI 2.0 lets a master set
+    before initialization: variability not constant, and an input, a parameter or a
+    variable with initial="exact" or "approx"."""
     for component in scene.components:
         variables = usable.get(component.path)
         if variables is None:
             continue
         for name in component.parameters:
+            where = component.origins.get(name, component.location)
             variable = variables.get(name)
             if variable is None:
-                problems.append(f"{component.location}: parameter '{name}' is not a "
-                                f"variable of {component.source.name}")
-            elif variable.causality not in ("parameter", "input"):
-                problems.append(f"{component.location}: '{name}' is a "
-                                f"{variable.causality}, not a parameter")
-
-
-def _connections(scene: Scene, usable: dict, problems: list) -> list:
-    """Causal connections as (start component, variable, end component, variable,
-    factor, offset), checked for existence, causality and type."""
-    result, fed = [], {}
-    for connection in scene.connections:
-        ends = []
-        for (path, name), role in ((connection.start, "output"), (connection.end, "input")):
-            variables = usable.get(path)
-            variable = variables.get(name) if variables is not None else None
-            if variables is None:
-                continue
-            if variable is None:
-                problems.append(f"{connection.location}: '{path}' has no variable '{name}'")
-            elif role == "input" and variable.causality not in ("input", "parameter"):
-                problems.append(f"{connection.location}: '{path}.{name}' is not an input")
-            elif variable.type not in NUMERIC:
-                problems.append(f"{connection.location}: '{path}.{name}' is a "
-                                f"{variable.type}, which dsim cannot connect")
-            else:
-                ends.append(variable)
-        if len(ends) != 2:
-            continue
-        kinds = {"Boolean" if v.type == "Boolean" else "Real" if v.type == "Real"
-                 else "Integer" for v in ends}
-        if len(kinds) > 1:
-            problems.append(f"{connection.location}: connects a {ends[0].type} to a "
-                            f"{ends[1].type}")
-            continue
-        if connection.end in fed:
-            problems.append(f"{connection.location}: input '{'.'.join(connection.end)}' "
-                            f"is already fed by '{'.'.join(fed[connection.end])}'")
-            continue
-        fed[connection.end] = connection.start
-        result.append((*connection.start, *connection.end, connection.factor,
-                       connection.offset))
-    return result
+                problems.append(f"{where}: parameter '{name}' is not a variable of component "
+                                f"'{component.path}' ({component.source.name})")
+            elif variable.variability == "constant" or not (
+                    variable.causality in ("parameter", "input")
+                    or variable.initial in ("exact", "approx")):
+                problems.append(f"{where}: '{component.path}.{name}' is a "
+                                f"{variable.variability} {variable.causality} with initial="
+                                f"{variable.initial}: FMI 2.0 lets no master set it")
 
 
 def _sides(scene: Scene, ports: dict, problems: list) -> dict:
@@ -195,6 +168,30 @@ def _kinds(scene: Scene) -> dict[str, tuple[bool, bool, bool]]:
     return {path: tuple(flags) for path, flags in result.items()}
 
 
+def _passes(paths: list[str], links) -> int:
+    """How many read-and-write passes carry start values along every chain of
+    connections: the longest chain of components (a cycle: every component once)."""
+    feeds: dict[str, set] = {p: set() for p in paths}
+    for link in links:
+        if link.start[0] != link.end[0]:
+            feeds[link.start[0]].add(link.end[0])
+    depth, active = {}, set()
+
+    def longest(node) -> int:
+        if node in active:  # a cycle
+            raise RecursionError
+        if node not in depth:
+            active.add(node)
+            depth[node] = 1 + max((longest(n) for n in feeds[node]), default=0)
+            active.discard(node)
+        return depth[node]
+
+    try:
+        return max((longest(p) for p in paths), default=0) - 1
+    except RecursionError:
+        return len(paths)
+
+
 def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem."""
@@ -208,17 +205,25 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     ports = component_ports(scene, problems, usable)
     _check_parameters(scene, usable, problems)
     records = _records(scene, usable, problems)
-    connections = _connections(scene, usable, problems)
+    links = check_connections(scene, usable, problems)
+    fed: dict = {}
+    for link in links:
+        if link.end in fed:
+            problems.append(f"{scene.file}: '{'.'.join(link.end)}' is fed twice, by "
+                            f"'{'.'.join(fed[link.end])}' and '{'.'.join(link.start)}'")
+        fed[link.end] = link.start
     sides = _sides(scene, ports, problems)
     if problems:
         raise InputError(list(dict.fromkeys(problems)))
     paths = [c.path for c in scene.components]
     _, _, interfaces = assemble(paths, list(scene.joints), sides)
     reads = {p: list(records[p]) for p in paths}
-    for start, name, *_ in connections:
-        if name not in reads[start]:
-            reads[start].append(name)
-    transfer, writes = build_transfer(paths, reads, connections)
+    for link in links:
+        if link.start[1] not in reads[link.start[0]]:
+            reads[link.start[0]].append(link.start[1])
+    transfer, writes = build_transfer(paths, reads, [link for link in links
+                                                     if link.every_step])
+    start_transfer, start_writes = build_transfer(paths, reads, links)
     recorded, record_index, offset = [], [], 0
     for path in paths:
         for i, name in enumerate(reads[path]):
@@ -230,8 +235,9 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     specs = tuple(SubsystemSpec(
         c.path, c.source, tuple(interfaces[c.path]), dict(c.parameters), tuple(reads[c.path]),
         tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
-        kinds.get(c.path, (False, False, False))) for c in scene.components)
+        kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]))
+        for c in scene.components)
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
     return Plan(scene, coupling if scene.joints else "causal", backend, specs,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
-                ports)
+                ports, start_transfer, _passes(paths, links))

@@ -50,24 +50,67 @@ class PortMap:
 
 
 @dataclass(frozen=True)
+class Connector:
+    """A declared connector of a component or system: SSP kind (input, output,
+    parameter, calculatedParameter, inout), value type and unit (None: not given)."""
+
+    name: str
+    kind: str
+    type: str | None = None
+    unit: str | None = None
+
+
+@dataclass(frozen=True)
 class Component:
-    """An FMU instance: dotted path, FMU file, parameter values, declared connectors."""
+    """An FMU instance: dotted path, FMU file, parameter values (name -> (type, value),
+    after every binding that reaches it, with ``origins`` saying where each came from),
+    declared connectors."""
 
     path: str
     source: Path
     parameters: dict = field(default_factory=dict)
-    connectors: tuple[tuple[str, str], ...] = ()
+    connectors: tuple[Connector, ...] = ()
     location: str = ""
+    origins: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Transformation:
+    """A value transformation of SSP: ``linear`` (value * factor + offset) or a mapping
+    table (``boolean``, ``integer``, ``enumeration``: source -> target)."""
+
+    kind: str
+    factor: float = 1.0
+    offset: float = 0.0
+    table: tuple[tuple, ...] = ()
+
+    def apply(self, value):
+        """The transformed value (KeyError: a mapping has no entry for it)."""
+        if self.kind == "linear":
+            return value * self.factor + self.offset
+        return dict(self.table)[value]
+
+
+@dataclass(frozen=True)
+class Unit:
+    """An SSP unit: exponents of kg m s A K mol cd rad, and value_SI = factor * value + offset."""
+
+    name: str
+    exponents: tuple[int, ...]
+    factor: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
 class Connection:
-    """A causal SSP connection: output ``start`` feeds input ``end``."""
+    """A causal connection between two component variables, across system levels:
+    output ``start`` feeds input ``end`` through ``transformations`` (in order); the
+    connector units at both ends (None where none is declared)."""
 
     start: tuple[str, str]
     end: tuple[str, str]
-    factor: float = 1.0
-    offset: float = 0.0
+    transformations: tuple[Transformation, ...] = ()
+    units: tuple[str | None, str | None] = (None, None)
     location: str = ""
 
 
@@ -100,8 +143,12 @@ class Scene:
     joints: tuple[Joint, ...]
     port_maps: tuple[PortMap, ...]
     master: MasterSettings
-    #: files read besides ``file`` and the FMUs (SystemStructure.ssd, .ssv files)
+    #: files read besides ``file`` and the FMUs (SystemStructure.ssd, .ssv, .ssm files)
     inputs: tuple[Path, ...] = ()
+    #: the SSD's units by name
+    units: dict = field(default_factory=dict)
+    #: whether start and stop time came from a DefaultExperiment (else dsim's defaults)
+    experiment: bool = True
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

@@ -1,7 +1,9 @@
 """Read an SSP 1.0 system (.ssp archive, unpacked folder or .ssd file) into
-immutable dataclasses: components with their parameter bindings, causal
-connections, the dsim gluing annotation (joints, port maps) and the master
-settings.  Nested ``ssd:System`` elements are flattened into dotted paths.
+immutable dataclasses: components with the parameter values every binding gives
+them, causal connections between component variables (resolved through system
+connectors across levels), units, the dsim gluing annotation (joints, port maps)
+and the master settings.  Nested ``ssd:System`` elements are flattened into
+dotted paths.
 
 Every problem found is collected and raised together as one
 :class:`~master.errors.InputError`, one line per problem, before anything is
@@ -20,17 +22,12 @@ from pathlib import Path
 from lxml import etree
 
 from master.errors import InputError
-from master.scene import (DOFS, MEASURES, Component, Connection, Joint, MasterSettings,
-                          PortMap, Scene)
+from master.scene import Component, Connector, MasterSettings, Scene
 from master.settings import settings_from_annotation
-
-NS = {
-    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
-    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
-    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
-    "glue": "urn:dsim:gluing:1",
-}
-GLUE = "{urn:dsim:gluing:1}"
+from master.ssp_gluing import floats, read_joint, read_port_map
+from master.ssp_hierarchy import Binding, RawConnection, resolve_bindings, resolve_connections
+from master.ssp_values import (NS, TYPES, apply_mapping, parameter_mapping, parameter_set,
+                               transformation, units)
 
 
 _EXTRACTED: list[str] = []
@@ -94,23 +91,6 @@ def _schema_problems(root, shown: str, schema_name: str) -> list[str]:
             for e in list(schema.error_log)[:3]]
 
 
-def _floats(text: str | None, n: int, default: float, where: str, problems: list) -> tuple:
-    """A space-separated list broadcast to n entries (one value serves all)."""
-    if text is None:
-        return (default,) * n
-    try:
-        values = [float(v) for v in text.split()]
-    except ValueError:
-        problems.append(f"{where}: '{text}' is not a number or list of numbers")
-        return (default,) * n
-    if len(values) == 1:
-        values *= n
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        problems.append(f"{where}: expected 1 or {n} finite values, got '{text}'")
-        return (default,) * n
-    return tuple(values)
-
-
 class _Reader:
     """Walks one SystemStructure.ssd, collecting problems instead of stopping."""
 
@@ -119,10 +99,11 @@ class _Reader:
         self.base = ssd.parent
         self.shown = shown
         self.problems: list[str] = []
-        self.components: list[Component] = []
-        self.connections: list[Connection] = []
-        self.joints: list[Joint] = []
-        self.port_maps: list[PortMap] = []
+        self.components: list[dict] = []
+        self.connections: list[RawConnection] = []
+        self.bindings: list[Binding] = []
+        self.system_connectors: dict[str, dict[str, Connector]] = {}
+        self.joints, self.port_maps = [], []
         self.files: list[Path] = [ssd]
 
     def where(self, element) -> str:
@@ -131,180 +112,138 @@ class _Reader:
         label = f"{tag} '{name}'" if name else tag
         return f"{self.shown} (SystemStructure.ssd line {element.sourceline}): {label}"
 
+    # --- files -----------------------------------------------------------------
+    def _document(self, source: str, where: str, schema: str):
+        """The root element of a file the SSD references, or None (a problem said)."""
+        file = self.base / source
+        if not file.is_file():
+            self.problems.append(f"{where}: file '{source}' not found")
+            return None
+        self.files.append(file)
+        try:
+            root = etree.parse(str(file)).getroot()
+        except etree.XMLSyntaxError as error:
+            self.problems.append(f"{self.shown}: {source}: malformed XML: {error}")
+            return None
+        self.problems += _schema_problems(root, f"{self.shown}: {source}", schema)
+        return root
+
     # --- parameters ------------------------------------------------------------
-    def parameter_values(self, binding, where: str) -> dict:
+    def binding_values(self, binding, where: str) -> dict:
+        """name -> (type, value) of one ParameterBinding: its parameter set (a file or
+        inline), renamed by its parameter mapping, with its prefix prepended."""
         source = binding.get("source")
         if source:
-            file = self.base / source
-            if not file.is_file():
-                self.problems.append(f"{where}: parameter file '{source}' not found")
-                return {}
-            self.files.append(file)
-            try:
-                root = etree.parse(str(file)).getroot()
-            except etree.XMLSyntaxError as error:
-                self.problems.append(f"{self.shown}: {source}: malformed XML: {error}")
-                return {}
-            self.problems += _schema_problems(root, f"{self.shown}: {source}",
-                                              "SystemStructureParameterValues.xsd")
+            root = self._document(source, where, "SystemStructureParameterValues.xsd")
         else:
             root = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
-            if root is None:
-                return {}
+        if root is None:
+            return {}
+        values = parameter_set(root, where, self.problems)
+        mapping = binding.find("ssd:ParameterMapping", NS)
+        if mapping is not None:
+            mapping_source = mapping.get("source")
+            mapping_root = (self._document(mapping_source, where,
+                                           "SystemStructureParameterMapping.xsd")
+                            if mapping_source else mapping.find("ssm:ParameterMapping", NS))
+            if mapping_root is not None:
+                values = apply_mapping(values, parameter_mapping(mapping_root, where,
+                                                                 self.problems),
+                                       where, self.problems)
         prefix = binding.get("prefix", "")
-        values = {}
-        for parameter in root.iterfind(".//ssv:Parameter", NS):
-            name = parameter.get("name", "")
-            if prefix and name.startswith(prefix):
-                name = name[len(prefix):]
-            for child in parameter:
-                kind = etree.QName(child).localname
-                text = child.get("value")
-                try:
-                    if kind == "Real":
-                        values[name] = ("Real", float(text))
-                    elif kind in ("Integer", "Enumeration"):
-                        values[name] = ("Integer", int(text))
-                    elif kind == "Boolean":
-                        values[name] = ("Boolean", text in ("true", "1"))
-                    elif kind == "String":
-                        values[name] = ("String", text or "")
-                except (TypeError, ValueError):
-                    self.problems.append(
-                        f"{where}: parameter '{name}' has bad {kind} value '{text}'")
-        return values
+        return {prefix + name: value for name, value in values.items()}
+
+    def bindings_of(self, element, owner: str, component: bool, depth: int) -> None:
+        where = self.where(element)
+        for binding in element.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+            self.bindings.append(Binding(owner, component, depth,
+                                         self.binding_values(binding, where), where))
 
     # --- systems ---------------------------------------------------------------
-    def system(self, element, prefix: str) -> None:
+    def connectors_of(self, element) -> dict[str, Connector]:
+        result = {}
+        for connector in element.iterfind("ssd:Connectors/ssd:Connector", NS):
+            typed = next((child for child in connector
+                          if etree.QName(child).localname in TYPES), None)
+            result[connector.get("name", "")] = Connector(
+                connector.get("name", ""), connector.get("kind", ""),
+                TYPES[etree.QName(typed).localname] if typed is not None else None,
+                typed.get("unit") if typed is not None else None)
+        return result
+
+    def system(self, element, path: str, depth: int = 0) -> None:
+        prefix = f"{path}." if path else ""
+        self.system_connectors[path] = self.connectors_of(element)
+        self.bindings_of(element, path, False, depth)
         for child in element.iterfind("ssd:Elements/*", NS):
             tag = etree.QName(child).localname
             name = child.get("name", "")
             if tag == "System":
-                self.system(child, prefix + name + ".")
+                self.system(child, prefix + name, depth + 1)
             elif tag == "Component":
-                self.component(child, prefix)
+                self.component(child, prefix, depth + 1)
             else:
                 self.problems.append(f"{self.where(child)}: element kind '{tag}' not supported")
         for connection in element.iterfind("ssd:Connections/ssd:Connection", NS):
-            self.connection(connection, prefix)
+            where = f"{self.shown} (SystemStructure.ssd line {connection.sourceline}): Connection"
+            self.connections.append(RawConnection(
+                path, (connection.get("startElement"), connection.get("startConnector", "")),
+                (connection.get("endElement"), connection.get("endConnector", "")),
+                transformation(connection, where, self.problems), where))
         for gluing in element.iterfind(
                 "ssd:Annotations/ssc:Annotation[@type='org.dsim.gluing']/glue:Gluing", NS):
             for joint in gluing.iterfind("glue:Joint", NS):
-                self.joint(joint, prefix)
+                self.joints.append(read_joint(joint, prefix, self.where(joint), self.problems))
             for port in gluing.iterfind("glue:Port", NS):
-                self.port_map(port, prefix)
+                self.port_maps.append(read_port_map(port, prefix, self.where(port),
+                                                    self.problems))
 
-    def component(self, element, prefix: str) -> None:
+    def component(self, element, prefix: str, depth: int) -> None:
         where = self.where(element)
         source = element.get("source", "")
         kind = element.get("type", "application/x-fmu-sharedlibrary")
         if kind != "application/x-fmu-sharedlibrary":
-            self.problems.append(f"{where}: type '{kind}' is not an FMU")
+            self.problems.append(f"{where}: type '{kind}' is not an FMU (dsim runs FMU "
+                                 "components; a referenced SSP or SSD is not supported)")
             return
         file = self.base / source
         if not source or not file.is_file():
             self.problems.append(f"{where}: FMU '{source}' not found")
-        parameters = {}
-        for binding in element.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
-            parameters.update(self.parameter_values(binding, where))
-        connectors = tuple((c.get("name"), c.get("kind"))
-                           for c in element.iterfind("ssd:Connectors/ssd:Connector", NS))
-        self.components.append(Component(prefix + element.get("name", ""), file,
-                                          parameters, connectors, where))
+        path = prefix + element.get("name", "")
+        self.bindings_of(element, path, True, depth)
+        self.components.append(dict(path=path, source=file, location=where,
+                                    connectors=self.connectors_of(element)))
 
-    def connection(self, element, prefix: str) -> None:
-        where = f"{self.shown} (SystemStructure.ssd line {element.sourceline}): Connection"
-        start, end = element.get("startElement"), element.get("endElement")
-        if not start or not end:
-            self.problems.append(f"{where}: connections to system connectors are not supported")
-            return
-        factor, offset = 1.0, 0.0
-        linear = element.find("ssc:LinearTransformation", NS)
-        if linear is not None:
-            factor = float(linear.get("factor", 1.0))
-            offset = float(linear.get("offset", 0.0))
-        self.connections.append(Connection(
-            (prefix + start, element.get("startConnector")),
-            (prefix + end, element.get("endConnector")), factor, offset, where))
+    # --- the components, as the hierarchy makes them ---------------------------
+    def resolve(self) -> tuple[list[Component], list]:
+        paths = {c["path"] for c in self.components}
+        connectors = {c["path"]: c["connectors"] for c in self.components}
+        values, origins, connector_values = resolve_bindings(
+            self.bindings, paths, self.system_connectors, self.problems)
+        connections, starts = resolve_connections(
+            self.connections, paths, connectors, self.system_connectors, connector_values,
+            self.problems)
+        components = []
+        for c in self.components:
+            parameters = {**starts[c["path"]], **values[c["path"]]}
+            components.append(Component(c["path"], c["source"], parameters,
+                                        tuple(c["connectors"].values()), c["location"],
+                                        origins[c["path"]]))
+        return components, connections
 
-    def _port_ref(self, text: str | None, where: str, prefix: str):
-        if not text or "." not in text:
-            self.problems.append(f"{where}: port reference '{text}' is not 'component.port'")
-            return ("", "")
-        component, port = text.rsplit(".", 1)
-        return (prefix + component, port)
 
-    def joint(self, element, prefix: str) -> None:
-        where = self.where(element)
-        dofs = tuple((element.get("dofs") or "").split())
-        if not dofs or any(d not in DOFS for d in dofs):
-            self.problems.append(f"{where}: dofs '{element.get('dofs')}' must be a list of {DOFS}")
-            dofs = dofs or ("x",)
-        kind = element.get("kind", "fixed")
-        if kind not in ("fixed", "flexible"):
-            self.problems.append(f"{where}: kind '{kind}' must be fixed or flexible")
-        measure = element.get("measure", "displacement")
-        if measure not in MEASURES:
-            self.problems.append(f"{where}: measure '{measure}' must be one of {MEASURES}")
-        n = len(dofs)
-        spring = element.find("glue:Spring", NS)
-        damper = element.find("glue:Damper", NS)
-        values = {}
-        for key, node in (("k0", spring), ("k1", spring), ("c0", damper), ("c1", damper)):
-            text = node.get(key) if node is not None else None
-            values[key] = _floats(text, n, 0.0, f"{where}: {key}", self.problems)
-        if kind == "flexible" and spring is None:
-            self.problems.append(f"{where}: a flexible joint needs a glue:Spring")
-        xi, omega = 1.0, 0.0
-        penalty = element.find("glue:Penalty", NS)
-        if measure == "penalized":
-            if penalty is None:
-                self.problems.append(f"{where}: measure 'penalized' needs a glue:Penalty")
-            else:
-                xi = _floats(penalty.get("xi"), 1, 1.0, f"{where}: xi", self.problems)[0]
-                omega = _floats(penalty.get("omega"), 1, 0.0, f"{where}: omega",
-                                self.problems)[0]
-        support = _floats(element.get("support"), 1, 1.0, f"{where}: support",
-                          self.problems)[0]
-        if not support > 0:
-            self.problems.append(f"{where}: support must be positive")
-        self.joints.append(Joint(
-            name=prefix + element.get("name", ""),
-            a=self._port_ref(element.get("a"), where, prefix),
-            b=self._port_ref(element.get("b"), where, prefix),
-            dofs=dofs, kind=kind, measure=measure, xi=xi, omega=omega,
-            support=support, location=where, **values))
-
-    def port_map(self, element, prefix: str) -> None:
-        where = self.where(element)
-        dofs = tuple((element.get("dofs") or "").split())
-
-        def names(attribute, required=True):
-            text = element.get(attribute)
-            if text is None:
-                if required:
-                    self.problems.append(f"{where}: attribute '{attribute}' missing")
-                return None
-            listed = tuple(text.split())
-            if len(listed) != len(dofs):
-                self.problems.append(f"{where}: '{attribute}' names {len(listed)} variables "
-                                     f"for {len(dofs)} dofs")
-            return listed
-
-        self.port_maps.append(PortMap(
-            prefix + element.get("component", ""), element.get("name", ""), dofs,
-            names("force"), names("position"), names("velocity", False),
-            names("acceleration", False), where))
+#: start and stop time (s) of a scene without a DefaultExperiment (dsim info says so)
+DEFAULT_START, DEFAULT_STOP = 0.0, 1.0
 
 
 def _master_settings(root, shown: str, problems: list) -> tuple[float, float, MasterSettings]:
     experiment = root.find("ssd:DefaultExperiment", NS)
-    start, stop = 0.0, 1.0
+    start, stop = DEFAULT_START, DEFAULT_STOP
     attributes = {}
     if experiment is not None:
         where = f"{shown}: DefaultExperiment"
-        start = _floats(experiment.get("startTime"), 1, 0.0, f"{where}: startTime", problems)[0]
-        stop = _floats(experiment.get("stopTime"), 1, 1.0, f"{where}: stopTime", problems)[0]
+        start = floats(experiment.get("startTime"), 1, start, f"{where}: startTime", problems)[0]
+        stop = floats(experiment.get("stopTime"), 1, stop, f"{where}: stopTime", problems)[0]
         node = experiment.find(
             "ssd:Annotations/ssc:Annotation[@type='org.dsim.master']/glue:Master", NS)
         if node is not None:
@@ -326,21 +265,23 @@ def load_scene(path) -> Scene:
     if system is None:
         raise InputError(reader.problems or [f"{shown}: SystemStructure.ssd has no ssd:System"])
     reader.system(system, "")
+    components, connections = reader.resolve()
     start, stop, master = _master_settings(root, shown, reader.problems)
-    _check_references(reader)
+    scene_units = units(root, shown, reader.problems)
+    _check_references(reader, components, connections)
     if reader.problems:
-        raise InputError(reader.problems)
+        raise InputError(list(dict.fromkeys(reader.problems)))
     name = root.get("name") or path.stem
-    return Scene(name, path, start, stop, tuple(reader.components),
-                 tuple(reader.connections), tuple(reader.joints),
-                 tuple(reader.port_maps), master, tuple(reader.files))
+    return Scene(name, path, start, stop, tuple(components), tuple(connections),
+                 tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
+                 scene_units, root.find("ssd:DefaultExperiment", NS) is not None)
 
 
-def _check_references(reader: _Reader) -> None:
+def _check_references(reader: _Reader, components, connections) -> None:
     """Joints, port maps and connections must name components that exist."""
-    paths = {c.path for c in reader.components}
-    for component in reader.components:
-        if sum(c.path == component.path for c in reader.components) > 1:
+    paths = {c.path for c in components}
+    for component in components:
+        if sum(c.path == component.path for c in components) > 1:
             reader.problems.append(f"{component.location}: component name used twice")
     seen = set()
     for joint in reader.joints:
@@ -356,7 +297,7 @@ def _check_references(reader: _Reader) -> None:
     for port in reader.port_maps:
         if port.component not in paths:
             reader.problems.append(f"{port.location}: unknown component '{port.component}'")
-    for connection in reader.connections:
+    for connection in connections:
         for side in (connection.start, connection.end):
             if side[0] not in paths:
                 reader.problems.append(f"{connection.location}: unknown component '{side[0]}'")

@@ -69,6 +69,10 @@ class Subsystem(ABC):
     def write_inputs(self, values: np.ndarray) -> None:
         """Set the inputs that causal connections feed (in the subsystem's order)."""
 
+    def write_start_inputs(self, values: np.ndarray) -> None:
+        """Set what connections feed at initialization (fixed parameters too)."""
+        self.write_inputs(values)
+
     def terminate(self) -> None:
         """Release what the subsystem holds."""
 

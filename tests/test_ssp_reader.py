@@ -100,7 +100,8 @@ def test_nested_systems_inline_parameters_and_annotations(tmp_path, built):
         (100.0,), (1.5,), 0.7, 30.0, 1.5)
     connection, = scene.connections
     assert connection.start == ("sub.a", "x[1]") and connection.end == ("sub.b", "P.f_x")
-    assert (connection.factor, connection.offset) == (2.0, 1.0)
+    step, = connection.transformations
+    assert (step.kind, step.factor, step.offset) == ("linear", 2.0, 1.0)
     assert (scene.start_time, scene.stop_time) == (0.5, 2.0)
     assert (scene.master.step, scene.master.max_iterations, scene.master.predictor) == (
         0.02, 7, "quadratic")

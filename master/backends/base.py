@@ -74,8 +74,9 @@ class Backend(ABC):
         """Every subsystem's read values (a float array each)."""
 
     @abstractmethod
-    def write_inputs(self, inputs) -> None:
-        """Write causal inputs: ``inputs`` is a list of (subsystem index, values)."""
+    def write_inputs(self, inputs, start: bool = False) -> None:
+        """Write causal inputs: ``inputs`` is a list of (subsystem index, values); with
+        ``start``, what connections feed at initialization (fixed parameters too)."""
 
     @abstractmethod
     def finish_initialization(self) -> None:

@@ -68,9 +68,12 @@ class InProcessBackend(Backend):
     def read_outputs(self):
         return [s.read_outputs() for s in self.subsystems]
 
-    def write_inputs(self, inputs) -> None:
+    def write_inputs(self, inputs, start: bool = False) -> None:
         for index, values in inputs:
-            self.subsystems[index].write_inputs(values)
+            if start:
+                self.subsystems[index].write_start_inputs(values)
+            else:
+                self.subsystems[index].write_inputs(values)
 
     def finish_initialization(self) -> None:
         for subsystem in self.subsystems:
