@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+from master.errors import InputError
 from master.execution import Execution
 from master.observers import CsvRecorder, PlotWriter, ProgressBar, StatisticsWriter
 from master.plan import make_plan
@@ -21,12 +22,17 @@ def prepare(scene, **settings):
     folder, an .ssd file, or a :class:`~master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
     options: stop, step, tolerance, relative_tolerance, max_iterations,
-    refresh_after, perturbation, predictor, refresh, coupling, start, backend).
+    refresh_after, perturbation, predictor, refresh, coupling, start, backend,
+    parameter_set).
     Raises :class:`~master.errors.InputError` listing every problem."""
-    scene = scene if isinstance(scene, Scene) else load_scene(scene)
+    chosen = settings.get("parameter_set")
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene, [chosen] if chosen else ())
+    elif chosen:
+        raise InputError("setting parameter_set: give the scene's file, not a loaded scene")
     master, options = resolve(scene.master, settings)
-    if "stop" in options:
-        scene = replace(scene, stop_time=options["stop"])
+    if "stop" in options:  # the user said when to stop: no default assumed
+        scene = replace(scene, stop_time=options["stop"], experiment=True)
     return make_plan(replace(scene, master=master), options.get("backend", "in-process"))
 
 

@@ -153,7 +153,7 @@ def glue_cores(cores: dict, joints: list[Joint], settings, start_time: float = 0
         positions = {(s.name, port, dof): value for s in glued.subsystems
                      for (port, dof), value in zip(s.interface, s.kinematics()[0])}
         layout, states, _ = assemble(names, joints, sides, positions)
-    forces, _ = start_forces(settings.start, glued, layout, states)
+    forces, _, _ = start_forces(settings.start, glued, layout, states)
     backend.finish_initialization()
     coupling = IterativeCoupling(backend, glued_indices, layout, states, settings)
     coupling.start(glued.kinematics(), forces)

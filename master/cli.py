@@ -52,15 +52,15 @@ def _cmd_run(args) -> int:
 
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
-    result = simulate(args.scene, out=out, plot=args.plot,
-                      observers=[ProgressBar(Path(args.scene).stem)], **settings)
+    progress = ProgressBar(Path(args.scene).stem)
+    result = simulate(args.scene, out=out, plot=args.plot, observers=[progress], **settings)
     if result.status != "completed":
         label = "simulation failed" if result.status == "failed" else "interrupted"
         print(f"dsim: {label}: {result.message}", file=sys.stderr)
         if "csv" in result.files:
             print(f"dsim: the {result.steps} converged steps are in {result.files['csv']}, "
                   f"statistics in {result.files.get('statistics', 'nowhere')}", file=sys.stderr)
-    for warning in result.warnings[len(result.statistics.get("warnings", [])):]:
+    for warning in result.warnings[len(progress.shown):]:  # those said at the end
         print(f"dsim: warning: {warning}", file=sys.stderr)
     if result.status == "completed" and not args.quiet:
         print(_summary(result, args.plot))

@@ -133,6 +133,8 @@ class Execution:
                 raise InputError(str(error)) from None
             raise
         self.status = "running"
+        for message in self.plan.warnings:
+            self.warn(message)
         self._phases["setup"] = clock.perf_counter() - self._wall_start
         try:
             row = self._row()
@@ -160,7 +162,10 @@ class Execution:
         glued = self.backend.subset(plan.glued)
         if plan.non_matching and settings.start != "rest":
             layout, joints = plan.assemble(self._positions(glued, layout))
-        forces, reported = start_forces(settings.start, glued, layout, joints)
+        forces, reported, warning = start_forces(settings.start, glued, layout, joints)
+        if warning:
+            self.warn(warning)
+        sensitivity = self._start_sensitivity(glued, layout, forces)
         self.backend.finish_initialization()
         if plan.non_matching and settings.start == "rest":
             layout, joints = plan.assemble(self._positions(glued, layout))
@@ -170,7 +175,24 @@ class Execution:
         self.layout = layout
         self.coupling = COUPLINGS[plan.coupling](self.backend, plan.glued, layout, joints,
                                                  settings, plan.transfer)
+        if sensitivity is not None:
+            self.coupling.start_sensitivity = sensitivity
         self.coupling.start(glued.kinematics() if layout.size else None, forces)
+
+    def _start_sensitivity(self, glued, layout, forces):
+        """In initialization mode, d a / d f of every glued subsystem (when the explicit
+        coupling glues one that cannot save its state: its flexibility comes from it)."""
+        if not self.plan.flexibility_at_start:
+            return None
+        local = layout.local_forces(np.zeros(layout.size) if forces is None else forces)
+        sensitivity = glued.start_flexibility(
+            local, [self.settings.perturbation * np.maximum(1.0, np.abs(f)) for f in local])
+        for name, matrix in zip(glued.names, sensitivity):
+            if not np.any(matrix):
+                raise InputError(f"component '{name}': its port accelerations do not follow "
+                                 "its forces in initialization mode, so the explicit coupling "
+                                 "cannot measure its flexibility without a rollback")
+        return sensitivity
 
     def _positions(self, glued, layout) -> dict:
         """Initial positions of the glued dofs, for non-matching joints."""
@@ -265,9 +287,9 @@ class Execution:
         if self.status == "running":
             self.status = "interrupted"
             self._stop_requested = self._stop_requested or "stopped before the stop time"
-        if self.backend is not None:
-            for error in self.backend.close():
-                self.warn(f"releasing the subsystems: {error}")
+        if self.backend is not None:  # said after how the run ended, not before
+            self.warnings += [f"releasing the subsystems: {error}"
+                              for error in self.backend.close()]
         self._phases["finish"] = clock.perf_counter() - started
         message = ""
         if self.status == "failed":

@@ -123,6 +123,8 @@ class _Call:
         self.seconds += clock.perf_counter() - start
         self.calls += 1
         if status > 1:
+            if status == 4:  # fmi2Fatal: FMI 2.0 allows no further call, not even a free
+                self.owner.fatal = True
             self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}")
 
 
@@ -190,6 +192,8 @@ class FmuSubsystem(Subsystem):
         self.output_names = tuple(spec.reads)
         self._state = None
         self._stepped = False
+        #: the FMU returned fmi2Fatal: no call may follow
+        self.fatal = False
         self.time = spec.start_time
         self._location = spec.location or spec.name
         try:
@@ -360,13 +364,21 @@ class FmuSubsystem(Subsystem):
             batch.write(values[places])
 
     def terminate(self):
-        if self.fmu.component is None:  # never instantiated, or failed beyond any call
+        """fmi2Terminate and fmi2FreeInstance (after an error too: FMI 2.0 allows both;
+        after fmi2Fatal nothing); a failure here is the caller's to report, never to
+        replace the error that ended the run."""
+        if self.fmu.component is None or self.fatal:
             return
+        _MESSAGES.pop(self.name, None)  # what it logs now is about the cleanup
         try:
             if self._state is not None:
                 self.fmu.freeFMUstate(self._state)
                 self._state = None
             if not self._initializing:  # fmi2Terminate is for the step mode
                 self.fmu.terminate()
+        except Exception as error:  # fmpy raises FMICallException
+            reason = logged_error(self.name)
+            raise SimulationError(f"component '{self.name}': {error}"
+                                  + (f" ({reason})" if reason else "")) from None
         finally:
             self.fmu.freeInstance()

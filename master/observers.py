@@ -218,6 +218,8 @@ class ProgressBar(Observer):
     label: str = ""
     stream: object = None
     files: dict = field(default_factory=dict)
+    #: the warnings printed so far
+    shown: list = field(default_factory=list)
 
     def started(self, info: RunInfo) -> None:
         self.progress = None
@@ -244,6 +246,7 @@ class ProgressBar(Observer):
                                  it=self.iterations / record.index)
 
     def warned(self, message: str) -> None:
+        self.shown.append(message)
         if self.progress:
             self.progress.console.print(f"dsim: warning: {message}", markup=False,
                                         highlight=False)

@@ -19,7 +19,8 @@ from master.connections import Transfer, build_transfer, check_connections
 from master.errors import InputError
 from master.fmu import SubsystemSpec, can_save_state
 from master.fmu_archive import fmu_problem
-from master.ports import NEEDED, component_ports, joint_port_dofs, variables_by_name
+from master.ports import (NEEDED, component_ports, joint_port_dofs, model_description,
+                          variables_by_name)
 from master.scene import Scene
 from master.settings import check_span
 
@@ -48,6 +49,11 @@ class Plan:
     #: ``start_passes`` read-and-write passes (dependency order)
     start_transfer: Transfer = None
     start_passes: int = 0
+    #: what the run should say before it starts (a default it assumed, for one)
+    warnings: tuple[str, ...] = ()
+    #: the explicit coupling glues a component that cannot save its state: the
+    #: interface flexibility comes from the start accelerations (no rollback)
+    flexibility_at_start: bool = False
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -146,12 +152,40 @@ def _sides(scene: Scene, ports: dict, problems: list) -> dict:
                             "squares on translations only (dofs x y z)")
         sides[joint.name] = (a, b)
         for path in (joint.a[0], joint.b[0]):
-            if not can_save_state(scene.component(path).source):
+            if not can_save_state(scene.component(path).source) and (
+                    scene.master.coupling != "explicit"):
                 problems.append(f"{joint.location}: component '{path}' cannot save and "
                                 "restore its state (canGetAndSetFMUstate is false), so it "
-                                "cannot be iterated in a joint (it can take part through "
-                                "causal connections)")
+                                "cannot be iterated in a joint: it can take part through "
+                                "causal connections, or in a joint with the explicit coupling "
+                                "(coupling='explicit', no rollback)")
     return sides
+
+
+def _capabilities(scene: Scene, usable: dict, problems: list) -> None:
+    """What an FMU's co-simulation capabilities forbid this run: a shortened last step
+    for an FMU that needs a fixed one, two instances of an FMU that allows one."""
+    span, step = scene.stop_time - scene.start_time, scene.master.step
+    uneven = abs(span / step - round(span / step)) > 1e-9 * max(span / step, 1.0)
+    users: dict = {}
+    for component in scene.components:
+        if component.path not in usable:
+            continue
+        cs = model_description(component.source).coSimulation
+        if uneven and not cs.canHandleVariableCommunicationStepSize:
+            problems.append(f"{component.location}: FMU {component.source.name} needs a fixed "
+                            "communication step (canHandleVariableCommunicationStepSize="
+                            f"false), but {scene.start_time:g} .. {scene.stop_time:g} s is "
+                            f"not a whole number of {step:g} s steps (the last would be "
+                            "shorter)")
+        if cs.canBeInstantiatedOnlyOncePerProcess:
+            users.setdefault(cs.modelIdentifier, []).append(component)
+    for identifier, components in users.items():
+        if len(components) > 1:
+            problems.append(f"{components[1].location}: FMU '{identifier}' can be instantiated "
+                            "only once per process (canBeInstantiatedOnlyOncePerProcess), and "
+                            f"{len(components)} components use it: "
+                            f"{', '.join(c.path for c in components)}")
 
 
 def _kinds(scene: Scene) -> dict[str, tuple[bool, bool, bool]]:
@@ -204,6 +238,7 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     usable = _usable(scene, problems)
     ports = component_ports(scene, problems, usable)
     _check_parameters(scene, usable, problems)
+    _capabilities(scene, usable, problems)
     records = _records(scene, usable, problems)
     links = check_connections(scene, usable, problems)
     fed: dict = {}
@@ -238,6 +273,13 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
         kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]))
         for c in scene.components)
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
+    warnings = []
+    if not scene.experiment:
+        warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
+                        f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "
+                        "--stop sets the stop time)")
     return Plan(scene, coupling if scene.joints else "causal", backend, specs,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
-                ports, start_transfer, _passes(paths, links))
+                ports, start_transfer, _passes(paths, links), tuple(warnings),
+                bool(scene.joints) and coupling == "explicit" and any(
+                    not can_save_state(scene.components[i].source) for i in glued))

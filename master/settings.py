@@ -40,7 +40,7 @@ class Setting:
     keyword: str
     attribute: str | None
     kind: type
-    rule: str  # "positive", "non-negative", "at least 1" or "choice"
+    rule: str  # "positive", "non-negative", "at least 1", "choice" or "text"
     help: str
 
     @property
@@ -75,6 +75,9 @@ SETTINGS = {s.keyword: s for s in (
             "start forces: auto (flexible joints from their law), consistent (fixed "
             "joints too, from acceleration compatibility) or rest (zero)"),
     Setting("backend", None, str, "choice", "where the subsystems run"),
+    Setting("parameter_set", None, str, "text",
+            "a parameter set of the scene applied on top of its bindings: an .ssv file's "
+            "path in the scene or a ParameterSet's name"),
 )}
 
 #: glue:Master attribute -> setting
@@ -90,6 +93,8 @@ def convert(setting: Setting, value, label: str) -> tuple[object, str | None]:
     """``value`` (text from a file or the command line, or a Python value) as the
     setting's type, and the problem with it, which starts with ``label`` (None when
     the value is valid)."""
+    if setting.rule == "text":
+        return str(value), None
     if setting.kind is str:
         valid = choices(setting.keyword)
         if str(value) not in valid:

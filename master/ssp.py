@@ -214,6 +214,28 @@ class _Reader:
         self.components.append(dict(path=path, source=file, location=where,
                                     connectors=self.connectors_of(element)))
 
+    def parameter_set_on_top(self, chosen: str) -> None:
+        """Bind a parameter set of the scene above every other binding."""
+        where = f"{self.shown}: parameter set '{chosen}'"
+        file = self.base / chosen
+        if not file.is_file():
+            named = {}
+            for candidate in sorted(self.base.rglob("*.ssv")):
+                try:
+                    named[etree.parse(str(candidate)).getroot().get("name")] = candidate
+                except etree.XMLSyntaxError:
+                    continue
+            if chosen not in named:
+                self.problems.append(f"{where}: no such .ssv file or ParameterSet in the "
+                                     f"scene (it has: {', '.join(map(str, named)) or 'none'})")
+                return
+            file = named[chosen]
+        root = self._document(str(file.relative_to(self.base)), where,
+                              "SystemStructureParameterValues.xsd")
+        if root is not None:
+            self.bindings.append(Binding("", False, -1, parameter_set(root, where,
+                                                                      self.problems), where))
+
     # --- the components, as the hierarchy makes them ---------------------------
     def resolve(self) -> tuple[list[Component], list]:
         paths = {c["path"] for c in self.components}
@@ -251,8 +273,12 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
     return start, stop, settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
 
 
-def load_scene(path) -> Scene:
-    """Read and check an SSP system; raise InputError listing every problem."""
+def load_scene(path, parameter_sets=()) -> Scene:
+    """Read and check an SSP system; raise InputError listing every problem.
+
+    ``parameter_sets``: parameter sets applied on top of every binding of the scene,
+    as if bound to the root system last: each an .ssv file of the scene (its path in
+    the scene, like ``resources/heavy.ssv``) or the name of a ParameterSet in one."""
     path = Path(path)
     ssd, shown = _open(path)
     root = _parse_xml(ssd, shown)
@@ -265,6 +291,8 @@ def load_scene(path) -> Scene:
     if system is None:
         raise InputError(reader.problems or [f"{shown}: SystemStructure.ssd has no ssd:System"])
     reader.system(system, "")
+    for chosen in parameter_sets:
+        reader.parameter_set_on_top(chosen)
     components, connections = reader.resolve()
     start, stop, master = _master_settings(root, shown, reader.problems)
     scene_units = units(root, shown, reader.problems)

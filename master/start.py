@@ -59,18 +59,36 @@ def _solve_fixed(backend, layout, joints, forces, max_iterations: int = 5):
                           f"{max_iterations} Newton iterations", time=0.0, step=0)
 
 
+def _not_live(names, before, after, local) -> list[str]:
+    """Subsystems given non-zero forces whose accelerations did not move at all: they
+    compute their outputs only when they leave initialization mode, so the positions
+    they report in it are not theirs yet either."""
+    return [name for name, old, new, forces in zip(names, before, after, local)
+            if np.any(forces) and old[2] is not None and np.array_equal(old[2], new[2])]
+
+
 def start_forces(mode: str, backend, layout, joints):
     """In initialization mode: the start forces (N, N.m, one per glued dof), written
-    to the glued subsystems of ``backend``, and the kinematics they reported for
-    them; (None, None) for ``rest``."""
+    to the glued subsystems of ``backend``, the kinematics they reported for them, and
+    a warning (or None); (None, None, None) for ``rest``."""
     if mode == "rest" or not layout.size:
-        return None, None
-    forces = _law_forces(layout, joints, backend.kinematics())
+        return None, None, None
+    before = backend.kinematics()
+    forces = _law_forces(layout, joints, before)
     if mode == "consistent" and not joints.flexible.all():
-        forces = _solve_fixed(backend, layout, joints, forces)
-    else:
+        return _solve_fixed(backend, layout, joints, forces), backend.kinematics(), None
+    local = layout.local_forces(forces)
+    backend.set_forces(local)
+    after = backend.kinematics()
+    stale = _not_live(backend.names, before, after, local)
+    if stale:  # the forces came from outputs that are not the FMU's yet: start at rest
+        forces = np.zeros(layout.size)
         backend.set_forces(layout.local_forces(forces))
-    return forces, backend.kinematics()
+        return None, backend.kinematics(), (
+            f"start='auto': component '{stale[0]}' computes its outputs only when it "
+            "leaves initialization mode, so the flexible joints' start forces cannot "
+            "come from its start positions: every joint starts at zero force")
+    return forces, after, None
 
 
 def _stretched(layout, joints, kinematics, forces, settings, step_size) -> list[str]:

@@ -185,6 +185,10 @@ def test_an_fmu_error_names_component_step_time_and_carries_its_log(
     assert lines[0].startswith(f"dsim: simulation failed: step 51 (t = 0.051 s): component "
                                f"'b1': fmi2DoStep failed: it returned {status} (block: ")
     assert read_csv(tmp_path / "run.csv")[1].shape[0] == 51
+    # the FMU's fmi2Terminate fails too: said after the error, never instead of it
+    assert lines[-1].startswith("dsim: warning: releasing the subsystems: component 'b1': "
+                                "fmi2Terminate failed")
+    assert lines[-1].endswith("(block: cannot terminate cleanly after the failure)")
 
 
 def test_a_truncated_fmu_archive_is_one_line_before_any_step(block_fmus, tmp_path, capsys):

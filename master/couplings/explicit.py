@@ -22,6 +22,9 @@ class ExplicitCoupling(IterativeCoupling):
     """One trial per macro step; the correction goes to the next step's predictor."""
 
     name = "explicit"
+    #: d a / d f of every glued subsystem at the start time, when some cannot save
+    #: their state: the flexibility then comes from it, with no rollback ever
+    start_sensitivity = None
 
     def _advance(self, time: float, step_size: float, step_index: int) -> StepReport:
         """Advance every glued subsystem once with predicted forces; record the
@@ -30,6 +33,13 @@ class ExplicitCoupling(IterativeCoupling):
         if self._step_size is not None and step_size != self._step_size:
             self._flexibility = None
         self._step_size = step_size
+        if self._flexibility is None and self.start_sensitivity is not None:
+            # a force held over a step moves the end of the step as the trapezoidal rule
+            # says: u by h^2/4 a, v by h/2 a (exact as h -> 0)
+            h = step_size
+            self._use_flexibility([[h * h / 4.0 * a, h / 2.0 * a, a]
+                                   for a in self.start_sensitivity])
+            self.refreshes += 1
         measuring = self._flexibility is None
         if measuring:  # the perturbations roll back: save the step's start
             self.glued.begin_step()

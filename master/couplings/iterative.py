@@ -156,9 +156,13 @@ class IterativeCoupling(Coupling):
 
     def _refresh(self, local, time, step_size, kinematics) -> None:
         """Measure every glued subsystem's interface flexibility around ``local``."""
-        self._flexibility = self._timed("flexibility", self.glued.flexibility, local, time,
-                                        step_size, [self._deltas(f) for f in local],
-                                        kinematics)
+        self._use_flexibility(self._timed(
+            "flexibility", self.glued.flexibility, local, time, step_size,
+            [self._deltas(f) for f in local], kinematics))
+
+    def _use_flexibility(self, flexibility) -> None:
+        """Take [Gu, Gv, Ga] of every glued subsystem as the interface flexibility."""
+        self._flexibility = flexibility
         self._parts = [self.layout.project([g[kind] for g in self._flexibility])
                        for kind in range(3)]
         if self.layout.size <= DENSE_UP_TO:

@@ -7,7 +7,8 @@
  * count (Integer: steps taken), positive (Boolean: y > 0).  Boolean input enable:
  * when false the block holds y.  It can be told to fail at t >= fail_time
  * (Integer parameter failure): 1 y becomes NaN, 2 fmi2DoStep returns fmi2Error,
- * 3 fmi2DoStep returns fmi2Discard, 4 the process aborts (a crashing FMU).
+ * 3 fmi2DoStep returns fmi2Discard, 4 the process aborts (a crashing FMU); after 2
+ * or 3, fmi2Terminate fails too (a cleanup that must not hide the first error).
  * Compiled with -DNO_STATE it implements no state saving. */
 #include <math.h>
 #include <stdio.h>
@@ -25,6 +26,7 @@ typedef struct {
     int i[N_INTEGERS];
     int b[N_BOOLEANS];
     double time;
+    int failed;  /* a simulated failure happened: fmi2Terminate fails too */
     char name[128];
     fmi2CallbackFunctions cb;
 } Model;
@@ -64,7 +66,14 @@ FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     m->b[B_POSITIVE] = m->r[R_Y] > 0.0;
     return fmi2OK;
 }
-FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) { return fmi2OK; }
+FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) {
+    Model *m = c;
+    if (m->failed) {
+        log_error(m, fmi2Error, "block: cannot terminate cleanly after the failure");
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
 FMI2_Export fmi2Status fmi2Reset(fmi2Component c) { return fmi2OK; }
 
 #define ACCESS(NAME, TYPE, FIELD, COUNT, CONST)                                         \
@@ -135,6 +144,7 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
     double *r = m->r;
     if (t + h >= r[R_FAIL_TIME]) {
         char text[160];
+        m->failed = m->i[I_FAILURE] > 1;
         switch (m->i[I_FAILURE]) {
         case 1: r[R_Y] = NAN; m->time = t + h; return fmi2OK;
         case 2:

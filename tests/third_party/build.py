@@ -93,15 +93,28 @@ def compile_library(source: Path, library: Path, defines=()) -> Path:
     return library
 
 
+#: the variables of oscillator.c
+OSCILLATOR_VARIABLES = (
+    Variable("m", 0, causality="parameter", start=1.0),
+    Variable("k", 1, causality="parameter", start=1.0),
+    Variable("F_in", 2, causality="input", start=0.0),
+    Variable("s", 3, causality="output", initial="calculated"),
+    Variable("v", 4, causality="output", initial="calculated"),
+    Variable("a", 5, causality="output", initial="calculated"),
+    Variable("s0", 6, causality="parameter", start=0.0),
+)
+
+
 def c_fmu(folder: Path, name: str, source: str = "block.c", variables=BLOCK_VARIABLES,
-          can_save_state: bool = True, variable_step: bool = True) -> Path:
+          can_save_state: bool = True, variable_step: bool = True, defines=()) -> Path:
     """Compile ``source`` (a file of this folder) and pack ``folder/name.fmu``; its
     model identifier is the source's stem."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     identifier = Path(source).stem
     library = folder / f"{name}.so"
-    compile_library(HERE / source, library, () if can_save_state else ("NO_STATE",))
+    compile_library(HERE / source, library,
+                    tuple(defines) + (() if can_save_state else ("NO_STATE",)))
     fmu = folder / f"{name}.fmu"
     with zipfile.ZipFile(fmu, "w") as archive:
         archive.writestr("modelDescription.xml", model_description(

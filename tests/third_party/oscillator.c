@@ -3,7 +3,9 @@
  * rule; the force input F_in (N) is held over a step and balanced at its end.
  * Its variables are named in its own way (F_in, s, v, a), so a glue:Port
  * annotation has to map them onto a port.  Compiled with -DNO_STATE it declares
- * and implements no state saving, the case a master must refuse to iterate. */
+ * and implements no state saving, the case a master must refuse to iterate; with
+ * -DLIVE_OUTPUTS its outputs follow its inputs in initialization mode too (FMI 2.0
+ * allows either). */
 #include <stdlib.h>
 #include <string.h>
 #include "fmi2Functions.h"
@@ -13,6 +15,7 @@ enum { VR_M, VR_K, VR_F, VR_S, VR_V, VR_A, VR_S0, N_VARS };
 typedef struct {
     double x[N_VARS];
     double time;
+    int initializing;
     fmi2CallbackFunctions cb;
 } Model;
 
@@ -41,11 +44,15 @@ FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefin
                                            fmi2Boolean stopDefined, fmi2Real stop) {
     ((Model *)c)->time = start; return fmi2OK;
 }
-FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return fmi2OK; }
+FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    ((Model *)c)->initializing = 1;
+    return fmi2OK;
+}
 FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Model *m = c;
     m->x[VR_S] = m->x[VR_S0]; m->x[VR_V] = 0.0;
     update_acceleration(m);
+    m->initializing = 0;
     return fmi2OK;
 }
 FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) { return fmi2OK; }
@@ -61,10 +68,17 @@ FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[
 }
 FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                    const fmi2Real value[]) {
+    Model *m = c;
     for (size_t i = 0; i < n; i++) {
         if (vr[i] >= N_VARS) return fmi2Error;
-        ((Model *)c)->x[vr[i]] = value[i];
+        m->x[vr[i]] = value[i];
+#ifdef LIVE_OUTPUTS  /* in initialization mode the outputs follow the inputs at once */
+        if (m->initializing && vr[i] == VR_S0) m->x[VR_S] = value[i];
+#endif
     }
+#ifdef LIVE_OUTPUTS
+    if (m->initializing) update_acceleration(m);
+#endif
     return fmi2OK;
 }
 FMI2_Export fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[],
