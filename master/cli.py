@@ -74,7 +74,8 @@ def _cmd_info(args) -> int:
 
     checked = prepare(args.scene)
     scene = checked.scene
-    print(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s")
+    print(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s"
+          + ("" if scene.experiment else " (no DefaultExperiment: dsim's default span)"))
     m = scene.master
     print(f"master: {checked.coupling} coupling, step {m.step:g} s, tolerance {m.tolerance:g} "
           f"(relative {m.relative_tolerance:g}), maxIterations {m.max_iterations}, predictor "

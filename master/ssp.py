@@ -226,8 +226,9 @@ class _Reader:
                 except etree.XMLSyntaxError:
                     continue
             if chosen not in named:
+                listed = ", ".join(sorted(map(str, named))) or "none"
                 self.problems.append(f"{where}: no such .ssv file or ParameterSet in the "
-                                     f"scene (it has: {', '.join(map(str, named)) or 'none'})")
+                                     f"scene (it has: {listed})")
                 return
             file = named[chosen]
         root = self._document(str(file.relative_to(self.base)), where,
