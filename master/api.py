@@ -9,7 +9,7 @@ from pathlib import Path
 
 from master.errors import InputError
 from master.execution import Execution
-from master.observers import CsvRecorder, PlotWriter, ProgressBar, StatisticsWriter
+from master.observers import CsvRecorder, MatWriter, PlotWriter, ProgressBar, StatisticsWriter
 from master.plan import make_plan
 from master.results import RunResult
 from master.scene import Scene
@@ -26,24 +26,27 @@ def prepare(scene, **settings):
     parameter_set).
     Raises :class:`~master.errors.InputError` listing every problem."""
     chosen = settings.get("parameter_set")
-    if not isinstance(scene, Scene):
-        scene = load_scene(scene, [chosen] if chosen else ())
+    if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
+        scene = load_scene(scene, [chosen] if chosen else (), strict=False)
     elif chosen:
         raise InputError("setting parameter_set: give the scene's file, not a loaded scene")
-    master, options = resolve(scene.master, settings)
+    try:
+        master, options = resolve(scene.master, settings)
+    except InputError as error:
+        raise InputError(list(scene.problems) + error.problems) from None
     if "stop" in options:  # the user said when to stop: no default assumed
         scene = replace(scene, stop_time=options["stop"], experiment=True)
     return make_plan(replace(scene, master=master), options.get("backend", "in-process"))
 
 
-def simulate(scene, *, out=None, statistics=None, plot=None, progress: bool = False,
+def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,
              observers=(), handle_signals: bool = True, **settings) -> RunResult:
     """Run ``scene`` to its stop time and return the :class:`~master.results.RunResult`,
     also when the run fails or is interrupted (``result.status``).
 
     ``out``: results CSV to write (its statistics JSON goes beside it, or to
     ``statistics``); without it the signals are kept in memory.  ``plot``: a PNG of
-    the signals.  ``progress``: a progress bar on a terminal.  ``observers``: more
+    the signals.  ``mat``: a MATLAB .mat file of them.  ``progress``: a progress bar on a terminal.  ``observers``: more
     :class:`~master.observers.Observer` objects.  ``handle_signals``: SIGINT and
     SIGTERM end the run after the current step (main thread only).  Other keywords
     are settings (see :func:`prepare`).  Raises InputError for bad input, before
@@ -58,6 +61,8 @@ def simulate(scene, *, out=None, statistics=None, plot=None, progress: bool = Fa
         watchers.append(StatisticsWriter(statistics))
     if plot is not None:
         watchers.append(PlotWriter(plot))
+    if mat is not None:
+        watchers.append(MatWriter(mat))
     if progress:
         watchers.append(ProgressBar())
     return Execution(plan, watchers + list(observers)).run(handle_signals)

@@ -7,6 +7,7 @@ Exit codes: 0 success, 1 the simulation failed, 2 bad input or usage,
 from __future__ import annotations
 
 import argparse
+import io
 import sys
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -40,7 +41,7 @@ def _summary(result, plot: Path | None) -> str:
                          f"{abs(signals[name]).max():>13.6g}")
         if len(names) > 12:
             lines.append(f"... {len(names) - 12} more columns in the CSV")
-    for kind in ("csv", "statistics", "plot"):
+    for kind in ("csv", "statistics", "plot", "mat"):
         if kind in result.files:
             lines.append(f"{'results' if kind == 'csv' else kind:<11} {result.files[kind]}")
     return "\n".join(lines)
@@ -53,7 +54,8 @@ def _cmd_run(args) -> int:
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
     progress = ProgressBar(Path(args.scene).stem)
-    result = simulate(args.scene, out=out, plot=args.plot, observers=[progress], **settings)
+    result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
+                      **settings)
     if result.status != "completed":
         label = "simulation failed" if result.status == "failed" else "interrupted"
         print(f"dsim: {label}: {result.message}", file=sys.stderr)
@@ -109,22 +111,110 @@ def _cmd_info(args) -> int:
     return 0
 
 
+def _cmd_validate(args) -> int:
+    from master.validate import validate
+
+    settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
+    found = validate(args.scene, **settings)
+    for problem in found.errors:
+        print(f"dsim: error: {problem}", file=sys.stderr)
+    for warning in found.warnings:
+        print(f"dsim: warning: {warning}", file=sys.stderr)
+    if found.ok:
+        print(found.summary)
+    return 0 if found.ok else 2
+
+
+def comparison_lines(comparison) -> list[str]:
+    """The table of a comparison: per column the largest difference, the band, the
+    reference's peak, and the first and worst time outside the band."""
+    width = max(len(d.column) for d in comparison.differences)
+    lines = [f"{'column':<{width}}  {'max |diff|':>11}  {'allowed':>11}  {'ref peak':>11}  "
+             "verdict"]
+    for d in comparison.differences:
+        verdict = "ok" if d.passed else (
+            f"DIFFERS from t = {d.first[0]:.6g} s (worst at t = {d.worst[0]:.6g} s: "
+            f"{d.worst[1]:.6g} against {d.worst[2]:.6g})")
+        lines.append(f"{d.column:<{width}}  {d.max_difference:>11.3e}  {d.allowed:>11.3e}  "
+                     f"{d.reference_peak:>11.3e}  {verdict}")
+    return lines
+
+
+def _cmd_plot(args) -> int:
+    from fnmatch import fnmatch
+
+    from master.output_files import write_whole
+    from master.results import plot_overlay, read_csv
+
+    files = [Path(a) for a in args.items if a.lower().endswith(".csv")]
+    patterns = [a for a in args.items if not a.lower().endswith(".csv")]
+    if not files:
+        raise InputError("dsim plot: give at least one results CSV")
+    results = {}
+    for path in files:
+        header, data = read_csv(path)
+        label = path.stem if path.stem not in results else str(path)
+        results[label] = {name: data[:, i] for i, name in enumerate(header)}
+    columns = list(dict.fromkeys(n for signals in results.values() for n in signals
+                                 if n != "time"))
+
+    def matches(name, pattern):  # a name as written ('x[2]'), or a glob ('j1.*')
+        return name == pattern or fnmatch(name, pattern)
+
+    names = [n for n in columns if not patterns or any(matches(n, p) for p in patterns)]
+    unmatched = [p for p in patterns if not any(matches(n, p) for n in columns)]
+    if unmatched or not names:
+        raise InputError(f"dsim plot: no column matches {', '.join(unmatched) or 'anything'} "
+                         f"(columns: {', '.join(columns)})")
+    out = Path(args.out or files[0].with_suffix(".png"))
+    image = io.BytesIO()
+    plot_overlay(results, names, image, args.title or "")
+    write_whole(out, image.getvalue(), files)
+    print(f"plot        {out} ({len(names[:8])} signals of {len(results)} results"
+          + (f"; {len(names) - 8} more not drawn" if len(names) > 8 else "") + ")")
+    return 0
+
+
 def _cmd_compare(args) -> int:
     from master.compare import compare_files
 
     columns = args.columns.split(",") if args.columns else None
-    differences = compare_files(args.result, args.reference, columns, args.rtol, args.atol)
-    width = max(len(d.column) for d in differences)
-    print(f"{'column':<{width}}  {'max |diff|':>11}  {'allowed':>11}  {'ref peak':>11}")
-    for d in differences:
-        print(f"{d.column:<{width}}  {d.max_difference:>11.3e}  {d.allowed:>11.3e}  "
-              f"{d.reference_peak:>11.3e}  {'ok' if d.passed else 'DIFFERS'}")
-    failed = [d.column for d in differences if not d.passed]
+    comparison = compare_files(args.result, args.reference, columns, args.rtol, args.atol)
+    print("\n".join(comparison_lines(comparison)))
+    if comparison.short:
+        print(f"dsim: {args.result} ends at t = {comparison.result_end:g} s, before the "
+              f"reference ({comparison.reference_end:g} s)", file=sys.stderr)
+    failed = comparison.failed
     if failed:
-        print(f"dsim: {len(failed)} of {len(differences)} columns differ from {args.reference}",
-              file=sys.stderr)
-        return 1
-    return 0
+        print(f"dsim: {len(failed)} of {len(comparison.differences)} columns differ from "
+              f"{args.reference}", file=sys.stderr)
+    return 0 if comparison.passed else 1
+
+
+def _cmd_regress(args) -> int:
+    from master.regress import find_cases, junit_xml, run_cases, summary_lines
+
+    cases, without = find_cases(args.folder, args.baselines, args.scene or ())
+    if not cases:
+        raise InputError(f"{args.folder}: no scene has a baseline in "
+                         f"{args.baselines or Path(args.folder) / 'baselines'} "
+                         "(write them with --update)")
+
+    def progress(outcome):
+        verdict = outcome.status + (f": {outcome.message}" if outcome.message else "")
+        print(f"{outcome.case.name}: {verdict}", file=sys.stderr)
+
+    outcomes = run_cases(cases, args.results, args.update, args.rtol, args.atol, progress)
+    print("\n".join(summary_lines(outcomes)))
+    if without:
+        print(f"without a baseline (not run): {', '.join(without)}")
+    if args.junit:
+        junit_xml(outcomes, args.junit)
+    bad = [o for o in outcomes if o.status not in ("passed", "updated")]
+    if bad:
+        print(f"dsim: {len(bad)} of {len(outcomes)} scenes did not pass: "
+              f"{', '.join(o.case.name for o in bad)}", file=sys.stderr)
+    return 1 if bad else 0
 
 
 def _add_settings(run_parser) -> None:
@@ -150,8 +240,37 @@ def parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here); the "
                             "statistics JSON goes beside it")
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
+    run_parser.add_argument("--mat", help="write the results as a MATLAB .mat file too")
     run_parser.add_argument("--quiet", action="store_true", help="no summary")
     run_parser.set_defaults(handler=_cmd_run)
+    validate_parser = commands.add_parser(
+        "validate", help="every check of dsim run, without running: one line per finding, "
+        "exit 2 when the scene cannot run")
+    validate_parser.add_argument("scene")
+    _add_settings(validate_parser)
+    validate_parser.set_defaults(handler=_cmd_validate)
+    plot_parser = commands.add_parser(
+        "plot", help="a PNG of chosen signals of one or more results CSVs, overlaid")
+    plot_parser.add_argument("items", nargs="+", metavar="RESULT.csv|SIGNAL",
+                             help="results CSVs and signal names (glob patterns: 'j1.*')")
+    plot_parser.add_argument("--out", help="the PNG (default: the first CSV's name .png)")
+    plot_parser.add_argument("--title", help="a title")
+    plot_parser.set_defaults(handler=_cmd_plot)
+    regress_parser = commands.add_parser(
+        "regress", help="run every scene of a folder that has a stored baseline and compare "
+        "(exit 1 on any regression)")
+    regress_parser.add_argument("folder", help="scenes: NAME.ssp archives or NAME/ folders")
+    regress_parser.add_argument("--baselines", help="NAME.csv and NAME.json per scene "
+                                "(default: FOLDER/baselines)")
+    regress_parser.add_argument("--results", help="keep each run's CSV and statistics here")
+    regress_parser.add_argument("--junit", help="write a JUnit XML report")
+    regress_parser.add_argument("--update", action="store_true",
+                                help="store each run as the new baseline instead of comparing")
+    regress_parser.add_argument("--scene", action="append", help="only this scene (again "
+                                "for more)")
+    regress_parser.add_argument("--rtol", type=float, help="override every case's rtol")
+    regress_parser.add_argument("--atol", type=float, help="override every case's atol")
+    regress_parser.set_defaults(handler=_cmd_regress)
     info_parser = commands.add_parser("info", help="components, capabilities, ports, "
                                       "joints and master settings of a scene")
     info_parser.add_argument("scene")

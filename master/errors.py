@@ -12,6 +12,8 @@ class InputError(Exception):
         if isinstance(problems, str):
             problems = [problems]
         self.problems = list(problems)
+        #: what was found besides the problems (nothing wrong, worth saying)
+        self.warnings: list[str] = []
         super().__init__("\n".join(self.problems))
 
 

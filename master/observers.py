@@ -210,6 +210,32 @@ class PlotWriter(Observer):
         self.files["plot"] = self.path
 
 
+class MatWriter(Observer):
+    """A MATLAB .mat file of the run's signals when it ends (see
+    :func:`master.results.mat_bytes`), written whole."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.inputs = ()
+        self.files = {}
+
+    def started(self, info: RunInfo) -> None:
+        from master.output_files import check_not_input
+        self.inputs = info.inputs
+        check_not_input(self.path, self.inputs)
+
+    def finished(self, result) -> None:
+        from master.results import mat_bytes
+        if result.steps == 0 and not result.signals:
+            return
+        try:
+            write_whole(self.path, mat_bytes(result.signals), self.inputs)
+        except Exception as error:  # a full disk must not hide how the run ended
+            result.warnings.append(f"MAT file not written to {self.path}: {error}")
+            return
+        self.files["mat"] = self.path
+
+
 @dataclass
 class ProgressBar(Observer):
     """A rich progress bar on a terminal (simulated time, iterations per step),

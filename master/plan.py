@@ -23,6 +23,8 @@ from master.ports import (NEEDED, component_ports, joint_port_dofs, model_descri
                           variables_by_name)
 from master.scene import Scene
 from master.settings import check_span
+from master.ssp_values import TYPES
+from master.units import conversion, fmu_units, variable_unit
 
 #: variable types a recorded column can carry
 NUMERIC = ("Real", "Integer", "Enumeration", "Boolean")
@@ -104,10 +106,7 @@ def _records(scene: Scene, usable: dict, problems: list) -> dict[str, list[str]]
             continue
         declared = [c.name for c in component.connectors if c.kind == "output"]
         for name in declared:
-            if name not in variables:
-                problems.append(f"{component.location}: connector '{name}' is not a "
-                                f"variable of {component.source.name}")
-            elif variables[name].type not in NUMERIC:
+            if name in variables and variables[name].type not in NUMERIC:
                 problems.append(f"{component.location}: connector '{name}' is a "
                                 f"{variables[name].type}, which dsim cannot record")
         result[component.path] = [n for n in declared if n in variables
@@ -115,6 +114,40 @@ def _records(scene: Scene, usable: dict, problems: list) -> dict[str, list[str]]
             n for n, v in variables.items() if v.causality == "output" and v.type in NUMERIC
             and n.split(".")[-1][:2] not in ("u_", "v_", "a_")]
     return result
+
+
+def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
+    """Every declared connector of a component is a variable of its FMU, of the same
+    causality, type and (where both say one) unit dimension."""
+    for component in scene.components:
+        variables = usable.get(component.path)
+        if variables is None:
+            continue
+        units = None
+        for connector in component.connectors:
+            where = f"{component.location}: connector '{connector.name}'"
+            variable = variables.get(connector.name)
+            if variable is None:
+                problems.append(f"{where} is not a variable of {component.source.name}")
+                continue
+            if connector.kind and connector.kind != variable.causality:
+                problems.append(f"{where} is declared {connector.kind}, but the FMU's "
+                                f"variable is {variable.causality}")
+            if connector.type and connector.type != TYPES.get(variable.type, variable.type):
+                problems.append(f"{where} is declared {connector.type}, but the FMU's "
+                                f"variable is {variable.type}")
+            declared = variable_unit(variable)
+            if connector.unit and declared and connector.unit != declared:
+                units = units or {**fmu_units(component.source), **scene.units}
+                known = (units.get(connector.unit), units.get(declared))
+                try:
+                    if None not in known:
+                        conversion(*known)
+                    warnings.append(f"{where} has unit '{connector.unit}', its FMU variable "
+                                    f"'{declared}': connections convert from the "
+                                    "connector's unit")
+                except ValueError as error:
+                    problems.append(f"{where}: its unit and the FMU variable's: {error}")
 
 
 def _check_parameters(scene: Scene, usable: dict, problems: list) -> None:
@@ -229,14 +262,16 @@ def _passes(paths: list[str], links) -> int:
 def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem."""
-    problems = check_span(scene.start_time, scene.stop_time, scene.master.step,
-                          f"{scene.file}: DefaultExperiment")
+    problems = list(scene.problems) + check_span(
+        scene.start_time, scene.stop_time, scene.master.step, f"{scene.file}: DefaultExperiment")
     coupling = scene.master.coupling
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
                         f"{len(scene.joints)} joints: use iterative or explicit")
     usable = _usable(scene, problems)
     ports = component_ports(scene, problems, usable)
+    warnings = []
+    _check_connectors(scene, usable, problems, warnings)
     _check_parameters(scene, usable, problems)
     _capabilities(scene, usable, problems)
     records = _records(scene, usable, problems)
@@ -249,7 +284,9 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
         fed[link.end] = link.start
     sides = _sides(scene, ports, problems)
     if problems:
-        raise InputError(list(dict.fromkeys(problems)))
+        error = InputError(list(dict.fromkeys(problems)))
+        error.warnings = warnings
+        raise error
     paths = [c.path for c in scene.components]
     _, _, interfaces = assemble(paths, list(scene.joints), sides)
     reads = {p: list(records[p]) for p in paths}
@@ -273,7 +310,6 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
         kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]))
         for c in scene.components)
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
-    warnings = []
     if not scene.experiment:
         warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
                         f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "

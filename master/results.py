@@ -3,6 +3,8 @@ that :func:`dsim.simulate` returns, reading a results CSV back, and plots."""
 from __future__ import annotations
 
 import csv
+import io
+import re
 import signal as signals_module
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -119,6 +121,63 @@ def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) 
     if title:
         axes[0, 0].set_title(title)
     save_figure(figure, png_path)
+
+
+def plot_overlay(results: dict, names: list[str], png_path, title: str = "") -> None:
+    """One panel per signal of ``names`` (at most eight), each with one curve per
+    result (``results``: label -> signals), for comparing runs."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = names[:8]
+    figure, axes = plt.subplots(len(names), 1, sharex=True, squeeze=False,
+                                figsize=(8, 2.4 * len(names) + 0.6))
+    for axis, name in zip(axes[:, 0], names):
+        for label, signals in results.items():
+            if name in signals:
+                axis.plot(signals["time"], signals[name], label=label)
+        axis.set_ylabel(name, fontsize=8)
+        axis.grid(True, alpha=0.3)
+        axis.legend(fontsize=8, loc="best")
+    axes[-1, 0].set_xlabel("time (s)")
+    if title:
+        axes[0, 0].set_title(title)
+    save_figure(figure, png_path)
+
+
+def matlab_names(columns) -> list[str]:
+    """Valid, distinct MATLAB identifiers for column names (``right.x[2]`` ->
+    ``right_x_2``)."""
+    result, seen = [], set()
+    for column in columns:
+        name = re.sub(r"[^0-9A-Za-z_]", "_", column).strip("_") or "signal"
+        if not name[0].isalpha():
+            name = "s_" + name
+        name = name[:60]
+        candidate, k = name, 2
+        while candidate in seen:
+            candidate, k = f"{name}_{k}", k + 1
+        seen.add(candidate)
+        result.append(candidate)
+    return result
+
+
+def mat_bytes(signals: dict) -> bytes:
+    """A MATLAB .mat (version 5) file of the signals: ``time``, ``data`` (one column
+    per signal), ``names`` (the column names) and a struct ``signals`` with one field
+    per signal (names made valid identifiers)."""
+    from scipy.io import savemat
+
+    names = [n for n in signals if n != "time"]
+    data = (np.column_stack([signals[n] for n in names]) if names
+            else np.zeros((len(signals["time"]), 0)))
+    content = {"time": np.asarray(signals["time"], float), "data": data,
+               "names": np.array(names, dtype=object),
+               "signals": dict(zip(matlab_names(names), (signals[n] for n in names)))}
+    buffer = io.BytesIO()
+    savemat(buffer, content, do_compression=True, oned_as="column")
+    return buffer.getvalue()
 
 
 def plot_results(csv_path, png_path, title: str = "", max_curves: int = 8) -> None:

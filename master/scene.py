@@ -149,6 +149,9 @@ class Scene:
     units: dict = field(default_factory=dict)
     #: whether start and stop time came from a DefaultExperiment (else dsim's defaults)
     experiment: bool = True
+    #: what the reader found wrong (a scene read with ``strict=False``: the plan adds
+    #: its own findings and raises them all)
+    problems: tuple[str, ...] = ()
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

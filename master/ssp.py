@@ -274,8 +274,10 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
     return start, stop, settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
 
 
-def load_scene(path, parameter_sets=()) -> Scene:
-    """Read and check an SSP system; raise InputError listing every problem.
+def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
+    """Read and check an SSP system; raise InputError listing every problem (or, not
+    ``strict``, keep the problems in ``Scene.problems`` when the system could still be
+    read, so that the plan's checks can add theirs).
 
     ``parameter_sets``: parameter sets applied on top of every binding of the scene,
     as if bound to the root system last: each an .ssv file of the scene (its path in
@@ -298,12 +300,13 @@ def load_scene(path, parameter_sets=()) -> Scene:
     start, stop, master = _master_settings(root, shown, reader.problems)
     scene_units = units(root, shown, reader.problems)
     _check_references(reader, components, connections)
-    if reader.problems:
-        raise InputError(list(dict.fromkeys(reader.problems)))
+    problems = tuple(dict.fromkeys(reader.problems))
+    if problems and strict:
+        raise InputError(list(problems))
     name = root.get("name") or path.stem
     return Scene(name, path, start, stop, tuple(components), tuple(connections),
                  tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
-                 scene_units, root.find("ssd:DefaultExperiment", NS) is not None)
+                 scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems)
 
 
 def _check_references(reader: _Reader, components, connections) -> None:

@@ -1,0 +1,114 @@
+"""The CI tools: `dsim validate` (every check of a run, one line per finding) and
+`dsim regress` (every shipped scene against its stored baseline, JUnit report)."""
+import json
+import shutil
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree
+
+import pytest
+
+from master.cli import main
+from tests.test_ssp_interop import block, connection, connectors, system, write_scene
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_validate_says_every_finding_in_one_line_each(block_fmus, tmp_path, capsys):
+    bad = system(
+        block("b1", inside=connectors(("nope", "output", "Real", None),
+                                      ("u", "output", "Real", None),
+                                      ("count", "output", "Real", None)))
+        + block("b2", "resources/missing.fmu"),
+        connection("b1", "y", "b1", "extra"))
+    folder = write_scene(tmp_path / "bad", bad, {"block.fmu": block_fmus["state"]})
+    assert main(["validate", str(folder)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    expected = ["Component 'b2'", "FMU 'resources/missing.fmu' not found"]
+    assert any(all(part in line for part in expected) for line in lines)
+    for text in ("connector 'nope' is not a variable of block.fmu",
+                 "connector 'u' is declared output, but the FMU's variable is input",
+                 "connector 'count' is declared Real, but the FMU's variable is Integer",
+                 "connects a Real 'b1.y' to a Integer 'b1.extra'"):
+        assert sum(text in line for line in lines) == 1, text
+    assert all(line.startswith("dsim: error: ") for line in lines)
+    assert all("SystemStructure.ssd line" in line for line in lines)  # where, each time
+
+
+def test_validate_passes_every_shipped_scene(built, capsys):
+    for archive in sorted(built["ssp"].glob("*.ssp")):
+        assert main(["validate", str(archive)]) == 0, archive
+    assert capsys.readouterr().out.count(": valid: ") == len(list(built["ssp"].glob("*.ssp")))
+
+
+def test_every_shipped_scene_matches_its_baseline(built, tmp_path, capsys):
+    """The repository's baselines (regression/baselines): a regression check of dsim
+    itself, and what docs/ci.md tells users to run."""
+    report = tmp_path / "report.xml"
+    code = main(["regress", str(built["ssp"]), "--baselines",
+                 str(ROOT / "regression" / "baselines"), "--junit", str(report)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    suite = ElementTree.parse(report).getroot().find("testsuite")
+    names = {case.get("name") for case in suite.iter("testcase")}
+    assert names == {path.stem for path in built["ssp"].glob("*.ssp")}
+    assert suite.get("failures") == "0" and suite.get("errors") == "0"
+
+
+def regress_folder(built, tmp_path) -> Path:
+    """A scene folder with spring_mass_linear and a baseline made by --update."""
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    shutil.copy(built["ssp"] / "spring_mass_linear.ssp", scenes)
+    shutil.copy(built["ssp"] / "chain_10.ssp", scenes)  # no baseline: not run
+    baselines = scenes / "baselines"
+    baselines.mkdir()
+    (baselines / "spring_mass_linear.json").write_text(json.dumps(
+        {"settings": {"stop": 0.5}, "rtol": 1e-6}))
+    assert main(["regress", str(scenes), "--update"]) == 0
+    return scenes
+
+
+def test_regress_finds_a_regression_and_reports_it(built, tmp_path, capsys):
+    scenes = regress_folder(built, tmp_path)
+    baseline = scenes / "baselines" / "spring_mass_linear.csv"
+    header, *rows = baseline.read_text().splitlines()
+    assert len(rows) == 51
+    assert main(["regress", str(scenes)]) == 0
+    out = capsys.readouterr().out
+    assert "spring_mass_linear" in out and "passed" in out
+    assert "without a baseline (not run): chain_10" in out
+    # the stored baseline drifts from t = 0.3 s: the run no longer matches it
+    column = header.split(",").index("right.x[2]")
+    edited = []
+    for k, row in enumerate(rows):
+        values = row.split(",")
+        if k >= 30:
+            values[column] = repr(float(values[column]) + 1e-3 * (k - 29))
+        edited.append(",".join(values))
+    baseline.write_text("\n".join([header] + edited) + "\n")
+    report = tmp_path / "report.xml"
+    assert main(["regress", str(scenes), "--junit", str(report),
+                 "--results", str(tmp_path / "runs")]) == 1
+    err = capsys.readouterr().err
+    assert "spring_mass_linear: regressed: right.x[2]: outside the band from t = 0.3 s, " \
+           "worst at t = 0.5 s" in err
+    failure = ElementTree.parse(report).getroot().find("testsuite/testcase/failure")
+    assert failure is not None and "right.x[2]" in failure.get("message")
+    assert (tmp_path / "runs" / "spring_mass_linear.csv").is_file()  # kept for a look
+
+
+def test_regress_refuses_a_folder_without_baselines(built, tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    assert main(["regress", str(tmp_path / "empty")]) == 2
+    assert "no scene has a baseline" in capsys.readouterr().err
+
+
+def test_compare_reports_a_run_that_ends_early(built, tmp_path, capsys):
+    full, short = tmp_path / "full.csv", tmp_path / "short.csv"
+    assert main(["run", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "0.5",
+                 "--out", str(full), "--quiet"]) == 0
+    assert main(["run", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "0.3",
+                 "--out", str(short), "--quiet"]) == 0
+    assert main(["compare", str(short), str(full)]) == 1
+    assert "ends at t = 0.3 s, before the reference (0.5 s)" in capsys.readouterr().err
