@@ -144,7 +144,7 @@ def _cmd_plot(args) -> int:
     from fnmatch import fnmatch
 
     from master.output_files import write_whole
-    from master.results import plot_overlay, read_csv
+    from master.results import plot_overlay, read_columns
 
     files = [Path(a) for a in args.items if a.lower().endswith(".csv")]
     patterns = [a for a in args.items if not a.lower().endswith(".csv")]
@@ -152,9 +152,9 @@ def _cmd_plot(args) -> int:
         raise InputError("dsim plot: give at least one results CSV")
     results = {}
     for path in files:
-        header, data = read_csv(path)
         label = path.stem if path.stem not in results else str(path)
-        results[label] = {name: data[:, i] for i, name in enumerate(header)}
+        results[label] = {name: values for name, values in read_columns(path).items()
+                          if values.dtype != object}  # text columns have no curve
     columns = list(dict.fromkeys(n for signals in results.values() for n in signals
                                  if n != "time"))
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from master.errors import InputError
-from master.results import read_csv
+from master.results import read_columns
 
 
 @dataclass(frozen=True)
@@ -58,11 +58,20 @@ class Comparison:
         return [d for d in self.differences if not d.passed]
 
 
-def _read(path) -> tuple[list[str], np.ndarray]:
-    header, data = read_csv(path)  # InputError for anything that is not a whole results CSV
-    if len(data) == 0:
+def _read(path) -> dict[str, np.ndarray]:
+    columns = read_columns(path)  # InputError for anything that is not a whole results CSV
+    if len(columns["time"]) == 0:
         raise InputError(f"{path}: not a dsim results CSV (no rows)")
-    return header, data
+    return columns
+
+
+def _text_column(name: str, times, values, reference) -> ColumnDifference:
+    """A column of String values: equal at every shared time, or the first place
+    (time, -, -) where it is not; ``max_difference`` counts the differing rows."""
+    count = min(len(values), len(reference))
+    differ = [k for k in range(count) if values[k] != reference[k]]
+    first = (float(times[differ[0]]), float("nan"), float("nan")) if differ else None
+    return ColumnDifference(name, float(len(differ)), 0.0, 0.0, first, first)
 
 
 def _column(name: str, times, values, reference, rtol: float, atol: float) -> ColumnDifference:
@@ -84,21 +93,22 @@ def _column(name: str, times, values, reference, rtol: float, atol: float) -> Co
 def compare_files(result, reference, columns=None, rtol: float = 1e-6,
                   atol: float = 0.0) -> Comparison:
     """The comparison of the chosen (default: every common) column."""
-    header, data = _read(result)
-    ref_header, ref_data = _read(reference)
-    common = [c for c in header[1:] if c in ref_header[1:]]
+    ours, theirs = _read(result), _read(reference)
+    common = [c for c in list(ours)[1:] if c in theirs]
     chosen = list(columns) if columns else common
     missing = [c for c in chosen if c not in common]
     if missing or not chosen:
         raise InputError(f"{result}: columns not in both files: {', '.join(missing) or 'none'}")
-    times, ref_times = data[:, 0], ref_data[:, 0]
+    times, ref_times = ours["time"], theirs["time"]
     inside = (times >= ref_times[0] - 1e-12) & (times <= ref_times[-1] + 1e-12)
     same_grid = len(times) <= len(ref_times) and np.allclose(
         times, ref_times[:len(times)], rtol=1e-12, atol=1e-15)
     comparison = Comparison([], float(times[-1]), float(ref_times[-1]))
     for name in chosen:
-        values = data[:, header.index(name)]
-        ref_values = ref_data[:, ref_header.index(name)]
+        values, ref_values = ours[name], theirs[name]
+        if values.dtype == object or ref_values.dtype == object:
+            comparison.differences.append(_text_column(name, times, values, ref_values))
+            continue
         if same_grid:
             ref_values, at = ref_values[:len(times)], times
         else:

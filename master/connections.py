@@ -19,7 +19,8 @@ from master.errors import SimulationError
 from master.units import conversion, fmu_units, variable_unit
 
 #: FMI types a connection or a recorded column carries, and the kind each moves as
-KINDS = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean"}
+KINDS = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+         "String": "String"}
 
 
 @dataclass(frozen=True)
@@ -115,7 +116,12 @@ def check_connections(scene, usable: dict, problems: list) -> list[Link]:
                             f"'{'.'.join(connection.start)}' to a {ends[1].type} "
                             f"'{'.'.join(connection.end)}'")
             continue
-        if kinds[0] == "Real":
+        if kinds[0] == "String":
+            if connection.transformations:
+                problems.append(f"{where}: a transformation on a String connection")
+            links.append(Link(connection.start, connection.end, "String",
+                              every_step=_every_step(ends[1])))
+        elif kinds[0] == "Real":
             for path in (connection.start[0], connection.end[0]):
                 if path not in units_of:
                     component = scene.component(path)
@@ -176,6 +182,27 @@ class Transfer:
                 factor.extend(self.factor[start:stop])
                 offset.extend(self.offset[start:stop])
         return Transfer(gather, factor, offset, targets, kept)
+
+
+class TextTransfer:
+    """String values for String connections: ``texts[gather]``, split per receiving
+    subsystem (``targets``: (subsystem index, start, stop))."""
+
+    def __init__(self, gather, targets):
+        self.gather = list(gather)
+        self.targets = tuple(targets)
+        self.size = len(self.gather)
+
+    def inputs(self, texts: list[str]) -> list[tuple[int, list[str]]]:
+        values = [texts[k] for k in self.gather]
+        return [(index, values[start:stop]) for index, start, stop in self.targets]
+
+
+def build_text_transfer(components: list[str], reads: dict[str, list[str]],
+                        links: list[Link]) -> tuple[TextTransfer, dict[str, list[str]]]:
+    """The String counterpart of :func:`build_transfer`."""
+    transfer, writes = build_transfer(components, reads, links)
+    return TextTransfer(transfer.gather.tolist(), transfer.targets), writes
 
 
 def build_transfer(components: list[str], reads: dict[str, list[str]],

@@ -109,13 +109,15 @@ class Execution:
         self._wall_start = clock.perf_counter()
         self._stepped = [observer.stepped for observer in self.observers]
         plan = self.plan
+        self._texts: list[str] = []
+        self._text_reads = any(spec.text_reads for spec in plan.specs)
         layout, joints = plan.assemble()
         self._columns = tuple(plan.columns) + tuple(layout.labels)
         self._record_all = np.array_equal(plan.record_index, np.arange(sum(
             len(spec.reads) for spec in plan.specs)))
         info = RunInfo(self.scene.name, self.scene.file, self._columns, self.scene.start_time,
                        self.scene.stop_time, self.settings.step, self.planned_steps,
-                       plan.coupling, plan.backend, tuple(plan.inputs))
+                       plan.coupling, plan.backend, tuple(plan.inputs), plan.text_columns)
         started = []
         try:
             for observer in self.observers:
@@ -137,9 +139,10 @@ class Execution:
             self.warn(message)
         self._phases["setup"] = clock.perf_counter() - self._wall_start
         try:
+            self._read_texts()
             row = self._row()
             self._check_finite(row)
-            self._notify("stepped", StepRecord(0, self.time, row))
+            self._notify("stepped", StepRecord(0, self.time, row, texts=self._recorded_texts()))
         except SimulationError as error:
             self._fail(error.located(0, self.time))
         except OutputError as error:
@@ -155,6 +158,21 @@ class Execution:
         for _ in range(self.plan.start_passes):
             outputs = np.concatenate(self.backend.read_outputs())
             self.backend.write_inputs(transfer.inputs(outputs), start=True)
+            self._read_texts()
+            self._write_texts()
+
+    # --- String values: moved and recorded around the coupling's numeric step ----
+    def _read_texts(self) -> None:
+        if self._text_reads:
+            self._texts = [text for texts in self.backend.read_texts() for text in texts]
+
+    def _write_texts(self) -> None:
+        transfer = self.plan.text_transfer
+        if transfer is not None and transfer.size:
+            self.backend.write_texts(transfer.inputs(self._texts))
+
+    def _recorded_texts(self) -> tuple[str, ...]:
+        return tuple(self._texts[i] for i in self.plan.text_index)
 
     def _initialize(self, layout, joints) -> None:
         plan, settings = self.plan, self.settings
@@ -243,14 +261,17 @@ class Execution:
         end = self.step_time(index + 1)
         size = self.settings.step if index + 1 < self.planned_steps else self._step_size(index)
         try:
+            if self._text_reads:
+                self._write_texts()
             report = self.coupling.step(time, size, index + 1)
+            self._read_texts()
             self.index, self.time = index + 1, end
             row = self._row()
             self._check_finite(row)
             self._phases["steps"] += clock.perf_counter() - started
             self._iterations.append(report.iterations)
             record = StepRecord(self.index, end, row, report.iterations, report.refreshed,
-                                report.residual)
+                                report.residual, self._recorded_texts())
             for stepped in self._stepped:
                 stepped(record)
         except SimulationError as error:

@@ -99,6 +99,10 @@ class SubsystemSpec:
     #: the variables connections set at initialization (``writes`` and the fixed
     #: parameters connections feed)
     start_writes: tuple[str, ...] = ()
+    #: String variables read after every step (recorded, or feeding a connection), and
+    #: the String inputs connections set
+    text_reads: tuple[str, ...] = ()
+    text_writes: tuple[str, ...] = ()
 
 
 class _Call:
@@ -159,6 +163,30 @@ class _Batch:
     @staticmethod
     def _as_boolean(values):
         return np.asarray(values) != 0
+
+
+class _Strings:
+    """String variables read or written in one call (fmi2GetString / fmi2SetString)."""
+
+    def __init__(self, owner: "FmuSubsystem", vrs):
+        self.size = len(vrs)
+        self.count = ctypes.c_size_t(self.size)
+        self.vrs = (fmi2ValueReference * self.size)(*vrs)
+        self.values = (ctypes.c_char_p * self.size)()
+        self.get = owner.call("fmi2GetString") if self.size else None
+        self.set = owner.call("fmi2SetString") if self.size else None
+
+    def read(self) -> list[str]:
+        if not self.size:
+            return []
+        self.get(self.vrs, self.count, self.values)
+        return [(v or b"").decode("utf-8", "replace") for v in self.values]
+
+    def write(self, texts) -> None:
+        if self.size:
+            for i, text in enumerate(texts):
+                self.values[i] = str(text).encode("utf-8")
+            self.set(self.vrs, self.count, self.values)
 
 
 def _batches(owner, variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
@@ -231,6 +259,9 @@ class FmuSubsystem(Subsystem):
         self._write_direct = (self._writes[0] if len(self._writes) == 1
                               and self._writes[0].kind == "Real" else None)
         self._start_writes = _batches(self, [variables[n] for n in spec.start_writes])
+        self._texts_in = _Strings(self, [variables[n].valueReference for n in spec.text_reads])
+        self._texts_out = _Strings(self, [variables[n].valueReference
+                                          for n in spec.text_writes])
         self._do_step = self.call("fmi2DoStep")
         self._step_size = ctypes.c_double(0.0)
         self._get_state = self.call("fmi2GetFMUstate")
@@ -348,6 +379,12 @@ class FmuSubsystem(Subsystem):
         for batch, places in zip(self._reads, self._read_places):
             self._read_values[places] = batch.read()
         return self._read_values.copy()
+
+    def read_texts(self) -> list[str]:
+        return self._texts_in.read()
+
+    def write_texts(self, values) -> None:
+        self._texts_out.write(values)
 
     def write_start_inputs(self, values) -> None:
         """Set what connections feed at initialization (``spec.start_writes`` order)."""

@@ -38,12 +38,15 @@ class RunInfo:
     coupling: str
     backend: str
     inputs: tuple = ()
+    #: columns of the recorded String outputs (``StepRecord.texts``), after ``columns``
+    text_columns: tuple[str, ...] = ()
 
 
 class StepRecord(NamedTuple):
     """One converged macro step (index 0: the start time, nothing stepped):
     ``values`` in the order of ``RunInfo.columns``; Newton iterations, flexibility
-    refreshes and the largest residual left (units of the joints' measure)."""
+    refreshes and the largest residual left (units of the joints' measure); the
+    recorded String outputs in the order of ``RunInfo.text_columns``."""
 
     index: int
     time: float
@@ -51,6 +54,12 @@ class StepRecord(NamedTuple):
     iterations: int = 0
     refreshed: int = 0
     residual: float = 0.0
+    texts: tuple[str, ...] = ()
+
+
+def _quoted(text: str) -> str:
+    """A CSV field for a String value: always quoted, quotes doubled (RFC 4180)."""
+    return '"' + text.replace('"', '""') + '"'
 
 
 class Observer:
@@ -95,11 +104,12 @@ class CsvRecorder(Observer):
     def started(self, info: RunInfo) -> None:
         self.output = OutputFile(self.path, info.inputs)
         self.output.open()
-        self.output.append((",".join(("time",) + info.columns) + "\n").encode())
+        self.output.append((",".join(("time",) + info.columns + info.text_columns)
+                            + "\n").encode())
         self._flushed_at = clock.monotonic()
 
     def stepped(self, record: StepRecord) -> None:
-        self._pending.append((record.time, record.values))
+        self._pending.append((record.time, record.values, record.texts))
         self.rows += 1
         if clock.monotonic() - self._flushed_at >= self.flush_seconds:
             self.flush()
@@ -108,8 +118,9 @@ class CsvRecorder(Observer):
         """Write the pending rows (whole rows, or none of them: OutputError)."""
         if self._pending:
             # repr: the shortest text that reads back as the same double
-            text = "".join(f"{time!r},{','.join(map(repr, values.tolist()))}\n"
-                           if len(values) else f"{time!r}\n" for time, values in self._pending)
+            text = "".join(",".join([repr(time)] + list(map(repr, values.tolist()))
+                                    + [_quoted(t) for t in texts]) + "\n"
+                           for time, values, texts in self._pending)
             self._pending = []
             self.output.append(text.encode(), separator=b"\n")
         self._flushed_at = clock.monotonic()
@@ -162,12 +173,16 @@ class MemoryRecorder(Observer):
 
     def started(self, info: RunInfo) -> None:
         self.columns = info.columns
+        self.text_columns = info.text_columns
         self.times: list[float] = []
         self.rows = []
+        self.texts = []
 
     def stepped(self, record: StepRecord) -> None:
         self.times.append(record.time)
         self.rows.append(record.values)  # a new array every step: kept, not copied
+        if record.texts:
+            self.texts.append(record.texts)
 
     def finished(self, result) -> None:
         if result._signals is None:
@@ -178,6 +193,8 @@ class MemoryRecorder(Observer):
         data = np.array(self.rows).reshape(-1, len(self.columns))
         signals = {"time": np.array(self.times)}
         signals.update({name: data[:, i] for i, name in enumerate(self.columns)})
+        for i, name in enumerate(self.text_columns):
+            signals[name] = np.array([row[i] for row in self.texts], dtype=object)
         return signals
 
 

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from master.assembly import assemble
-from master.connections import Transfer, build_transfer, check_connections
+from master.connections import (Transfer, build_text_transfer, build_transfer,
+                                check_connections)
 from master.errors import InputError
 from master.fmu import SubsystemSpec, can_save_state
 from master.fmu_archive import fmu_problem
@@ -56,6 +57,16 @@ class Plan:
     #: the explicit coupling glues a component that cannot save its state: the
     #: interface flexibility comes from the start accelerations (no rollback)
     flexibility_at_start: bool = False
+    #: String outputs recorded (component, variable), where each is in the run's flat
+    #: list of String values, and the String connections (applied at every step)
+    text_recorded: tuple[tuple[str, str], ...] = ()
+    text_index: tuple[int, ...] = ()
+    text_transfer: object = None
+
+    @property
+    def text_columns(self) -> tuple[str, ...]:
+        """CSV columns of the recorded String outputs (after every numeric column)."""
+        return tuple(f"{path}.{name}" for path, name in self.text_recorded)
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -96,24 +107,21 @@ def _usable(scene: Scene, problems: list) -> dict:
     return usable
 
 
-def _records(scene: Scene, usable: dict, problems: list) -> dict[str, list[str]]:
-    """Outputs to record per component: its declared output connectors, else every
-    numeric output of its FMU that is not port kinematics."""
-    result = {}
+def _records(scene: Scene, usable: dict) -> tuple[dict, dict]:
+    """Outputs to record per component, numeric and String: its declared output
+    connectors, else every output of its FMU that is not port kinematics."""
+    numbers, texts = {}, {}
     for component in scene.components:
         variables = usable.get(component.path)
         if variables is None:
             continue
-        declared = [c.name for c in component.connectors if c.kind == "output"]
-        for name in declared:
-            if name in variables and variables[name].type not in NUMERIC:
-                problems.append(f"{component.location}: connector '{name}' is a "
-                                f"{variables[name].type}, which dsim cannot record")
-        result[component.path] = [n for n in declared if n in variables
-                                  and variables[n].type in NUMERIC] or [
-            n for n, v in variables.items() if v.causality == "output" and v.type in NUMERIC
-            and n.split(".")[-1][:2] not in ("u_", "v_", "a_")]
-    return result
+        declared = [c.name for c in component.connectors
+                    if c.kind == "output" and c.name in variables]
+        chosen = declared or [n for n, v in variables.items() if v.causality == "output"
+                              and n.split(".")[-1][:2] not in ("u_", "v_", "a_")]
+        numbers[component.path] = [n for n in chosen if variables[n].type in NUMERIC]
+        texts[component.path] = [n for n in chosen if variables[n].type == "String"]
+    return numbers, texts
 
 
 def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
@@ -274,7 +282,7 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     _check_connectors(scene, usable, problems, warnings)
     _check_parameters(scene, usable, problems)
     _capabilities(scene, usable, problems)
-    records = _records(scene, usable, problems)
+    records, text_records = _records(scene, usable)
     links = check_connections(scene, usable, problems)
     fed: dict = {}
     for link in links:
@@ -289,13 +297,18 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
         raise error
     paths = [c.path for c in scene.components]
     _, _, interfaces = assemble(paths, list(scene.joints), sides)
+    numbers = [link for link in links if link.kind != "String"]
+    texts = [link for link in links if link.kind == "String"]
     reads = {p: list(records[p]) for p in paths}
+    text_reads = {p: list(text_records[p]) for p in paths}
     for link in links:
-        if link.start[1] not in reads[link.start[0]]:
-            reads[link.start[0]].append(link.start[1])
-    transfer, writes = build_transfer(paths, reads, [link for link in links
+        read = text_reads if link.kind == "String" else reads
+        if link.start[1] not in read[link.start[0]]:
+            read[link.start[0]].append(link.start[1])
+    transfer, writes = build_transfer(paths, reads, [link for link in numbers
                                                      if link.every_step])
-    start_transfer, start_writes = build_transfer(paths, reads, links)
+    start_transfer, start_writes = build_transfer(paths, reads, numbers)
+    text_transfer, text_writes = build_text_transfer(paths, text_reads, texts)
     recorded, record_index, offset = [], [], 0
     for path in paths:
         for i, name in enumerate(reads[path]):
@@ -307,8 +320,11 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
     specs = tuple(SubsystemSpec(
         c.path, c.source, tuple(interfaces[c.path]), dict(c.parameters), tuple(reads[c.path]),
         tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
-        kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]))
-        for c in scene.components)
+        kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
+        tuple(text_reads[c.path]), tuple(text_writes[c.path])) for c in scene.components)
+    text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
+    text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
+                  text_reads[p].index(n) for p, n in text_recorded]
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
     if not scene.experiment:
         warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
@@ -318,4 +334,5 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
                 ports, start_transfer, _passes(paths, links), tuple(warnings),
                 bool(scene.joints) and coupling == "explicit" and any(
-                    not can_save_state(scene.components[i].source) for i in glued))
+                    not can_save_state(scene.components[i].source) for i in glued),
+                text_recorded, tuple(text_index), text_transfer)

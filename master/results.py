@@ -60,18 +60,16 @@ class RunResult:
         if callable(self._signals):
             self._signals = self._signals()
         if self._signals is None and "csv" in self.files:
-            header, data = read_csv(self.files["csv"])
-            self._signals = {name: data[:, i] for i, name in enumerate(header)}
+            self._signals = read_columns(self.files["csv"])
         return self._signals or {}
 
     def __getitem__(self, column: str) -> np.ndarray:
         return self.signals[column]
 
 
-def read_csv(path) -> tuple[list[str], np.ndarray]:
-    """Column names and the data of a results CSV (rows x columns); InputError for a
-    file that is not one (no ``time`` column, a row of the wrong length, a last row
-    cut short, a value that is not a number)."""
+def _table(path) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of a results CSV, checked: InputError for a file that is not
+    one (no ``time`` column, a row of the wrong length, a last row cut short)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -80,20 +78,42 @@ def read_csv(path) -> tuple[list[str], np.ndarray]:
     if text and not text.endswith("\n"):
         raise InputError(f"{path}: the last row is incomplete (no line end): the file was "
                          "cut short while it was written")
-    rows = list(csv.reader(text.splitlines()))
+    rows = list(csv.reader(io.StringIO(text)))
     if not rows or not rows[0] or rows[0][0] != "time":
         raise InputError(f"{path}: not a dsim results CSV (no 'time' column)")
-    header = rows[0]
-    values = []
     for number, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
+        if len(row) != len(rows[0]):
             raise InputError(f"{path} line {number}: {len(row)} values for "
-                             f"{len(header)} columns")
+                             f"{len(rows[0])} columns")
+    return rows[0], rows[1:]
+
+
+def read_columns(path) -> dict[str, np.ndarray]:
+    """Every column of a results CSV over time: numbers as float arrays, the columns
+    of String outputs as arrays of str."""
+    header, rows = _table(path)
+    columns = {}
+    for i, name in enumerate(header):
+        values = [row[i] for row in rows]
         try:
-            values.append([float(v) for v in row])
-        except ValueError as error:
-            raise InputError(f"{path} line {number}: {error}") from None
-    return header, np.array(values, dtype=float).reshape(-1, len(header))
+            columns[name] = np.array([float(v) for v in values], dtype=float)
+        except ValueError:
+            if name == "time":
+                raise InputError(f"{path}: a time that is not a number") from None
+            columns[name] = np.array(values, dtype=object)
+    return columns
+
+
+def read_csv(path) -> tuple[list[str], np.ndarray]:
+    """Column names and the data of a results CSV of numbers (rows x columns);
+    InputError for a file that is not one (see :func:`read_columns` for a CSV with
+    String columns)."""
+    columns = read_columns(path)
+    texts = [name for name, values in columns.items() if values.dtype == object]
+    if texts:
+        raise InputError(f"{path}: columns {', '.join(texts)} hold text, not numbers")
+    header = list(columns)
+    return header, np.column_stack([columns[n] for n in header]).reshape(-1, len(header))
 
 
 def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) -> None:
@@ -104,7 +124,7 @@ def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) 
     import matplotlib.pyplot as plt
 
     time = signals["time"]
-    names = [n for n in signals if n != "time"]
+    names = [n for n in signals if n != "time" and signals[n].dtype != object]
     forces = [n for n in names if ".f_" in n]
     outputs = [n for n in names if n not in forces]
     panels = [(columns, label) for columns, label in
@@ -165,16 +185,18 @@ def matlab_names(columns) -> list[str]:
 
 def mat_bytes(signals: dict) -> bytes:
     """A MATLAB .mat (version 5) file of the signals: ``time``, ``data`` (one column
-    per signal), ``names`` (the column names) and a struct ``signals`` with one field
-    per signal (names made valid identifiers)."""
+    per numeric signal), ``names`` (their column names) and a struct ``signals`` with
+    one field per signal, String ones as cell arrays (names made valid identifiers)."""
     from scipy.io import savemat
 
-    names = [n for n in signals if n != "time"]
+    names = [n for n in signals if n != "time" and signals[n].dtype != object]
+    texts = [n for n in signals if signals[n].dtype == object]
     data = (np.column_stack([signals[n] for n in names]) if names
             else np.zeros((len(signals["time"]), 0)))
     content = {"time": np.asarray(signals["time"], float), "data": data,
                "names": np.array(names, dtype=object),
-               "signals": dict(zip(matlab_names(names), (signals[n] for n in names)))}
+               "signals": dict(zip(matlab_names(names + texts),
+                                   [signals[n] for n in names + texts]))}
     buffer = io.BytesIO()
     savemat(buffer, content, do_compression=True, oned_as="column")
     return buffer.getvalue()

@@ -69,6 +69,13 @@ class Subsystem(ABC):
     def write_inputs(self, values: np.ndarray) -> None:
         """Set the inputs that causal connections feed (in the subsystem's order)."""
 
+    def read_texts(self) -> list[str]:
+        """Values of the String variables the subsystem reads after every step."""
+        return []
+
+    def write_texts(self, values) -> None:
+        """Set the String inputs that connections feed."""
+
     def write_start_inputs(self, values: np.ndarray) -> None:
         """Set what connections feed at initialization (fixed parameters too)."""
         self.write_inputs(values)

@@ -3,6 +3,7 @@ and Boolean connections, mapping transformations, units, parameter bindings at
 every level with mappings and prefixes, system connectors across levels,
 connections applied at initialization, FMI's rules on start values, capabilities,
 and FMUs dsim does not run.  Results against the blocks' exact update."""
+import html
 import math
 import shutil
 import zipfile
@@ -52,8 +53,9 @@ def values(**parameters) -> str:
     rows = []
     for key, value in parameters.items():
         kind = ("Boolean" if isinstance(value, bool) else "Integer" if isinstance(value, int)
-                else "Real")
-        text = str(value).lower() if isinstance(value, bool) else repr(value)
+                else "String" if isinstance(value, str) else "Real")
+        text = (str(value).lower() if isinstance(value, bool)
+                else html.escape(value) if isinstance(value, str) else repr(value))
         rows.append(f'<ssv:Parameter name="{key}"><ssv:{kind} value="{text}"/></ssv:Parameter>')
     return ('<ssv:ParameterSet version="1.0" name="set"><ssv:Parameters>' + "".join(rows)
             + "</ssv:Parameters></ssv:ParameterSet>")
@@ -120,6 +122,28 @@ def test_integer_and_boolean_connections(fmus, tmp_path):
     b2 = lag(50, 1.0, lambda n, y: GAIN * n)  # extra = b1's count at the step start
     assert np.max(np.abs(result["b1.y"] - b1)) < 1e-15
     assert np.max(np.abs(result["b2.y"] - b2)) < 1e-14
+
+
+def test_string_parameters_connections_and_columns(fmus, tmp_path):
+    """b1.status ("label:note:count", a String output) feeds b2.note; both statuses are
+    CSV columns, read back as text, and kept in the .mat file."""
+    folder = write_scene(tmp_path, system(
+        block("b1", inside="<ssd:ParameterBindings>" + binding(label="first")
+              + "</ssd:ParameterBindings>")
+        + block("b2", inside="<ssd:ParameterBindings>" + binding(label="sec,ond \"2\"")
+                + "</ssd:ParameterBindings>"),
+        connection("b1", "status", "b2", "note")), {"block.fmu": fmus["state"]}, stop=0.003)
+    result = dsim.simulate(folder, out=tmp_path / "run.csv", mat=tmp_path / "run.mat")
+    assert list(result["b1.status"]) == [f"first::{n}" for n in range(4)]
+    # b2's note is b1's status at the step start
+    assert list(result["b2.status"]) == ['sec,ond "2"::0'] + [
+        f'sec,ond "2":first::{n}:{n + 1}' for n in range(3)]
+    from master.results import read_columns
+    from scipy.io import loadmat
+    assert list(read_columns(tmp_path / "run.csv")["b2.status"]) == list(result["b2.status"])
+    stored = loadmat(tmp_path / "run.mat")["signals"][0, 0]["b1_status"]
+    assert [str(v[0]) for v in stored.ravel()] == list(result["b1.status"])
+    assert main(["compare", str(tmp_path / "run.csv"), str(tmp_path / "run.csv")]) == 0
 
 
 def test_mapping_transformations(fmus, tmp_path, capsys):

@@ -79,6 +79,14 @@ class Backend(ABC):
         ``start``, what connections feed at initialization (fixed parameters too)."""
 
     @abstractmethod
+    def read_texts(self) -> list:
+        """Every subsystem's String values read after a step (a list of str each)."""
+
+    @abstractmethod
+    def write_texts(self, inputs) -> None:
+        """Write String inputs: (subsystem index, list of str) pairs."""
+
+    @abstractmethod
     def finish_initialization(self) -> None:
         """Every subsystem leaves initialization mode."""
 

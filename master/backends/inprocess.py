@@ -75,6 +75,13 @@ class InProcessBackend(Backend):
             else:
                 self.subsystems[index].write_inputs(values)
 
+    def read_texts(self):
+        return [s.read_texts() for s in self.subsystems]
+
+    def write_texts(self, inputs) -> None:
+        for index, values in inputs:
+            self.subsystems[index].write_texts(values)
+
     def finish_initialization(self) -> None:
         for subsystem in self.subsystems:
             subsystem.finish_initialization()

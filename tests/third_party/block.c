@@ -5,7 +5,8 @@
  *
  * stepped exactly over each communication step with the inputs held.  Outputs: y,
  * count (Integer: steps taken), positive (Boolean: y > 0).  Boolean input enable:
- * when false the block holds y.  It can be told to fail at t >= fail_time
+ * when false the block holds y.  String parameter label, String input note, String
+ * output status = "label:note:count" (written after every step).  It can be told to fail at t >= fail_time
  * (Integer parameter failure): 1 y becomes NaN, 2 fmi2DoStep returns fmi2Error,
  * 3 fmi2DoStep returns fmi2Discard, 4 the process aborts (a crashing FMU); after 2
  * or 3, fmi2Terminate fails too (a cleanup that must not hide the first error).
@@ -20,11 +21,14 @@
 enum { R_GAIN, R_TAU, R_Y0, R_FAIL_TIME, R_U, R_Y, N_REALS };
 enum { I_FAILURE, I_EXTRA, I_COUNT, N_INTEGERS };
 enum { B_ENABLE, B_POSITIVE, N_BOOLEANS };
+enum { S_LABEL, S_NOTE, S_STATUS, N_STRINGS };
+#define TEXT 256
 
 typedef struct {
     double r[N_REALS];
     int i[N_INTEGERS];
     int b[N_BOOLEANS];
+    char s[N_STRINGS][TEXT];
     double time;
     int failed;  /* a simulated failure happened: fmi2Terminate fails too */
     char name[128];
@@ -51,6 +55,7 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     snprintf(m->name, sizeof m->name, "%s", name ? name : "block");
     m->r[R_GAIN] = 0.9; m->r[R_TAU] = 0.1; m->r[R_Y0] = 1.0; m->r[R_FAIL_TIME] = 1e300;
     m->b[B_ENABLE] = fmi2True;
+    snprintf(m->s[S_LABEL], TEXT, "block");
     return m;
 }
 FMI2_Export void fmi2FreeInstance(fmi2Component c) { free(c); }
@@ -64,6 +69,7 @@ FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Model *m = c;
     m->r[R_Y] = m->r[R_Y0];
     m->b[B_POSITIVE] = m->r[R_Y] > 0.0;
+    snprintf(m->s[S_STATUS], TEXT, "%.60s:%.120s:%d", m->s[S_LABEL], m->s[S_NOTE], 0);
     return fmi2OK;
 }
 FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) {
@@ -98,9 +104,23 @@ ACCESS(fmi2SetBoolean, fmi2Boolean, b, N_BOOLEANS, const)
 #undef GETSET
 
 FMI2_Export fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[],
-                                     size_t n, fmi2String v[]) { return fmi2Error; }
+                                     size_t n, fmi2String v[]) {
+    Model *m = c;
+    for (size_t k = 0; k < n; k++) {
+        if (vr[k] >= N_STRINGS) return fmi2Error;
+        v[k] = m->s[vr[k]];
+    }
+    return fmi2OK;
+}
 FMI2_Export fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[],
-                                     size_t n, const fmi2String v[]) { return fmi2Error; }
+                                     size_t n, const fmi2String v[]) {
+    Model *m = c;
+    for (size_t k = 0; k < n; k++) {
+        if (vr[k] >= N_STRINGS || vr[k] == S_STATUS) return fmi2Error;
+        snprintf(m->s[vr[k]], TEXT, "%s", v[k] ? v[k] : "");
+    }
+    return fmi2OK;
+}
 
 #ifdef NO_STATE
 FMI2_Export fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) { return fmi2Error; }
@@ -165,6 +185,8 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
     }
     m->i[I_COUNT] += 1;
     m->b[B_POSITIVE] = r[R_Y] > 0.0;
+    snprintf(m->s[S_STATUS], TEXT, "%.60s:%.120s:%d", m->s[S_LABEL], m->s[S_NOTE],
+             m->i[I_COUNT]);
     m->time = t + h;
     return fmi2OK;
 }

@@ -57,6 +57,9 @@ BLOCK_VARIABLES = (
     Variable("count", 2, "Integer", "output", initial="calculated"),
     Variable("enable", 0, "Boolean", "input", start=True),
     Variable("positive", 1, "Boolean", "output", initial="calculated"),
+    Variable("label", 0, "String", "parameter", start="block"),
+    Variable("note", 1, "String", "input", start=""),
+    Variable("status", 2, "String", "output", initial="calculated"),
 )
 
 
