@@ -19,11 +19,11 @@ from master.execution import Execution
 from master.observers import (CsvRecorder, MemoryRecorder, Observer, PlotWriter, ProgressBar,
                               RunInfo, StatisticsWriter, StepRecord)
 from master.plan import Plan
-from master.results import RunResult, read_csv
+from master.results import RunResult, read_columns, read_csv
 from master.ssp import load_scene
 
 __all__ = ["BACKENDS", "Backend", "COUPLINGS", "Coupling", "CsvRecorder", "Execution",
            "InputError", "MemoryRecorder", "Observer", "PREDICTORS", "Plan", "PlotWriter",
            "ProgressBar", "REFRESH_POLICIES", "RunInfo", "RunResult", "SimulationError",
            "StatisticsWriter", "StepRecord", "StepReport", "load_scene", "prepare",
-           "read_csv", "simulate", "__version__"]
+           "read_columns", "read_csv", "simulate", "__version__"]
