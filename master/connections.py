@@ -51,7 +51,7 @@ def _linear(connection, start_var, end_var, units: dict, where: str, problems: l
     factor, offset = 1.0, 0.0
     names = [connection.units[0] or variable_unit(start_var),
              connection.units[1] or variable_unit(end_var)]
-    if all(names) and names[0] != names[1]:
+    if connection.convert_units and all(names) and names[0] != names[1]:
         known = [units.get(name) for name in names]
         if None in known:
             missing = names[known.index(None)]

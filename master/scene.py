@@ -112,6 +112,8 @@ class Connection:
     transformations: tuple[Transformation, ...] = ()
     units: tuple[str | None, str | None] = (None, None)
     location: str = ""
+    #: False when a connection on the way says suppressUnitConversion
+    convert_units: bool = True
 
 
 @dataclass(frozen=True)

@@ -189,7 +189,8 @@ class _Reader:
             self.connections.append(RawConnection(
                 path, (connection.get("startElement"), connection.get("startConnector", "")),
                 (connection.get("endElement"), connection.get("endConnector", "")),
-                transformation(connection, where, self.problems), where))
+                transformation(connection, where, self.problems), where,
+                connection.get("suppressUnitConversion", "false") not in ("true", "1")))
         for gluing in element.iterfind(
                 "ssd:Annotations/ssc:Annotation[@type='org.dsim.gluing']/glue:Gluing", NS):
             for joint in gluing.iterfind("glue:Joint", NS):

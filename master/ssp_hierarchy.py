@@ -34,6 +34,7 @@ class RawConnection:
     end: tuple[str | None, str]
     transformation: Transformation | None
     where: str
+    convert_units: bool = True
 
 
 def _join(path: str, name: str) -> str:
@@ -140,9 +141,10 @@ def resolve_connections(raws: list[RawConnection], components: set[str],
             if key in feeds:
                 problems.append(f"{raw.where}: '{_join(*key)}' is fed twice")
                 continue
-            feeds[key] = ((start[0], start[1]), raw.transformation, raw.where)
+            feeds[key] = ((start[0], start[1]), raw.transformation, raw.where,
+                          raw.convert_units)
     connections, starts = [], {path: {} for path in components}
-    for target, (source, change, where) in feeds.items():
+    for target, (source, change, where, convert) in feeds.items():
         if target[0] not in components:
             continue  # a system connector: reached through the chains below
         chain = [change] if change else []
@@ -165,12 +167,13 @@ def resolve_connections(raws: list[RawConnection], components: set[str],
                                     f"'{_join(*target)}' is not connected to a component")
                 break
             seen.add(source)
-            source, change, _ = feeds[source]
+            source, change, _, hop_converts = feeds[source]
+            convert = convert and hop_converts
             if change:
                 chain.insert(0, change)
         else:
             units = (_unit(source, component_connectors), _unit(target, component_connectors))
-            connections.append(Connection(source, target, tuple(chain), units, where))
+            connections.append(Connection(source, target, tuple(chain), units, where, convert))
     return connections, starts
 
 

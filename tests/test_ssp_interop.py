@@ -177,17 +177,20 @@ UNITS = ('<ssd:Units><ssc:Unit name="km"><ssc:BaseUnit m="1" factor="1000"/></ss
 
 def test_units_convert_before_the_linear_transformation(fmus, tmp_path, capsys):
     """b1.y is in km, b2.u in m: u = 2 * (1000 y1) (SSP: units first, then factor)."""
-    def scene(folder, unit):
+    def scene(folder, unit, attributes=""):
         return write_scene(folder, system(
             block("b1", inside=connectors(("y", "output", "Real", "km")))
             + block("b2", inside=connectors(("u", "input", "Real", unit))),
-            connection("b1", "y", "b2", "u", '<ssc:LinearTransformation factor="2"/>')),
-            {"block.fmu": fmus["state"]}, units=UNITS)
+            connection("b1", "y", "b2", "u", '<ssc:LinearTransformation factor="2"/>',
+                       attributes)), {"block.fmu": fmus["state"]}, units=UNITS)
 
     result = dsim.simulate(scene(tmp_path / "m", "m"))
     b1 = lag(50, 1.0, lambda n, y: 0.0)
     b2 = lag(50, 1.0, lambda n, y: GAIN * 2.0 * (1000.0 * b1[n]))
     assert np.max(np.abs(result["b2.y"] - b2)) < 1e-12 * np.max(np.abs(b2))
+    plain = dsim.simulate(scene(tmp_path / "plain", "m", ' suppressUnitConversion="true"'))
+    b2 = lag(50, 1.0, lambda n, y: GAIN * 2.0 * b1[n])  # the factor alone
+    assert np.max(np.abs(plain["b2.y"] - b2)) < 1e-12 * np.max(np.abs(b2))
     assert main(["run", str(scene(tmp_path / "s", "s")), "--quiet",
                  "--out", str(tmp_path / "o.csv")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
