@@ -22,15 +22,8 @@ def monolithic(n: int, stop: float = CHAIN["stop"], step: float = CHAIN["step"])
     params.k_ground[0] = n * p["k"]
     params.Fa[0] = p["Fa"]
     params.omega[0] = 2 * math.pi * p["frequency"]
-    body = SpringMassChain(params)
-    body.initialize(0.0)
     count = round(stop / step)
-    times = np.arange(count + 1) * step
-    x = np.zeros(count + 1)
-    for i in range(count):
-        body.step(times[i], step)
-        x[i + 1] = body.x[0]
-    return times, x
+    return np.arange(count + 1) * step, SpringMassChain(params).history(count, step)[:, 0]
 
 
 def compare(csv_path, n: int) -> dict:

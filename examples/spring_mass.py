@@ -33,16 +33,8 @@ def monolithic(nonlinear: bool, stop: float = SPRING_MASS["stop"],
     if nonlinear:
         params.k1[0], params.c1[0] = p["k1"], p["c1"]
     params.F0[2] = p["F"]
-    chain = SpringMassChain(params)
-    chain.initialize(0.0)
     count = round(stop / step)
-    times = np.arange(count + 1) * step
-    positions = np.zeros((count + 1, 3))
-    positions[0] = chain.x
-    for i in range(count):
-        chain.step(times[i], step)
-        positions[i + 1] = chain.x
-    return times, positions
+    return np.arange(count + 1) * step, SpringMassChain(params).history(count, step)
 
 
 def compare(csv_path, nonlinear: bool) -> dict:

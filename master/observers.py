@@ -139,30 +139,6 @@ class CsvRecorder(Observer):
             self.output.discard()
 
 
-class StatisticsWriter(Observer):
-    """The statistics JSON of a run (``result.statistics``), written whole when the
-    run ends, also when it failed or was interrupted."""
-
-    def __init__(self, path):
-        self.path = Path(path)
-        self.inputs = ()
-        self.files = {}
-
-    def started(self, info: RunInfo) -> None:
-        from master.output_files import check_not_input
-        self.inputs = info.inputs
-        check_not_input(self.path, self.inputs)
-
-    def finished(self, result) -> None:
-        data = json.dumps(result.statistics, indent=2, default=str).encode()
-        try:
-            write_whole(self.path, data, self.inputs)
-        except Exception as error:  # a full disk must not hide how the run ended
-            result.warnings.append(f"statistics not written to {self.path}: {error}")
-            return
-        self.files["statistics"] = self.path
-
-
 class MemoryRecorder(Observer):
     """Keeps every row in memory (the signals of a run that writes no CSV)."""
 
@@ -198,38 +174,14 @@ class MemoryRecorder(Observer):
         return signals
 
 
-class PlotWriter(Observer):
-    """A PNG of the run's signals when it ends (outputs and joint forces)."""
+class FileWriter(Observer):
+    """A file written whole when the run ends, also when it failed or was
+    interrupted (``content`` makes it; None: nothing to write); refused at the start
+    when it is one of the run's inputs; a failure to write it is a warning, never a
+    replacement for how the run ended."""
 
-    def __init__(self, path, title: str = ""):
-        self.path = Path(path)
-        self.title = title
-        self.inputs = ()
-        self.files = {}
-
-    def started(self, info: RunInfo) -> None:
-        from master.output_files import check_not_input
-        self.inputs = info.inputs
-        self.title = self.title or info.scene
-        check_not_input(self.path, self.inputs)
-
-    def finished(self, result) -> None:
-        from master.results import plot_signals
-        if result.steps == 0:
-            return
-        image = io.BytesIO()
-        plot_signals(result.signals, image, self.title)
-        try:
-            write_whole(self.path, image.getvalue(), self.inputs)
-        except Exception as error:  # a full disk must not hide how the run ended
-            result.warnings.append(f"plot not written to {self.path}: {error}")
-            return
-        self.files["plot"] = self.path
-
-
-class MatWriter(Observer):
-    """A MATLAB .mat file of the run's signals when it ends (see
-    :func:`master.results.mat_bytes`), written whole."""
+    #: what the file is, for ``files`` and messages ("statistics", "plot", "mat")
+    kind = ""
 
     def __init__(self, path):
         self.path = Path(path)
@@ -241,16 +193,61 @@ class MatWriter(Observer):
         self.inputs = info.inputs
         check_not_input(self.path, self.inputs)
 
+    def content(self, result) -> bytes | None:
+        """The file's bytes for this result."""
+        raise NotImplementedError
+
     def finished(self, result) -> None:
-        from master.results import mat_bytes
-        if result.steps == 0 and not result.signals:
-            return
         try:
-            write_whole(self.path, mat_bytes(result.signals), self.inputs)
+            data = self.content(result)
+            if data is None:
+                return
+            write_whole(self.path, data, self.inputs)
         except Exception as error:  # a full disk must not hide how the run ended
-            result.warnings.append(f"MAT file not written to {self.path}: {error}")
+            result.warnings.append(f"{self.kind} not written to {self.path}: {error}")
             return
-        self.files["mat"] = self.path
+        self.files[self.kind] = self.path
+
+
+class StatisticsWriter(FileWriter):
+    """The statistics JSON of a run (``result.statistics``)."""
+
+    kind = "statistics"
+
+    def content(self, result) -> bytes:
+        return json.dumps(result.statistics, indent=2, default=str).encode()
+
+
+class PlotWriter(FileWriter):
+    """A PNG of the run's signals (outputs and joint forces)."""
+
+    kind = "plot"
+
+    def __init__(self, path, title: str = ""):
+        super().__init__(path)
+        self.title = title
+
+    def started(self, info: RunInfo) -> None:
+        super().started(info)
+        self.title = self.title or info.scene
+
+    def content(self, result) -> bytes | None:
+        from master.results import plot_signals
+        if result.steps == 0:
+            return None
+        image = io.BytesIO()
+        plot_signals(result.signals, image, self.title)
+        return image.getvalue()
+
+
+class MatWriter(FileWriter):
+    """A MATLAB .mat file of the run's signals (see :func:`master.results.mat_bytes`)."""
+
+    kind = "mat"
+
+    def content(self, result) -> bytes | None:
+        from master.results import mat_bytes
+        return mat_bytes(result.signals) if result.signals else None
 
 
 @dataclass

@@ -116,54 +116,46 @@ def read_csv(path) -> tuple[list[str], np.ndarray]:
     return header, np.column_stack([columns[n] for n in header]).reshape(-1, len(header))
 
 
-def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) -> None:
-    """Two panels over time: recorded outputs, and joint forces (``*.f_*``); ``png_path``
-    is a path or a binary file object."""
+def _panels(panels, png_path, title: str = "") -> None:
+    """Panels over time, one under the other: ``panels`` is a list of (y label,
+    [(curve label, time, values), ...])."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    time = signals["time"]
-    names = [n for n in signals if n != "time" and signals[n].dtype != object]
-    forces = [n for n in names if ".f_" in n]
-    outputs = [n for n in names if n not in forces]
-    panels = [(columns, label) for columns, label in
-              ((outputs, "recorded outputs"), (forces, "joint forces (N, N.m)")) if columns]
     figure, axes = plt.subplots(max(len(panels), 1), 1, sharex=True, squeeze=False,
-                                figsize=(8, 3 * max(len(panels), 1)))
-    for axis, (columns, label) in zip(axes[:, 0], panels):
-        for name in columns[:max_curves]:
-            axis.plot(time, signals[name], label=name)
-        axis.set_ylabel(label)
+                                figsize=(8, 2.4 * max(len(panels), 1) + 0.6))
+    for axis, (label, curves) in zip(axes[:, 0], panels):
+        for name, time, values in curves:
+            axis.plot(time, values, label=name)
+        axis.set_ylabel(label, fontsize=8)
         axis.grid(True, alpha=0.3)
         axis.legend(fontsize=8, loc="best")
     axes[-1, 0].set_xlabel("time (s)")
     if title:
         axes[0, 0].set_title(title)
     save_figure(figure, png_path)
+
+
+def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) -> None:
+    """Two panels over time: recorded outputs, and joint forces (``*.f_*``); ``png_path``
+    is a path or a binary file object."""
+    time = signals["time"]
+    names = [n for n in signals if n != "time" and signals[n].dtype != object]
+    forces = [n for n in names if ".f_" in n]
+    outputs = [n for n in names if n not in forces]
+    _panels([(label, [(n, time, signals[n]) for n in columns[:max_curves]])
+             for columns, label in ((outputs, "recorded outputs"),
+                                    (forces, "joint forces (N, N.m)")) if columns],
+            png_path, title)
 
 
 def plot_overlay(results: dict, names: list[str], png_path, title: str = "") -> None:
     """One panel per signal of ``names`` (at most eight), each with one curve per
     result (``results``: label -> signals), for comparing runs."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = names[:8]
-    figure, axes = plt.subplots(len(names), 1, sharex=True, squeeze=False,
-                                figsize=(8, 2.4 * len(names) + 0.6))
-    for axis, name in zip(axes[:, 0], names):
-        for label, signals in results.items():
-            if name in signals:
-                axis.plot(signals["time"], signals[name], label=label)
-        axis.set_ylabel(name, fontsize=8)
-        axis.grid(True, alpha=0.3)
-        axis.legend(fontsize=8, loc="best")
-    axes[-1, 0].set_xlabel("time (s)")
-    if title:
-        axes[0, 0].set_title(title)
-    save_figure(figure, png_path)
+    _panels([(name, [(label, signals["time"], signals[name])
+                      for label, signals in results.items() if name in signals])
+             for name in names[:8]], png_path, title)
 
 
 def matlab_names(columns) -> list[str]:

@@ -40,13 +40,7 @@ def monolithic(nonlinear: bool, steps: int, step: float = 0.01) -> np.ndarray:
         params.k1[0], params.c1[0] = 1000.0, 2 * 0.707 * 1e4
     params.F0[2] = 10.0
     params.x0[0] = STRETCH
-    chain = SpringMassChain(params)
-    chain.initialize(0.0)
-    x3 = [chain.x[2]]
-    for n in range(steps):
-        chain.step(n * step, step)
-        x3.append(chain.x[2])
-    return np.array(x3)
+    return SpringMassChain(params).history(steps, step)[:, 2]
 
 
 @pytest.mark.parametrize("nonlinear", [False, True], ids=["linear", "nonlinear"])

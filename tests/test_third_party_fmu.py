@@ -106,12 +106,7 @@ def test_third_party_fmu_glued_through_a_port_map_equals_the_merged_model(
     params = ChainParameters(n=1)
     params.m[0], params.k_ground[0], params.x0[0] = 5.0, 500.0, 0.01
     params.Fa[0], params.omega[0] = 5.0, 7.0
-    merged = SpringMassChain(params)
-    merged.initialize(0.0)
-    expected = [merged.x[0]]
-    for i in range(len(data) - 1):
-        merged.step(i * 0.005, 0.005)
-        expected.append(merged.x[0])
+    expected = SpringMassChain(params).history(len(data) - 1, 0.005)[:, 0]
     peak = np.max(np.abs(expected))
     for column in ("third.s", "mass.x[1]"):
         assert np.max(np.abs(data[:, header.index(column)] - expected)) < 1e-9 * peak
@@ -160,13 +155,7 @@ def two_mass_positions(steps: int, step: float) -> np.ndarray:
     params.m[:2], params.k_ground[:2] = (2.0, 3.0), (300.0, 200.0)
     params.k[0], params.c[0], params.x0[:2] = 1000.0, 10.0, (0.01, 0.01)
     params.Fa[1], params.omega[1] = 5.0, 7.0
-    chain = SpringMassChain(params)
-    chain.initialize(0.0)
-    positions = [chain.x[0]]
-    for i in range(steps):
-        chain.step(i * step, step)
-        positions.append(chain.x[0])
-    return np.array(positions)
+    return SpringMassChain(params).history(steps, step)[:, 0]
 
 
 def test_an_fmu_without_state_saving_is_glued_by_the_explicit_coupling(c_fmus, built,

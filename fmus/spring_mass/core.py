@@ -219,6 +219,16 @@ class SpringMassChain(InterfaceCore):
         self.a = np.array(state["a"], dtype=float)
         self.port_forces = np.array(state["port_forces"], dtype=float)
 
+    def history(self, steps: int, step_size: float) -> np.ndarray:
+        """Initialise at t = 0 and take ``steps`` steps of ``step_size`` (s), t = n h:
+        the positions of every mass (m) after 0, 1, ... steps, one row each."""
+        self.initialize(0.0)
+        rows = [self.x.copy()]
+        for n in range(steps):
+            self.step(n * step_size, step_size)
+            rows.append(self.x.copy())
+        return np.array(rows)
+
     def outputs(self) -> dict[str, float]:
         out = {}
         for i in range(MAX_MASSES):
