@@ -152,12 +152,14 @@ class Execution:
         """In initialization mode, carry connected values along every chain of
         connections (outputs calculated from parameters feed inputs and parameters
         downstream), pass after pass in dependency order."""
-        transfer = self.plan.start_transfer
-        if transfer is None or not transfer.size:
+        transfer, texts = self.plan.start_transfer, self.plan.text_transfer
+        numbers = transfer is not None and transfer.size
+        if not numbers and not (texts is not None and texts.size):
             return
         for _ in range(self.plan.start_passes):
-            outputs = np.concatenate(self.backend.read_outputs())
-            self.backend.write_inputs(transfer.inputs(outputs), start=True)
+            if numbers:
+                outputs = np.concatenate(self.backend.read_outputs())
+                self.backend.write_inputs(transfer.inputs(outputs), start=True)
             self._read_texts()
             self._write_texts()
 
