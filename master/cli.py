@@ -191,6 +191,51 @@ def _cmd_compare(args) -> int:
     return 0 if comparison.passed else 1
 
 
+def _cmd_sweep(args) -> int:
+    from master.sweep import Sweep, cheapest, command_line, read_sweep_file, run_sweep
+
+    sweep = read_sweep_file(args.sweep) if args.sweep else Sweep()
+    for keyword in SETTINGS:
+        text = getattr(args, keyword, None)
+        if text is not None:
+            values = [v.strip() for v in text.split(",") if v.strip()]
+            if len(values) == 1 and keyword not in sweep.grid:
+                sweep.fixed[keyword] = values[0]
+            else:
+                sweep.grid[keyword] = values
+    if args.reference:
+        sweep.reference = Path(args.reference)
+    if args.columns:
+        sweep.columns = args.columns.split(",")
+    out = Path(args.out or f"{Path(args.scene).stem}_sweep")
+
+    def progress(done, total, point):
+        print(f"point {done}/{total}: {point.label}: {point.status}, error "
+              f"{point.error:.2e}, {point.wall_seconds:.2f} s", file=sys.stderr)
+
+    points, interrupted = run_sweep(args.scene, sweep, out, progress)
+    print(f"sweep       {len(points)} points: {out / 'sweep.csv'}, {out / 'sweep.md'}, "
+          f"{out / 'sweep.png'}")
+    front = sorted((p for p in points if p.pareto), key=lambda p: p.wall_seconds)
+    for point in front:
+        print(f"pareto      {point.label}: error {point.error:.2e}, {point.wall_seconds:.2f} s")
+    if args.target_error is not None:
+        best = cheapest(points, args.target_error)
+        if best is None:
+            print(f"target      no measured point has an error of at most "
+                  f"{args.target_error:g}")
+        else:
+            print(f"target      the cheapest point with an error of at most "
+                  f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
+                  f"{best.wall_seconds:.2f} s)")
+            print(f"run it      {command_line(args.scene, best, sweep.fixed)}")
+    if interrupted:
+        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}",
+              file=sys.stderr)
+        return 128 + interrupted
+    return 0
+
+
 def _cmd_regress(args) -> int:
     from master.regress import find_cases, junit_xml, run_cases, summary_lines
 
@@ -256,6 +301,24 @@ def parser() -> argparse.ArgumentParser:
     plot_parser.add_argument("--out", help="the PNG (default: the first CSV's name .png)")
     plot_parser.add_argument("--title", help="a title")
     plot_parser.set_defaults(handler=_cmd_plot)
+    sweep_parser = commands.add_parser(
+        "sweep", help="the speed-accuracy trade of a scene: run it at every point of a grid "
+        "of settings and measure error, wall time, iterations and stability")
+    sweep_parser.add_argument("scene")
+    for keyword, setting in SETTINGS.items():
+        sweep_parser.add_argument(setting.option, dest=keyword, metavar="V1,V2",
+                                  help=f"{setting.help} (comma-separated values to sweep)")
+    sweep_parser.add_argument("--sweep", help="a sweep file (JSON: grid, points, settings, "
+                              "reference, columns)")
+    sweep_parser.add_argument("--reference", help="results CSV to measure the error against "
+                              "(default: the sweep's tightest point)")
+    sweep_parser.add_argument("--columns", help="comma-separated columns to compare "
+                              "(default: every common column)")
+    sweep_parser.add_argument("--out", help="folder for sweep.csv, sweep.md, sweep.png and "
+                              "each point's results (default: SCENE_sweep)")
+    sweep_parser.add_argument("--target-error", type=float, help="name the cheapest measured "
+                              "point whose error is at most this, and its command line")
+    sweep_parser.set_defaults(handler=_cmd_sweep)
     regress_parser = commands.add_parser(
         "regress", help="run every scene of a folder that has a stored baseline and compare "
         "(exit 1 on any regression)")

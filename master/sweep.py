@@ -1,0 +1,308 @@
+"""``dsim sweep``: the speed-accuracy trade of one scene, measured.
+
+A sweep runs a scene at every point of a grid of settings (macro step, tolerance,
+coupling, predictor, refresh policy, parameter set: anything ``dsim.simulate``
+takes) and measures each: the error against a reference (a results CSV the user
+gives, such as the scene's monolithic twin, else the sweep's tightest run), wall
+time, iterations and doSteps per step, and whether it stayed stable.  Each
+finished point is a whole row of ``sweep.csv`` at once, so an interrupted sweep
+keeps them; at the end (or the interrupt) it writes ``sweep.md`` (a table) and
+``sweep.png`` (error against wall time, the Pareto front marked).
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import shlex
+import time as clock
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from master.errors import InputError
+from master.output_files import OutputFile, write_whole
+from master.settings import SETTINGS, convert
+
+#: the columns of sweep.csv, after the point's settings
+MEASURES = ("status", "stable", "error", "wall_seconds", "iterations_per_step",
+            "do_steps_per_fmu_step", "lambda_refreshes", "steps", "message")
+
+
+@dataclass
+class Point:
+    """One configuration of a sweep and what it measured."""
+
+    settings: dict
+    status: str = ""
+    stable: bool = False
+    error: float = math.nan
+    wall_seconds: float = math.nan
+    iterations_per_step: float = math.nan
+    do_steps_per_fmu_step: float = math.nan
+    lambda_refreshes: int = 0
+    steps: int = 0
+    message: str = ""
+    results: Path | None = None
+    pareto: bool = False
+
+    @property
+    def label(self) -> str:
+        return " ".join(f"{k}={v}" for k, v in self.settings.items())
+
+
+@dataclass
+class Sweep:
+    """What to sweep: a grid (setting -> values) or explicit points, settings that
+    hold for every point, the reference and the compared columns."""
+
+    grid: dict = field(default_factory=dict)
+    points: list = field(default_factory=list)
+    fixed: dict = field(default_factory=dict)
+    reference: Path | None = None
+    columns: list | None = None
+
+    def configurations(self) -> list[dict]:
+        """Every point's settings: the grid's product, then the explicit points."""
+        keys = list(self.grid)
+        product = [dict(zip(keys, values)) for values in
+                   itertools.product(*(self.grid[k] for k in keys))] if keys else []
+        return [{**p} for p in product + list(self.points)]
+
+
+def read_sweep_file(path) -> Sweep:
+    """A sweep file (JSON): ``{"grid": {"step": [...], ...}, "points": [{...}],
+    "settings": {"stop": 1.0}, "reference": "twin.csv", "columns": [...]}``."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as error:
+        raise InputError(f"{path}: cannot read the sweep file: {error}") from None
+    unknown = set(data) - {"grid", "points", "settings", "reference", "columns"}
+    if unknown:
+        raise InputError(f"{path}: unknown keys {', '.join(sorted(unknown))} (known: grid, "
+                         "points, settings, reference, columns)")
+    reference = data.get("reference")
+    return Sweep(dict(data.get("grid", {})), list(data.get("points", [])),
+                 dict(data.get("settings", {})),
+                 (path.parent / reference) if reference else None, data.get("columns"))
+
+
+def check(sweep: Sweep) -> None:
+    """Every swept name is a setting and every value valid for it (InputError listing
+    every problem, before any point runs)."""
+    problems = []
+    pairs = [(name, value) for name, values in sweep.grid.items() for value in values]
+    pairs += [pair for settings in [sweep.fixed] + sweep.points for pair in settings.items()]
+    for name, value in pairs:
+        if name not in SETTINGS:
+            problems.append(f"sweep: unknown setting '{name}' (known: "
+                            f"{', '.join(SETTINGS)})")
+            continue
+        _, problem = convert(SETTINGS[name], value, f"sweep: {name}")
+        if problem:
+            problems.append(problem)
+    if not sweep.configurations():
+        problems.append("sweep: no points (give at least one setting with values)")
+    if problems:
+        raise InputError(list(dict.fromkeys(problems)))
+
+
+def tightest(configurations: list[dict]) -> int:
+    """Index of the tightest point: iterative, the smallest step, the smallest
+    tolerance (the default reference of a sweep)."""
+    def key(k):
+        settings = configurations[k]
+        return (settings.get("coupling", "iterative") != "iterative",
+                float(settings.get("step", 0.0) or 0.0),
+                float(settings.get("tolerance", 0.0) or 0.0))
+    return min(range(len(configurations)), key=key)
+
+
+def error_against(columns: dict, reference: dict, chosen=None) -> float:
+    """Largest difference over the compared columns, relative to each column's peak in
+    the reference (the reference interpolated onto the point's times)."""
+    names = chosen or [n for n in columns if n != "time" and n in reference
+                       and columns[n].dtype != object]
+    missing = [n for n in names if n not in columns or n not in reference]
+    if missing:
+        raise InputError(f"sweep: columns not in both the run and the reference: "
+                         f"{', '.join(missing)}")
+    times = columns["time"]
+    inside = (times >= reference["time"][0] - 1e-12) & (times <= reference["time"][-1] + 1e-12)
+    worst = 0.0
+    for name in names:
+        expected = np.interp(times[inside], reference["time"], reference[name])
+        peak = float(np.max(np.abs(reference[name]))) or 1.0
+        with np.errstate(invalid="ignore"):
+            gap = float(np.max(np.abs(columns[name][inside] - expected), initial=0.0))
+        worst = max(worst, gap / peak if math.isfinite(gap) else math.inf)
+    return worst
+
+
+def mark_pareto(points: list[Point]) -> None:
+    """Mark the stable points no other stable point beats in both error and time."""
+    stable = [p for p in points if p.stable and math.isfinite(p.error)]
+    for p in stable:
+        p.pareto = not any(q is not p and q.error <= p.error and q.wall_seconds <= p.wall_seconds
+                           and (q.error < p.error or q.wall_seconds < p.wall_seconds)
+                           for q in stable)
+
+
+def cheapest(points: list[Point], target: float) -> Point | None:
+    """The fastest stable point whose error is at most ``target``."""
+    meeting = [p for p in points if p.stable and p.error <= target]
+    return min(meeting, key=lambda p: p.wall_seconds) if meeting else None
+
+
+def command_line(scene, point: Point, fixed: dict) -> str:
+    """The ``dsim run`` command of a point."""
+    words = ["dsim", "run", str(scene)]
+    for key, value in {**fixed, **point.settings}.items():
+        words += [SETTINGS[key].option, str(value)]
+    return " ".join(shlex.quote(w) for w in words)
+
+
+class SweepTable:
+    """``sweep.csv``: one whole row per finished point, as it finishes."""
+
+    def __init__(self, path: Path, names: list[str], inputs):
+        self.names = names
+        self.output = OutputFile(path, inputs)
+        self.output.open()
+        self.output.append((",".join(list(names) + list(MEASURES)) + "\n").encode())
+
+    def add(self, point: Point) -> None:
+        cells = [str(point.settings.get(n, "")) for n in self.names]
+        cells += [point.status, str(point.stable).lower(), repr(point.error),
+                  repr(point.wall_seconds), repr(point.iterations_per_step),
+                  repr(point.do_steps_per_fmu_step), str(point.lambda_refreshes),
+                  str(point.steps), json.dumps(point.message)]
+        self.output.append((",".join(cells) + "\n").encode(), separator=b"\n")
+
+    def close(self) -> None:
+        self.output.commit()
+
+
+def markdown(points: list[Point], names: list[str], reference: str) -> str:
+    """The sweep's table, Pareto points marked."""
+    lines = [f"Reference: {reference}. Error: the largest difference of any compared column "
+             "over the run, relative to that column's peak in the reference.", "",
+             "| " + " | ".join(names) + " | status | error | wall (s) | iterations per step "
+             "| doSteps per FMU per step | Pareto |",
+             "|" + "---|" * (len(names) + 6)]
+    for p in points:
+        lines.append("| " + " | ".join(str(p.settings.get(n, "")) for n in names)
+                     + f" | {p.status}{'' if p.stable else ' (unstable)'} | {p.error:.2e} | "
+                     f"{p.wall_seconds:.3f} | {p.iterations_per_step:.2f} | "
+                     f"{p.do_steps_per_fmu_step:.2f} | {'yes' if p.pareto else ''} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_points(points: list[Point], title: str) -> bytes:
+    """Error against wall time, log-log, the Pareto front joined; PNG bytes."""
+    import io
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from master.results import save_figure
+
+    figure, axis = plt.subplots(figsize=(7, 4.6))
+    stable = [p for p in points if p.stable and p.error > 0 and math.isfinite(p.error)]
+    exact = [p for p in points if p.stable and p.error == 0]
+    floor = min([p.error for p in stable], default=1e-16) / 10
+    axis.scatter([p.wall_seconds for p in stable], [p.error for p in stable], color="C0",
+                 label="stable point")
+    axis.scatter([p.wall_seconds for p in exact], [floor] * len(exact), color="C2",
+                 marker="*", s=90, label="the reference itself")
+    unstable = [p for p in points if not p.stable and math.isfinite(p.wall_seconds)]
+    if unstable:
+        axis.scatter([p.wall_seconds for p in unstable],
+                     [max(floor, 1.0)] * len(unstable), color="C3", marker="x",
+                     label="unstable / failed (drawn at 1)")
+    front = sorted((p for p in stable if p.pareto), key=lambda p: p.wall_seconds)
+    if front:
+        axis.plot([p.wall_seconds for p in front], [p.error for p in front], "C1-",
+                  label="Pareto front")
+    for p in front:  # the front's points named by their values, the rest in sweep.md
+        axis.annotate(" ".join(str(v) for v in p.settings.values()),
+                      (p.wall_seconds, p.error), fontsize=7, xytext=(4, 4),
+                      textcoords="offset points")
+    axis.set_xscale("log")
+    axis.set_yscale("log")
+    axis.set_xlabel("wall time (s)")
+    axis.set_ylabel("error / peak")
+    axis.grid(True, which="both", alpha=0.3)
+    axis.legend(fontsize=8, loc="lower left")
+    axis.set_title(f"{title}: error against wall time ("
+                   + ", ".join(dict.fromkeys(k for p in points for k in p.settings)) + ")",
+                   fontsize=9)
+    image = io.BytesIO()
+    save_figure(figure, image)
+    return image.getvalue()
+
+
+def run_sweep(scene, sweep: Sweep, out: Path, progress=None) -> tuple[list[Point], int | None]:
+    """Run every point, writing ``out/sweep.csv`` as points finish, then
+    ``out/sweep.md`` and ``out/sweep.png``; returns the points and the signal that
+    interrupted the sweep, if one did (SIGINT or SIGTERM end the running point after
+    its current step, and the sweep after it, with everything written)."""
+    from master.api import prepare, simulate
+    from master.results import read_columns
+
+    check(sweep)
+    configurations = sweep.configurations()
+    names = list(dict.fromkeys(k for c in configurations for k in c))
+    plan = prepare(scene, **sweep.fixed)  # bad input before any point runs
+    reference_index = None if sweep.reference else tightest(configurations)
+    if reference_index is not None:  # the tightest run first: the others compare with it
+        configurations.insert(0, configurations.pop(reference_index))
+    out = Path(out)
+    table = SweepTable(out / "sweep.csv", names, plan.inputs)
+    reference = read_columns(sweep.reference) if sweep.reference else None
+    label = str(sweep.reference) if sweep.reference else "the tightest point"
+    points: list[Point] = []
+    interrupted = None
+    try:
+        for k, settings in enumerate(configurations):
+            point = Point(settings)
+            results = out / f"point_{k + 1:03d}.csv"
+            start = clock.perf_counter()
+            try:
+                result = simulate(scene, out=results, **{**sweep.fixed, **settings})
+            except InputError as error:
+                point.status, point.message = "bad input", "; ".join(error.problems)
+            else:
+                point.wall_seconds = clock.perf_counter() - start
+                point.status, point.message = result.status, result.message
+                stats = result.statistics
+                point.steps = result.steps
+                point.iterations_per_step = stats["iterations"]["mean_per_step"]
+                point.do_steps_per_fmu_step = (stats["do_steps_per_step"]
+                                               / max(len(stats["components"]), 1))
+                point.lambda_refreshes = stats["lambda_refreshes"]
+                point.results = results
+                if reference is None and result.ok:
+                    reference = result.signals
+                    label = f"the tightest point ({point.label})"
+                if reference is not None and result.steps:
+                    point.error = error_against(result.signals, reference, sweep.columns)
+                point.stable = result.ok and point.error <= 1.0
+                if result.status == "interrupted" and result.signal:
+                    interrupted = result.signal
+            points.append(point)
+            table.add(point)
+            if progress:
+                progress(k + 1, len(configurations), point)
+            if interrupted:
+                break
+    finally:
+        table.close()
+        mark_pareto(points)
+        write_whole(out / "sweep.md", markdown(points, names, label).encode(), plan.inputs)
+        if points:
+            write_whole(out / "sweep.png", plot_points(points, plan.scene.name), plan.inputs)
+    return points, interrupted
