@@ -113,6 +113,9 @@ def pack_scene(folder: Path, fmu_dir: Path, out: Path) -> Path:
                 raise FileNotFoundError(f"{ssd}: component source '{source}' is not a "
                                         f"built FMU ({fmu} missing)")
             archive.write(fmu, source)
+        reference = fmu_dir.parent / "references" / f"{folder.name}.csv"
+        if reference.is_file():  # the monolithic twin's results (examples/twins.py)
+            archive.write(reference, "resources/reference.csv")
     return target
 
 
@@ -126,9 +129,20 @@ def pack_scenes(root: Path = ROOT, force: bool = False, log=print) -> list[Path]
         newest = max(_newest(folder.rglob("*")), newest_fmu)
         if force or not target.is_file() or target.stat().st_mtime < newest:
             log(f"packing {target.relative_to(root)}")
+            write_twin(folder.name, root / "build" / "references")
             pack_scene(folder, fmu_dir, root / "build" / "ssp")
         packed.append(target)
     return packed
+
+
+def write_twin(scene: str, out: Path) -> None:
+    """Write the scene's monolithic twin (examples/twins.py) as ``out/SCENE.csv``,
+    where it has one."""
+    from examples.twins import TWINS, twin_csv
+
+    if scene in TWINS:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"{scene}.csv").write_bytes(twin_csv(scene))
 
 
 def _command(args) -> int:

@@ -192,7 +192,8 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from master.sweep import Sweep, cheapest, command_line, read_sweep_file, run_sweep
+    from master.sweep import (TIGHTEST, Sweep, cheapest, command_line, read_sweep_file,
+                              run_sweep)
 
     sweep = read_sweep_file(args.sweep) if args.sweep else Sweep()
     for keyword in SETTINGS:
@@ -204,7 +205,7 @@ def _cmd_sweep(args) -> int:
             else:
                 sweep.grid[keyword] = values
     if args.reference:
-        sweep.reference = Path(args.reference)
+        sweep.reference = args.reference if args.reference == TIGHTEST else Path(args.reference)
     if args.columns:
         sweep.columns = args.columns.split(",")
     out = Path(args.out or f"{Path(args.scene).stem}_sweep")
@@ -213,7 +214,7 @@ def _cmd_sweep(args) -> int:
         print(f"point {done}/{total}: {point.label}: {point.status}, error "
               f"{point.error:.2e}, {point.wall_seconds:.2f} s", file=sys.stderr)
 
-    points, interrupted = run_sweep(args.scene, sweep, out, progress)
+    points, interrupted = run_sweep(args.scene, sweep, out, progress, bars=True)
     print(f"sweep       {len(points)} points: {out / 'sweep.csv'}, {out / 'sweep.md'}, "
           f"{out / 'sweep.png'}")
     front = sorted((p for p in points if p.pareto), key=lambda p: p.wall_seconds)
@@ -310,8 +311,9 @@ def parser() -> argparse.ArgumentParser:
                                   help=f"{setting.help} (comma-separated values to sweep)")
     sweep_parser.add_argument("--sweep", help="a sweep file (JSON: grid, points, settings, "
                               "reference, columns)")
-    sweep_parser.add_argument("--reference", help="results CSV to measure the error against "
-                              "(default: the sweep's tightest point)")
+    sweep_parser.add_argument("--reference", help="results CSV to measure the error against, "
+                              "or 'tightest' (default: the monolithic twin the scene ships as "
+                              "resources/reference.csv, else the sweep's tightest point)")
     sweep_parser.add_argument("--columns", help="comma-separated columns to compare "
                               "(default: every common column)")
     sweep_parser.add_argument("--out", help="folder for sweep.csv, sweep.md, sweep.png and "

@@ -154,6 +154,9 @@ class Scene:
     #: what the reader found wrong (a scene read with ``strict=False``: the plan adds
     #: its own findings and raises them all)
     problems: tuple[str, ...] = ()
+    #: results the scene ships as its reference (``resources/reference.csv``: its
+    #: monolithic twin's, docs/sweep.md), or None
+    reference: Path | None = None
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

@@ -305,9 +305,11 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
     if problems and strict:
         raise InputError(list(problems))
     name = root.get("name") or path.stem
+    reference = ssd.parent / "resources" / "reference.csv"
     return Scene(name, path, start, stop, tuple(components), tuple(connections),
                  tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
-                 scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems)
+                 scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
+                 reference if reference.is_file() else None)
 
 
 def _check_references(reader: _Reader, components, connections) -> None:

@@ -3,7 +3,8 @@
 A sweep runs a scene at every point of a grid of settings (macro step, tolerance,
 coupling, predictor, refresh policy, parameter set: anything ``dsim.simulate``
 takes) and measures each: the error against a reference (a results CSV the user
-gives, such as the scene's monolithic twin, else the sweep's tightest run), wall
+gives, else the monolithic twin's results a scene ships as ``resources/reference.csv``,
+else the sweep's tightest run), wall
 time, iterations and doSteps per step, and whether it stayed stable.  Each
 finished point is a whole row of ``sweep.csv`` at once, so an interrupted sweep
 keeps them; at the end (or the interrupt) it writes ``sweep.md`` (a table) and
@@ -25,6 +26,9 @@ from master.errors import InputError
 from master.output_files import OutputFile, write_whole
 from master.settings import SETTINGS, convert
 
+#: the reference named to measure against the sweep's tightest point even where the
+#: scene ships its monolithic twin
+TIGHTEST = "tightest"
 #: the columns of sweep.csv, after the point's settings
 MEASURES = ("status", "stable", "error", "wall_seconds", "iterations_per_step",
             "do_steps_per_fmu_step", "lambda_refreshes", "steps", "message")
@@ -60,7 +64,8 @@ class Sweep:
     grid: dict = field(default_factory=dict)
     points: list = field(default_factory=list)
     fixed: dict = field(default_factory=dict)
-    reference: Path | None = None
+    #: a results CSV, TIGHTEST, or None (the scene's twin where it ships one)
+    reference: Path | str | None = None
     columns: list | None = None
 
     def configurations(self) -> list[dict]:
@@ -84,9 +89,10 @@ def read_sweep_file(path) -> Sweep:
         raise InputError(f"{path}: unknown keys {', '.join(sorted(unknown))} (known: grid, "
                          "points, settings, reference, columns)")
     reference = data.get("reference")
+    if reference and reference != TIGHTEST:
+        reference = path.parent / reference
     return Sweep(dict(data.get("grid", {})), list(data.get("points", [])),
-                 dict(data.get("settings", {})),
-                 (path.parent / reference) if reference else None, data.get("columns"))
+                 dict(data.get("settings", {})), reference, data.get("columns"))
 
 
 def check(sweep: Sweep) -> None:
@@ -129,16 +135,38 @@ def error_against(columns: dict, reference: dict, chosen=None) -> float:
     if missing:
         raise InputError(f"sweep: columns not in both the run and the reference: "
                          f"{', '.join(missing)}")
-    times = columns["time"]
-    inside = (times >= reference["time"][0] - 1e-12) & (times <= reference["time"][-1] + 1e-12)
+    times, rows, reference_rows = shared_times(columns["time"], reference["time"])
     worst = 0.0
     for name in names:
-        expected = np.interp(times[inside], reference["time"], reference[name])
+        if reference_rows is None:
+            expected = np.interp(times, reference["time"], reference[name])
+        else:
+            expected = reference[name][reference_rows]
         peak = float(np.max(np.abs(reference[name]))) or 1.0
         with np.errstate(invalid="ignore"):
-            gap = float(np.max(np.abs(columns[name][inside] - expected), initial=0.0))
+            gap = float(np.max(np.abs(columns[name][rows] - expected), initial=0.0))
         worst = max(worst, gap / peak if math.isfinite(gap) else math.inf)
     return worst
+
+
+def shared_times(times, reference_times):
+    """Where to compare a run with a reference: the run's times that are also the
+    reference's (both grids multiples of a common step: no interpolation error, which
+    at a step much coarser than the motion would swamp what is measured), else every
+    run time inside the reference's span, the reference interpolated there.  Returns
+    (times, the run's rows, the reference's rows or None)."""
+    span = max(abs(float(reference_times[-1])), abs(float(times[-1])), 1.0)
+    nearest = np.clip(np.searchsorted(reference_times, times), 1, len(reference_times) - 1)
+    left = reference_times[nearest - 1]
+    nearest = np.where(np.abs(times - left) <= np.abs(reference_times[nearest] - times),
+                       nearest - 1, nearest)
+    matched = np.abs(reference_times[nearest] - times) <= 1e-9 * span
+    if np.count_nonzero(matched) > 1:
+        rows = np.flatnonzero(matched)
+        return times[rows], rows, nearest[rows]
+    rows = np.flatnonzero((times >= reference_times[0] - 1e-12)
+                          & (times <= reference_times[-1] + 1e-12))
+    return times[rows], rows, None
 
 
 def mark_pareto(points: list[Point]) -> None:
@@ -245,11 +273,14 @@ def plot_points(points: list[Point], title: str) -> bytes:
     return image.getvalue()
 
 
-def run_sweep(scene, sweep: Sweep, out: Path, progress=None) -> tuple[list[Point], int | None]:
+def run_sweep(scene, sweep: Sweep, out: Path, progress=None,
+              bars: bool = False) -> tuple[list[Point], int | None]:
     """Run every point, writing ``out/sweep.csv`` as points finish, then
     ``out/sweep.md`` and ``out/sweep.png``; returns the points and the signal that
     interrupted the sweep, if one did (SIGINT or SIGTERM end the running point after
-    its current step, and the sweep after it, with everything written)."""
+    its current step, and the sweep after it, with everything written).
+    ``progress(done, total, point)`` is called as points finish; ``bars`` shows each
+    point's progress bar on a terminal."""
     from master.api import prepare, simulate
     from master.results import read_columns
 
@@ -257,13 +288,17 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None) -> tuple[list[Point
     configurations = sweep.configurations()
     names = list(dict.fromkeys(k for c in configurations for k in c))
     plan = prepare(scene, **sweep.fixed)  # bad input before any point runs
-    reference_index = None if sweep.reference else tightest(configurations)
+    reference_file = (None if sweep.reference == TIGHTEST
+                      else sweep.reference or plan.scene.reference)
+    reference_index = None if reference_file else tightest(configurations)
     if reference_index is not None:  # the tightest run first: the others compare with it
         configurations.insert(0, configurations.pop(reference_index))
     out = Path(out)
     table = SweepTable(out / "sweep.csv", names, plan.inputs)
-    reference = read_columns(sweep.reference) if sweep.reference else None
-    label = str(sweep.reference) if sweep.reference else "the tightest point"
+    reference = read_columns(reference_file) if reference_file else None
+    label = ("the scene's monolithic twin (resources/reference.csv)"
+             if reference_file and not sweep.reference else
+             str(reference_file) if reference_file else "the tightest point")
     points: list[Point] = []
     interrupted = None
     try:
@@ -272,7 +307,8 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None) -> tuple[list[Point
             results = out / f"point_{k + 1:03d}.csv"
             start = clock.perf_counter()
             try:
-                result = simulate(scene, out=results, **{**sweep.fixed, **settings})
+                result = simulate(scene, out=results, progress=bars,
+                                  **{**sweep.fixed, **settings})
             except InputError as error:
                 point.status, point.message = "bad input", "; ".join(error.problems)
             else:

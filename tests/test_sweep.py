@@ -51,11 +51,23 @@ def test_sweep_measures_error_time_and_names_the_cheapest_point(built, tmp_path,
     assert target[0].endswith(f"--step {fastest['step']} --coupling {fastest['coupling']}")
 
 
-def test_sweep_compares_with_its_tightest_point_by_default(built, tmp_path):
+def test_sweep_measures_against_the_twin_the_scene_ships(built, tmp_path):
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(built["ssp"] / "spring_mass_nonlinear.ssp"), "--stop", "1",
+                 "--step", "0.01,0.02", "--tolerance", "1e-10", "--out", str(out)]) == 0
+    with open(out / "sweep.csv", newline="") as file:
+        error = {r["step"]: float(r["error"]) for r in csv.DictReader(file)}
+    # the twin runs at a tenth of the scene's step: against it the error is the
+    # trapezoidal rule's, second order, the gluing's (about 1e-9) far below
+    assert 3.5 < error["0.02"] / error["0.01"] < 4.5
+    assert "monolithic twin" in (out / "sweep.md").read_text()
+
+
+def test_sweep_can_compare_with_its_tightest_point(built, tmp_path):
     out = tmp_path / "sweep"
     assert main(["sweep", str(built["ssp"] / "spring_mass_nonlinear.ssp"), "--stop", "1",
                  "--step", "0.01,0.0025", "--tolerance", "1e-6,1e-10",
-                 "--out", str(out)]) == 0
+                 "--reference", "tightest", "--out", str(out)]) == 0
     with open(out / "sweep.csv", newline="") as file:
         rows = list(csv.DictReader(file))
     first = rows[0]  # the tightest runs first and is the reference: error 0

@@ -1,0 +1,94 @@
+"""Monolithic twins as results files: the same columns a glued run records, computed
+by each scene's monolithic reference (examples/*.py) at a tenth of the scene's step.
+
+``dsim build-fmus`` packs them into the scenes as ``resources/reference.csv``, which
+``dsim sweep`` measures its points against by default (docs/sweep.md): a run's error
+against it is the gluing error plus the time discretization's, what a user trading
+step size for speed needs to see.  At a tenth of the step the twin's own
+discretization error is a hundredth of a run's at the scene's step (the rules are
+second order).  ``python -m examples.twins SCENE --out FILE.csv`` writes one.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from build_fmus.linkage_scenes import FOUR_BAR
+from build_fmus.scenes import CHAIN, SPRING_MASS
+
+
+#: the twin's step as a fraction of the scene's
+REFINEMENT = 10
+
+
+def _spring_mass(nonlinear: bool) -> dict:
+    from examples.spring_mass import monolithic
+
+    times, x = monolithic(nonlinear, step=SPRING_MASS["step"] / REFINEMENT)
+    return {"time": times, "left.x[1]": x[:, 0], "right.x[1]": x[:, 1], "right.x[2]": x[:, 2]}
+
+
+def _chain(n: int) -> dict:
+    from examples.chain import monolithic
+
+    times, x = monolithic(n, step=CHAIN["step"] / REFINEMENT)
+    return {"time": times, **{f"m{i}.x[1]": x for i in range(1, n + 1)}}
+
+
+def _four_bar(joints: str, refinement: int = REFINEMENT) -> dict:
+    from examples.four_bar import monolithic
+
+    r = monolithic(joints, step=FOUR_BAR["step"] / refinement)
+    return {"time": r["times"], "crank.omega": r["omega"][:, 0], "rocker.omega": r["omega"][:, 1],
+            "A.f_x": r["force"][:, 0], "A.f_y": r["force"][:, 1]}
+
+
+def _frame() -> dict:
+    from examples.frame import OUTPUT
+    from fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
+
+    r = monolithic_frame(step_size=STEP_SIZE / REFINEMENT, stop_time=STOP_TIME)
+    return {"time": r.time, OUTPUT: r.load_u_x}
+
+
+#: scene -> its twin's columns (name -> values, one per twin step); the other scenes'
+#: twins are too slow to compute at every build (crank_slider_*) or too large to ship
+#: (chain_100, chain_1000: a column per mass)
+TWINS = {
+    "spring_mass_linear": lambda: _spring_mass(False),
+    "spring_mass_nonlinear": lambda: _spring_mass(True),
+    "chain_10": lambda: _chain(10),
+    "four_bar_singular_flexible": lambda: _four_bar("flexible"),
+    # the whole four bar's own Newton loses the singular point at smaller steps (docs/
+    # linkages.md): its twin stays at the scene's step
+    "four_bar_singular_fixed": lambda: _four_bar("fixed", 1),
+    "frame_split": _frame,
+}
+
+
+def twin_csv(scene: str) -> bytes:
+    """The twin of ``scene`` as CSV text (dsim's results format: a header, then one row
+    per step, numbers in full precision)."""
+    columns = TWINS[scene]()
+    header = ",".join(columns)
+    rows = np.column_stack(list(columns.values()))
+    lines = [header] + [",".join(repr(float(v)) for v in row) for row in rows]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def main(argv=None) -> int:
+    from master.output_files import write_whole
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("scene", choices=sorted(TWINS))
+    parser.add_argument("--out", type=Path, required=True, help="CSV file to write")
+    args = parser.parse_args(argv)
+    write_whole(args.out, twin_csv(args.scene))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
