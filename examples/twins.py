@@ -37,7 +37,9 @@ def _chain(n: int) -> dict:
     return {"time": times, **{f"m{i}.x[1]": x for i in range(1, n + 1)}}
 
 
-def _four_bar(joints: str, refinement: int = REFINEMENT) -> dict:
+def four_bar_twin(joints: str, refinement: int = REFINEMENT) -> dict:
+    """The four bar's twin (``fixed`` or ``flexible`` joints) at the scene's step
+    divided by ``refinement``: the columns a glued run records."""
     from examples.four_bar import monolithic
 
     r = monolithic(joints, step=FOUR_BAR["step"] / refinement)
@@ -60,10 +62,11 @@ TWINS = {
     "spring_mass_linear": lambda: _spring_mass(False),
     "spring_mass_nonlinear": lambda: _spring_mass(True),
     "chain_10": lambda: _chain(10),
-    "four_bar_singular_flexible": lambda: _four_bar("flexible"),
+    "four_bar_singular_flexible": lambda: four_bar_twin("flexible"),
     # the whole four bar's own Newton loses the singular point at smaller steps (docs/
     # linkages.md): its twin stays at the scene's step
-    "four_bar_singular_fixed": lambda: _four_bar("fixed", 1),
+    "four_bar_singular_fixed": lambda: four_bar_twin("fixed", 1),
+    "four_bar_singular_penalized": lambda: four_bar_twin("fixed", 1),
     "frame_split": _frame,
 }
 

@@ -240,7 +240,7 @@ def _cmd_sweep(args) -> int:
 def _cmd_regress(args) -> int:
     from master.regress import find_cases, junit_xml, run_cases, summary_lines
 
-    cases, without = find_cases(args.folder, args.baselines, args.scene or ())
+    cases, without = find_cases(args.folder, args.baselines, args.scene or (), args.update)
     if not cases:
         raise InputError(f"{args.folder}: no scene has a baseline in "
                          f"{args.baselines or Path(args.folder) / 'baselines'} "
@@ -330,7 +330,8 @@ def parser() -> argparse.ArgumentParser:
     regress_parser.add_argument("--results", help="keep each run's CSV and statistics here")
     regress_parser.add_argument("--junit", help="write a JUnit XML report")
     regress_parser.add_argument("--update", action="store_true",
-                                help="store each run as the new baseline instead of comparing")
+                                help="store each run as the new baseline instead of comparing "
+                                "(scenes without one get one)")
     regress_parser.add_argument("--scene", action="append", help="only this scene (again "
                                 "for more)")
     regress_parser.add_argument("--rtol", type=float, help="override every case's rtol")

@@ -33,6 +33,10 @@ from master.start import check_start, start_forces
 from master.statistics import run_statistics
 
 
+#: cut steps (and least-squares steps) named one by one in the warnings
+CUTS_SAID = 5
+
+
 class Execution:
     """One run of a :class:`~master.plan.Plan` with ``observers`` (and, unless one of
     them records the signals or ``keep_signals`` is False, a memory recorder for the
@@ -197,6 +201,8 @@ class Execution:
                                                  settings, plan.transfer)
         if sensitivity is not None:
             self.coupling.start_sensitivity = sensitivity
+        if plan.variable_steps and hasattr(self.coupling, "cut_limit"):
+            self.coupling.cut_limit = settings.step_cuts
         self.coupling.start(glued.kinematics() if layout.size else None, forces)
 
     def _start_sensitivity(self, glued, layout, forces):
@@ -266,6 +272,13 @@ class Execution:
             if self._text_reads:
                 self._write_texts()
             report = self.coupling.step(time, size, index + 1)
+            if report.cuts:
+                self._warn_cut(index + 1, end, size / 2 ** report.cuts)
+            if report.lost and self.coupling.least_squares_steps <= CUTS_SAID:
+                self.warn(f"step {index + 1} (t = {end:.6g} s): the gluing matrix lost rank "
+                          "(a singular configuration): the step was accepted in the "
+                          f"least-squares sense, {report.lost:.3e} of residual left along "
+                          "the direction no joint force changes")
             self._read_texts()
             self.index, self.time = index + 1, end
             row = self._row()
@@ -291,6 +304,15 @@ class Execution:
             self.status = "completed"
             return False
         return True
+
+    def _warn_cut(self, index: int, end: float, smallest: float) -> None:
+        """Say that a step was cut (the first few; the statistics count them all)."""
+        cuts = self.coupling.cuts
+        if cuts <= CUTS_SAID:
+            self.warn(f"step {index} (t = {end:.6g} s): Newton did not converge over the "
+                      f"whole step; it passed in steps of {smallest:g} s"
+                      + (" (further cut steps are counted in the statistics: step_cuts)"
+                         if cuts == CUTS_SAID else ""))
 
     def _fail(self, error: Exception) -> None:
         self.error = error

@@ -62,6 +62,9 @@ class Plan:
     text_recorded: tuple[tuple[str, str], ...] = ()
     text_index: tuple[int, ...] = ()
     text_transfer: object = None
+    #: every glued FMU accepts a communication step other than the nominal one
+    #: (canHandleVariableCommunicationStepSize): a failed macro step may be cut
+    variable_steps: bool = False
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -335,4 +338,6 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
                 ports, start_transfer, _passes(paths, links), tuple(warnings),
                 bool(scene.joints) and coupling == "explicit" and any(
                     not can_save_state(scene.components[i].source) for i in glued),
-                text_recorded, tuple(text_index), text_transfer)
+                text_recorded, tuple(text_index), text_transfer,
+                all(model_description(scene.components[i].source).coSimulation
+                    .canHandleVariableCommunicationStepSize for i in glued))

@@ -60,9 +60,11 @@ def _scenes(folder: Path) -> dict[str, Path]:
     return found
 
 
-def find_cases(folder, baselines=None, only=()) -> tuple[list[Case], list[str]]:
+def find_cases(folder, baselines=None, only=(), update: bool = False
+               ) -> tuple[list[Case], list[str]]:
     """The cases of ``folder`` that have a baseline (``baselines`` defaults to
-    ``folder/baselines``), and the names of the scenes that have none."""
+    ``folder/baselines``; with ``update`` every scene, a missing baseline to be
+    written), and the names of the scenes that have none."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: no such folder")
@@ -77,7 +79,7 @@ def find_cases(folder, baselines=None, only=()) -> tuple[list[Case], list[str]]:
         if only and name not in only:
             continue
         spec = baselines / f"{name}.json"
-        if not (baselines / f"{name}.csv").is_file() and not spec.is_file():
+        if not (baselines / f"{name}.csv").is_file() and not spec.is_file() and not update:
             without.append(name)
             continue
         cases.append(_case(name, scene, baselines))

@@ -130,6 +130,7 @@ class MasterSettings:
     coupling: str = "iterative"
     start: str = "auto"
     perturbation: float = 1e-3
+    step_cuts: int = 4
 
 
 @dataclass(frozen=True)

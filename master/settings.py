@@ -64,6 +64,9 @@ SETTINGS = {s.keyword: s for s in (
             "re-measure the interface flexibility after this many iterations of one step"),
     Setting("perturbation", "perturbation", float, "positive",
             "relative force perturbation that measures the interface flexibility"),
+    Setting("step_cuts", "stepCuts", int, "non-negative",
+            "times a macro step whose Newton iteration fails may be halved before the run "
+            "fails (only where every glued FMU accepts variable steps; 0: never)"),
     Setting("predictor", "predictor", str, "choice",
             "first guess of the joint forces from past steps"),
     Setting("refresh", "refresh", str, "choice",

@@ -97,11 +97,12 @@ def test_bad_input_through_the_console_has_no_traceback(tmp_path):
 
 
 def test_failed_run_exits_1_and_keeps_converged_steps(capsys, tmp_path, built):
-    """Two iterations are not enough for every step of the nonlinear scene: the
-    run stops at the first step that needs more, naming it and the joint."""
+    """Two iterations are not enough for every step of the nonlinear scene: with no
+    step cut allowed, the run stops at the first step that needs more, naming it and
+    the joint."""
     out = tmp_path / "failed.csv"
     code = main(["run", str(built["ssp"] / "spring_mass_nonlinear.ssp"), "--out", str(out),
-                 "--max-iterations", "2", "--quiet"])
+                 "--max-iterations", "2", "--step-cuts", "0", "--quiet"])
     err = capsys.readouterr().err
     assert code == 1
     assert "joint 'j1' (j1.f_x) did not converge in 2 iterations" in err

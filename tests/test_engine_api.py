@@ -34,7 +34,7 @@ def test_simulate_returns_signals_statistics_and_files(built, tmp_path):
 
 def test_a_failed_run_is_a_result_too(built, tmp_path):
     result = dsim.simulate(built["ssp"] / "spring_mass_nonlinear.ssp", max_iterations=2,
-                           out=tmp_path / "failed.csv")
+                           step_cuts=0, out=tmp_path / "failed.csv")
     assert result.status == "failed" and result.exit_code == 1
     assert "joint 'j1' (j1.f_x) did not converge in 2 iterations" in result.message
     assert isinstance(result.error, dsim.SimulationError)

@@ -28,7 +28,9 @@ def c_fmus(tmp_path_factory):
                              OSCILLATOR_VARIABLES, can_save_state=False),
             "nostate_live": c_fmu(folder, "oscillator_nostate_live", "oscillator.c",
                                   OSCILLATOR_VARIABLES, can_save_state=False,
-                                  defines=("LIVE_OUTPUTS",))}
+                                  defines=("LIVE_OUTPUTS",)),
+            "fixed_step": c_fmu(folder, "oscillator_fixed_step", "oscillator.c",
+                                OSCILLATOR_VARIABLES, variable_step=False)}
 
 
 SCENE = """<?xml version="1.0" encoding="UTF-8"?>
@@ -193,3 +195,19 @@ def test_the_explicit_coupling_needs_outputs_that_follow_inputs_at_the_start(
     with pytest.raises(dsim.InputError, match="component 'third': its port accelerations "
                                               "do not follow its forces in initialization"):
         simulate(folder, coupling="explicit")
+
+
+def test_a_failed_step_is_cut_only_where_every_glued_fmu_accepts_variable_steps(
+        c_fmus, built, tmp_path):
+    """One iteration cannot meet 1e-13 on this fixed joint (the predictor is not exact):
+    with a variable-step C FMU the master halves the step down to H/16 before it gives
+    up; with one that needs a fixed step it fails at once, no cut tried."""
+    variable = simulate(scene(tmp_path / "variable", built, c_fmus["state"]),
+                        max_iterations=1, step_cuts=4)
+    fixed = simulate(scene(tmp_path / "fixed", built, c_fmus["fixed_step"]),
+                     max_iterations=1, step_cuts=4)
+    assert variable.status == fixed.status == "failed"
+    assert "the step was cut; the part ending at t = 0.0003125 s failed" in variable.message
+    assert fixed.message.startswith("step 1 (t = 0.005 s): joint 'j' (j.f_x) did not "
+                                    "converge in 1 iterations")
+    assert (variable.statistics["step_cuts"], fixed.statistics["step_cuts"]) == (1, 0)

@@ -65,7 +65,7 @@ def regress_folder(built, tmp_path) -> Path:
     baselines.mkdir()
     (baselines / "spring_mass_linear.json").write_text(json.dumps(
         {"settings": {"stop": 0.5}, "rtol": 1e-6}))
-    assert main(["regress", str(scenes), "--update"]) == 0
+    assert main(["regress", str(scenes), "--update", "--scene", "spring_mass_linear"]) == 0
     return scenes
 
 
@@ -96,6 +96,15 @@ def test_regress_finds_a_regression_and_reports_it(built, tmp_path, capsys):
     failure = ElementTree.parse(report).getroot().find("testsuite/testcase/failure")
     assert failure is not None and "right.x[2]" in failure.get("message")
     assert (tmp_path / "runs" / "spring_mass_linear.csv").is_file()  # kept for a look
+
+
+def test_regress_update_writes_the_missing_baselines(built, tmp_path, capsys):
+    scenes = regress_folder(built, tmp_path)
+    assert not (scenes / "baselines" / "chain_10.json").exists()
+    assert main(["regress", str(scenes), "--update"]) == 0  # chain_10 had none: now it has
+    assert len((scenes / "baselines" / "chain_10.csv").read_text().splitlines()) == 2 + 1000  # header, t = 0, steps
+    assert main(["regress", str(scenes)]) == 0
+    assert "without a baseline" not in capsys.readouterr().out
 
 
 def test_regress_refuses_a_folder_without_baselines(built, tmp_path, capsys):

@@ -22,11 +22,16 @@ from master.connections import Transfer
 @dataclass
 class StepReport:
     """What one macro step took: Newton iterations (0 when nothing is glued),
-    flexibility refreshes, and the largest residual left (units of the measure)."""
+    flexibility refreshes, the largest residual left (units of the measure), how
+    deep the step was cut (0: not cut; 2: down to quarter steps), and the residual
+    left along directions no joint force changes where the gluing matrix lost rank
+    (0: none; the step was accepted in the least-squares sense)."""
 
     iterations: int
     refreshed: int
     residual: float
+    cuts: int = 0
+    lost: float = 0.0
 
 
 #: the report of a step that glued nothing

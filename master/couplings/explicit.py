@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from master.couplings.base import StepReport
+from master.couplings.divergence import BLOCKS, GROWTH, EnvelopeWatch
 from master.couplings.iterative import IterativeCoupling
 from master.errors import SimulationError
 
@@ -25,6 +26,10 @@ class ExplicitCoupling(IterativeCoupling):
     #: d a / d f of every glued subsystem at the start time, when some cannot save
     #: their state: the flexibility then comes from it, with no rollback ever
     start_sensitivity = None
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._envelope = EnvelopeWatch()
 
     def _advance(self, time: float, step_size: float, step_index: int) -> StepReport:
         """Advance every glued subsystem once with predicted forces; record the
@@ -55,6 +60,16 @@ class ExplicitCoupling(IterativeCoupling):
             raise SimulationError("the explicit coupling diverged (non-finite interface "
                                   "residual): use a smaller step or the iterative coupling",
                                   time=time + step_size, step=step_index) from None
+        residual = float(np.max(np.abs(r), initial=0.0))
+        growth = self._envelope.add(residual)
+        if growth is not None:
+            worst = int(np.argmax(np.abs(r)))
+            raise SimulationError(
+                f"the explicit coupling diverged: the interface residual grew more than "
+                f"{GROWTH:g}x in each of the last {BLOCKS} blocks of {self._envelope.block} "
+                f"steps ({growth:.3g}x in all), to {residual:.3e} at joint "
+                f"'{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}): use a smaller "
+                "step or the iterative coupling", time=time + step_size, step=step_index)
         if measuring:
             self._refresh(local, time, step_size, kinematics)
             # the perturbations moved the subsystems: step once more with the forces
@@ -64,4 +79,4 @@ class ExplicitCoupling(IterativeCoupling):
         self.joints.accept(*trial)
         self.forces = forces
         self._history.append(forces - self._factor.solve(r))
-        return StepReport(1, int(measuring), float(np.max(np.abs(r), initial=0.0)))
+        return StepReport(1, int(measuring), residual)

@@ -24,9 +24,11 @@ from collections import deque
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.linalg.lapack import dgecon
 from scipy.sparse.linalg import splu
 
 from master.couplings.base import Coupling, StepReport
+from master.couplings.divergence import StepFailure, newton_diverging
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
 from master.errors import SimulationError
@@ -36,8 +38,20 @@ from master.errors import SimulationError
 DENSE_UP_TO = 64
 
 
+#: reciprocal condition number (1-norm) below which a dense gluing matrix is solved in
+#: the least-squares sense, its near-null directions dropped (RCOND_MIN relative to
+#: its largest singular value)
+RCOND_MIN = 1e-8
+#: a step whose residual left along the lost directions is at most this fraction of
+#: the residual it started with is accepted in the least-squares sense
+LOST_SLACK = 1e-3
+
+
 class DenseFactor:
-    """LU factors of a small dense matrix, with the ``solve`` of a sparse factor."""
+    """LU factors of a small dense matrix, with the ``solve`` of a sparse factor, and
+    its reciprocal condition number (LAPACK gecon)."""
+
+    regularized = False
 
     def __init__(self, matrix: np.ndarray):
         with np.errstate(all="ignore"), warnings.catch_warnings():
@@ -45,19 +59,56 @@ class DenseFactor:
             self.lu, self.pivots = lu_factor(matrix, check_finite=False)
         diagonal = np.abs(np.diag(self.lu))
         self.singular = bool(not np.all(np.isfinite(self.lu)) or np.any(diagonal == 0.0))
+        self.rcond = 0.0
+        if not self.singular:
+            self.rcond = float(dgecon(self.lu, np.linalg.norm(matrix, 1), norm="1")[0])
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         return lu_solve((self.lu, self.pivots), rhs, check_finite=False)
+
+
+class LeastSquaresFactor:
+    """The minimum-norm least-squares solve of a rank-deficient (or nearly so) matrix:
+    its singular directions below ``RCOND_MIN`` of the largest are dropped.  Where the
+    constraint Jacobian of a mechanism loses rank (a four bar's links collinear), the
+    joint forces along the lost direction do not change the compatibility: Newton
+    leaves them as the predictor had them instead of dividing by a vanishing pivot."""
+
+    regularized = True
+    singular = False
+
+    def __init__(self, matrix: np.ndarray):
+        u, sigma, vt = np.linalg.svd(matrix)
+        keep = sigma > RCOND_MIN * sigma[0] if sigma[0] > 0 else sigma > 0
+        self.dropped = int(np.count_nonzero(~keep))
+        self._left, self._sigma, self._right = u[:, keep], sigma[keep], vt[keep]
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return self._right.T @ ((self._left.T @ rhs) / self._sigma)
+
+    def reachable(self, residual: np.ndarray) -> np.ndarray:
+        """The part of a residual that the joint forces can change (its projection on
+        the kept directions); the rest lies along the lost ones."""
+        return self._left @ (self._left.T @ residual)
 
 
 class IterativeCoupling(Coupling):
     """Newton iteration on the joint forces with step rollback."""
 
     name = "iterative"
+    #: how many times a failed macro step may be halved (the execution sets it to
+    #: ``settings.step_cuts`` when every glued FMU accepts variable step sizes)
+    cut_limit = 0
 
     def __init__(self, backend, glued, layout, joints, settings, transfer=None):
         super().__init__(backend, glued, layout, joints, settings, transfer)
+        #: macro steps that were cut; gluing matrices solved in the least-squares sense
+        self.cuts = 0
+        self.regularized = 0
+        #: steps accepted with a residual left along directions the forces cannot change
+        self.least_squares_steps = 0
         self._history: deque = deque(maxlen=3)
+        self._measured: dict = {}  # step size -> the flexibility measured for it
         self._predict = PREDICTORS[settings.predictor]
         self._refresh_policy = REFRESH_POLICIES[settings.refresh]
         self._flexibility = None  # per glued subsystem [Gu, Gv, Ga]
@@ -101,6 +152,9 @@ class IterativeCoupling(Coupling):
                 if np.any(weights[:, kind]):
                     jacobian += weights[:, kind, None] * part
             factor = DenseFactor(jacobian)
+            if factor.rcond < RCOND_MIN and np.all(np.isfinite(jacobian)):
+                factor = LeastSquaresFactor(jacobian)
+                self.regularized += 1
             singular = factor.singular
         else:
             jacobian = sp.diags(diagonal)
@@ -146,13 +200,20 @@ class IterativeCoupling(Coupling):
     def _deltas(self, local_forces):
         return self.settings.perturbation * np.maximum(1.0, np.abs(local_forces))
 
-    def _begin_step(self, step_size: float) -> None:
-        """Save every glued subsystem's state; forget G when the step size changed (G
-        is the response over one step)."""
+    def _begin_step(self, step_size: float, save: bool = True) -> None:
+        """Save every glued subsystem's state (unless ``save`` is False: a cut step's
+        first half starts from the state its whole step saved); when the step size
+        changed, take the flexibility measured for the new one, if any (G is the
+        response over one step)."""
         if self._step_size is not None and step_size != self._step_size:
+            self._measured[self._step_size] = self._flexibility
+            held = self._measured.get(step_size)
             self._flexibility = None
+            if held is not None:
+                self._use_flexibility(held, measured=False)
         self._step_size = step_size
-        self.glued.begin_step()
+        if save:
+            self.glued.begin_step()
 
     def _refresh(self, local, time, step_size, kinematics) -> None:
         """Measure every glued subsystem's interface flexibility around ``local``."""
@@ -160,14 +221,15 @@ class IterativeCoupling(Coupling):
             "flexibility", self.glued.flexibility, local, time, step_size,
             [self._deltas(f) for f in local], kinematics))
 
-    def _use_flexibility(self, flexibility) -> None:
-        """Take [Gu, Gv, Ga] of every glued subsystem as the interface flexibility."""
+    def _use_flexibility(self, flexibility, measured: bool = True) -> None:
+        """Take [Gu, Gv, Ga] of every glued subsystem as the interface flexibility
+        (``measured``: just measured, counted as a refresh)."""
         self._flexibility = flexibility
         self._parts = [self.layout.project([g[kind] for g in self._flexibility])
                        for kind in range(3)]
         if self.layout.size <= DENSE_UP_TO:
             self._dense_parts = [part.toarray() for part in self._parts]
-        self.refreshes += 1
+        self.refreshes += int(measured)
         self._factor = None
 
     def _ensure_factor(self, weights, diagonal, time: float, step_index: int) -> None:
@@ -182,39 +244,105 @@ class IterativeCoupling(Coupling):
         except SimulationError as error:
             raise SimulationError(str(error), time=time, step=step_index) from None
 
-    def _check_finite(self, r, time, step_index) -> None:
+    def _check_finite(self, r, time, step_index, iterations: int = 0) -> None:
         if not np.all(np.isfinite(r)):
             worst = int(np.argmax(~np.isfinite(r)))
-            raise SimulationError(
+            raise StepFailure(
                 f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}): "
-                "residual is not finite, the iteration diverged", time=time, step=step_index)
+                "residual is not finite, the iteration diverged", time=time, step=step_index,
+                iterations=iterations)
 
     def _advance(self, time: float, step_size: float, step_index: int) -> StepReport:
-        """Newton on the joint forces; raise SimulationError if it does not converge."""
+        """Newton on the joint forces; a step that fails is cut in halves (at most
+        ``cut_limit`` times) before the run fails."""
+        try:
+            report = self._cut_or_fail(time, step_size, step_index, 0, True)
+        except StepFailure as failure:
+            if failure.time is None or abs(failure.time - (time + step_size)) <= 1e-12 * (
+                    abs(time) + step_size):
+                raise
+            raise StepFailure(f"{failure.message} (the step was cut; the part ending at "
+                              f"t = {failure.time:.9g} s failed)", time + step_size,
+                              step_index, failure.iterations) from None
+        if report.cuts:  # the predictor extrapolates over whole steps: start it afresh
+            self._history.clear()
+            self._history.append(self.forces.copy())
+        return report
+
+    def _cut_or_fail(self, time, step_size, step_index, depth, save) -> StepReport:
+        """One Newton solve over ``step_size``; if it fails and a cut is left, the two
+        halves in turn (each may be cut again)."""
+        try:
+            return self._newton(time, step_size, step_index, save)
+        except StepFailure as failure:
+            if depth >= self.cut_limit:
+                raise
+            spent = failure.iterations
+        self.cuts += depth == 0
+        half = 0.5 * step_size
+        first = self._cut_or_fail(time, half, step_index, depth + 1, False)
+        second = self._cut_or_fail(time + half, half, step_index, depth + 1, True)
+        return StepReport(spent + first.iterations + second.iterations,
+                          first.refreshed + second.refreshed,
+                          max(first.residual, second.residual),
+                          max(first.cuts, second.cuts, depth + 1),
+                          max(first.lost, second.lost))
+
+    def _lost_residual(self, r, tolerance, first: float) -> float:
+        """Where the gluing matrix has lost rank (solved in the least-squares sense):
+        the residual left along the lost directions when the rest is within the
+        tolerance and it is small against the step's first residual (a mechanism at
+        its singular configuration: no joint force changes it there, and the joints'
+        own stabilisation takes it back on the next steps), else 0."""
+        factor = self._factor
+        if not getattr(factor, "regularized", False):  # LU factors: full rank
+            return 0.0
+        reachable = factor.reachable(r)
+        lost = float(np.max(np.abs(r - reachable), initial=0.0))
+        if np.all(np.abs(reachable) <= tolerance) and lost <= LOST_SLACK * first:
+            return lost
+        return 0.0
+
+    def _newton(self, time, step_size, step_index, save: bool = True) -> StepReport:
+        """Newton on the joint forces over one step; StepFailure if it does not
+        converge (iteration limit, non-finite or diverging residual)."""
         settings = self.settings
         forces = self.predict()
-        self._begin_step(step_size)
+        self._begin_step(step_size, save)
         refreshed = 0
         history = []  # max |R| / tolerance per iteration
+        end = time + step_size
         for iteration in range(1, settings.max_iterations + 1):
             local = self.layout.local_forces(forces)
             kinematics = self.glued.trial_step(local, time, step_size)
             r, tolerance, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
-            self._check_finite(r, time + step_size, step_index)
+            self._check_finite(r, end, step_index, iteration)
             history.append(float(np.max(np.abs(r) / tolerance, initial=0.0)))
-            if history[-1] <= 1.0:
+            if iteration == 1:
+                first = float(np.max(np.abs(r), initial=0.0))
+            lost = self._lost_residual(r, tolerance, first) if history[-1] > 1.0 else 0.0
+            if history[-1] <= 1.0 or lost:
+                self.least_squares_steps += lost > 0
                 self.joints.accept(*trial)
                 self.forces = forces
                 self._history.append(forces.copy())
-                return StepReport(iteration, refreshed, float(np.max(np.abs(r), initial=0.0)))
+                return StepReport(iteration, refreshed, float(np.max(np.abs(r), initial=0.0)),
+                                  lost=lost)
+            if newton_diverging(history, refreshed):
+                worst = int(np.argmax(np.abs(r) / tolerance))
+                raise StepFailure(
+                    f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}): "
+                    f"Newton diverged, the residual grew to {history[-1]:.3e} times the "
+                    f"tolerance from {min(history):.3e} in {iteration} iterations",
+                    time=end, step=step_index, iterations=iteration)
             if self._needs_refresh(iteration, history, refreshed, local):
                 self._refresh(local, time, step_size, kinematics)
                 refreshed += 1
-            self._ensure_factor(weights, diagonal, time + step_size, step_index)
+            self._ensure_factor(weights, diagonal, end, step_index)
             forces = forces - self._factor.solve(r)
         worst = int(np.argmax(np.abs(r) - tolerance))
-        raise SimulationError(
+        raise StepFailure(
             f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}) did not "
             f"converge in {settings.max_iterations} iterations: residual "
             f"{abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}",
-            time=time + step_size, step=step_index)
+            time=end, step=step_index, iterations=settings.max_iterations)
