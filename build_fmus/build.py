@@ -30,6 +30,14 @@ FMU_SCRIPTS = {
 FMU_RESOURCES = {
     "ElasticBody2D": ["fmus/elastic/meshes"],
 }
+#: The subpackages of fmus/ an FMU carries in its resources (with fmus/*.py, the
+#: binding every wrapper shares); an FMU not listed carries them all.
+FMU_PACKAGES = {
+    "SpringMass": ["spring_mass"],
+    "Linkage2D": ["linkage"],
+    "FlexibleLink2D": ["flexible_link"],
+    "ElasticBody2D": ["elastic"],
+}
 SSD_NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
 
 
@@ -70,10 +78,19 @@ def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Pa
     out.mkdir(parents=True, exist_ok=True)
     target = out / f"{identifier}.fmu"
     with tempfile.TemporaryDirectory(prefix="dsim-fmu-") as temp:
-        # the whole fmus package goes into the FMU's resources, without caches
+        # the fmus package goes into the FMU's resources with only the subpackages
+        # this FMU uses (and no caches)
         package = Path(temp) / "fmus"
-        shutil.copytree(root / "fmus", package,
-                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        wanted = FMU_PACKAGES.get(identifier)
+
+        def skipped(folder, names):
+            ignored = set(shutil.ignore_patterns("__pycache__", "*.pyc")(folder, names))
+            if wanted is not None and Path(folder) == root / "fmus":
+                ignored |= {n for n in names if (Path(folder) / n).is_dir()
+                            and n not in wanted}
+            return ignored
+
+        shutil.copytree(root / "fmus", package, ignore=skipped)
         FmuBuilder.build_FMU(root / FMU_SCRIPTS[identifier], dest=target,
                              project_files=[package] + [
                                  root / extra for extra in FMU_RESOURCES.get(identifier, [])],

@@ -48,7 +48,13 @@ PORT_RECORDS = ["A.u_x", "A.u_y", "A.v_x", "A.v_y", "A.a_x", "A.a_y"]
 
 
 def _part(scene: str, part: str) -> dict:
-    return {"scene": scene, "part": part}
+    """The Linkage2D parameters of a shipped part: its mechanism's description (what a
+    user writes for a linkage of their own; docs/linkages.md)."""
+    from fmus.linkage.description import mechanism_to_text
+    from fmus.linkage.scenes import crank_slider_part, four_bar_part
+
+    build = crank_slider_part if scene == "crank_slider" else four_bar_part
+    return {"mechanism": mechanism_to_text(build(part))}
 
 
 def crank_slider(name: str, coupler: str = "rigid", measure: str = "penalized",

@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 
 from examples import crank_slider, four_bar
+from fmus.linkage.description import mechanism_to_text
+from fmus.linkage.scenes import crank_slider_part
 from master.cli import main as dsim
 from master.results import read_csv
 from master.api import simulate
@@ -40,7 +42,7 @@ def _stepper(path, start_values):
 
 
 @pytest.mark.parametrize("name, start, force", [
-    ("Linkage2D", {"scene": "crank_slider", "part": "coupler"}, "B.f_y"),
+    ("Linkage2D", {"mechanism": mechanism_to_text(crank_slider_part("coupler"))}, "B.f_y"),
     ("FlexibleLink2D", {"omega0": 1.0}, "B.f_y")])
 def test_rollback_bit_for_bit_through_the_fmu(built, name, start, force):
     fmu, refs, outputs = _stepper(built["fmus"] / f"{name}.fmu", start)

@@ -1,11 +1,11 @@
-"""FMI 2.0 co-simulation wrapper of one part of a planar linkage
+"""FMI 2.0 co-simulation wrapper of a planar linkage
 (:class:`fmus.linkage.parts.PartCore` over :class:`fmus.linkage.core.Linkage`).
 
-String parameters ``scene`` (``crank_slider`` or ``four_bar``) and ``part``
-(crank, coupler, slider / crank, coupler, rocker) select the part; the crank
-slider's sizes (seed section 4.2.1), gravity and the constraint stabilisation
-(``formulation``, ``baumgarte_frequency`` w rad/s, ``baumgarte_damping`` xi) are
-parameters too, so one FMU serves every linkage scene.  Ports A, B, P (dofs x y)
+The String parameter ``mechanism`` describes it (JSON text or a file of the
+resources folder: bodies, pins, sliders, drivers, springs, bushings, ports,
+gravity; :mod:`fmus.linkage.description`), so one FMU serves any planar linkage
+(by default a pendulum, so that it runs alone).  The constraint stabilisation (``formulation``,
+``baumgarte_frequency`` w rad/s, ``baumgarte_damping`` xi) is a parameter too.  Ports A, B, P (dofs x y)
 follow DESIGN.md; a port the part lacks takes no force and reports zero motion.
 Outputs: the part's body ``x y theta vx vy omega ax ay alpha``, the driver
 ``torque``, ``constraint_violation`` and ``newton_iterations``.
@@ -25,13 +25,8 @@ from fmus.fmi_binding import CoreBinding, glued_slave
 from fmus.linkage.parts import PART_OUTPUTS, PartCore, PartParameters, build_part
 
 DESCRIPTIONS = {
-    "scene": "crank_slider or four_bar",
-    "part": "crank, coupler, slider (crank_slider) or crank, coupler, rocker (four_bar)",
-    "crank_mass": "crank mass, kg", "crank_length": "crank length, m",
-    "coupler_length": "coupler length, m", "coupler_section": "coupler square section side, m",
-    "coupler_density": "coupler density, kg/m^3", "slider_mass": "slider mass, kg",
-    "speed": "crank speed after the ramp, rad/s", "ramp_time": "crank speed ramp time, s",
-    "gravity_x": "gravity x, m/s^2", "gravity_y": "gravity y, m/s^2",
+    "mechanism": "the mechanism: a description (JSON text, docs/linkages.md) or the name of "
+                 "a file holding one in the FMU's resources folder (default: a pendulum)",
     "formulation": "constraint rows: baumgarte or index3",
     "baumgarte_frequency": "Baumgarte w, rad/s", "baumgarte_damping": "Baumgarte xi",
 }
@@ -39,7 +34,7 @@ DESCRIPTIONS = {
 
 @glued_slave
 class Linkage2D(Fmi2Slave):
-    """One rigid part of the crank slider or the four bar, glueable at A, B, P."""
+    """A planar rigid mechanism from its description, glueable at A, B, P."""
 
     author = "dsim"
     description = "Planar rigid multibody part (trapezoidal rule, Baumgarte rows)"
@@ -59,4 +54,4 @@ class Linkage2D(Fmi2Slave):
         self.binding = CoreBinding(self, PartCore.interface, PART_OUTPUTS)
 
     def build_core(self):
-        return PartCore(build_part(self.params))
+        return PartCore(build_part(self.params, self.resources))

@@ -1,23 +1,29 @@
-"""One FMU variable layout for every part of the shipped mechanisms.
+"""One FMU variable layout for every planar mechanism.
 
-An FMU's variables are fixed by its modelDescription, while the parts of
-:mod:`fmus.linkage.scenes` have different ports (crank: A; coupler: A, B;
-slider: P; rocker: B) and different bodies.  :class:`PartCore` wraps the
-:class:`~fmus.linkage.core.Linkage` of one part behind the union of the ports,
-``FIXED_PORTS`` = A, B, P with dofs x y, and a fixed list of outputs
-(``PART_OUTPUTS``: the part's one body).  A port the part does not have takes
-no force and reports zero motion; the scene glues only ports the part has.
+An FMU's variables are fixed by its modelDescription, while mechanisms have
+different ports (the shipped parts: crank A; coupler A, B; slider P; rocker B) and
+bodies.  :class:`PartCore` wraps the :class:`~fmus.linkage.core.Linkage` of one
+mechanism behind the union of the ports, ``FIXED_PORTS`` = A, B, P with dofs x y,
+and a fixed list of outputs (``PART_OUTPUTS``: its first body).  A port the
+mechanism does not have takes no force and reports zero motion; a scene glues only
+ports it has.
+
+What the mechanism is comes from the parameter ``mechanism``: a description
+(JSON text, :mod:`fmus.linkage.description`) or the name of a file holding one in
+the FMU's resources folder.  dsim's scenes write their parts this way
+(build_fmus/linkage_scenes.py); nothing in the FMU knows them.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from fmus.interface import InterfaceCore
 
-from .scenes import (CRANK_SLIDER_PARTS, FOUR_BAR_PARTS, CrankSliderParameters, crank_slider,
-                     four_bar)
+from .core import Linkage
+from .description import mechanism_from_text
 
 FIXED_PORTS = ("A", "B", "P")
 FIXED_INTERFACE = tuple((p, d) for p in FIXED_PORTS for d in ("x", "y"))
@@ -25,56 +31,60 @@ FIXED_INTERFACE = tuple((p, d) for p in FIXED_PORTS for d in ("x", "y"))
 #: driving torque on it (N.m, 0 without a driver), constraint drift and Newton count.
 PART_OUTPUTS = ("x", "y", "theta", "vx", "vy", "omega", "ax", "ay", "alpha", "torque",
                 "constraint_violation", "newton_iterations")
-SCENES = {"crank_slider": CRANK_SLIDER_PARTS, "four_bar": FOUR_BAR_PARTS}
+
+
+#: The FMU's default mechanism, so that it runs alone: a 1 m, 1 kg bar pinned to ground
+#: at one end, released horizontal under gravity, port A at its free end.
+PENDULUM = ('{"bodies":[{"name":"bar","mass":1.0,"inertia":0.08333333333333333,"x":0.5}],'
+            '"revolutes":[{"name":"O","body_i":"bar","point_i":[-0.5,0.0],"body_j":null,'
+            '"point_j":[0.0,0.0]}],"ports":[{"name":"A","body":"bar","point":[0.5,0.0]}],'
+            '"gravity":[0.0,-9.81]}')
 
 
 @dataclass
 class PartParameters:
-    """Everything that selects and sizes a part (SI units; the seed's values)."""
+    """The mechanism (a description or a resources file) and the constraint rows'
+    stabilisation (w rad/s, xi)."""
 
-    scene: str = "crank_slider"
-    part: str = "crank"
-    crank_mass: float = 50.0
-    crank_length: float = 3.0
-    coupler_length: float = 6.0
-    coupler_section: float = 0.1
-    coupler_density: float = 7850.0
-    slider_mass: float = 20.0
-    speed: float = 2.0 * np.pi
-    ramp_time: float = 1.0
-    gravity_x: float = 0.0
-    gravity_y: float = 0.0
+    mechanism: str = PENDULUM
     formulation: str = "baumgarte"
     baumgarte_frequency: float = 1000.0
     baumgarte_damping: float = 1.0
 
     def check(self) -> None:
         """Raise ValueError naming the parameter that is wrong."""
-        if self.scene not in SCENES:
-            raise ValueError(f"parameter 'scene' must be one of {sorted(SCENES)}, "
-                             f"not {self.scene!r}")
-        if self.part not in SCENES[self.scene]:
-            raise ValueError(f"parameter 'part' of scene {self.scene} must be one of "
-                             f"{SCENES[self.scene]}, not {self.part!r}")
         if self.formulation not in ("baumgarte", "index3"):
             raise ValueError("parameter 'formulation' must be baumgarte or index3")
+        if not self.mechanism.strip():
+            raise ValueError("parameter 'mechanism' is empty: give a description (JSON "
+                             "text) or a file of the FMU's resources folder")
 
 
-def build_part(p: PartParameters):
-    """The :class:`~fmus.linkage.core.Linkage` of one part (initial state from the
-    whole mechanism at t = 0, see :mod:`fmus.linkage.scenes`)."""
+def described(text: str, resources=None):
+    """The mechanism of the parameter ``mechanism``: JSON text, or a file of the FMU's
+    resources folder holding it; its ports must be among the FMU's A, B, P (x y)."""
+    if not text.lstrip().startswith("{"):
+        path = Path(resources or ".") / text
+        try:
+            text = path.read_text()
+        except OSError as error:
+            raise ValueError(f"parameter 'mechanism': cannot read {text!r} in the FMU's "
+                             f"resources folder: {error.strerror or error}") from None
+    mech = mechanism_from_text(text)
+    for port in mech.ports:
+        wrong = [d for d in port.dofs if (port.name, d) not in FIXED_INTERFACE]
+        if wrong:
+            raise ValueError(f"port {port.name} ({' '.join(port.dofs)}): the Linkage2D FMU "
+                             f"glues ports {', '.join(FIXED_PORTS)} with dofs x y")
+    return mech
+
+
+def build_part(p: PartParameters, resources=None) -> Linkage:
+    """The :class:`~fmus.linkage.core.Linkage` of the described mechanism."""
     p.check()
-    options = dict(formulation=p.formulation, baumgarte_frequency=p.baumgarte_frequency,
+    return Linkage(described(p.mechanism, resources), formulation=p.formulation,
+                   baumgarte_frequency=p.baumgarte_frequency,
                    baumgarte_damping=p.baumgarte_damping)
-    gravity = (p.gravity_x, p.gravity_y)
-    if p.scene == "crank_slider":
-        params = CrankSliderParameters(
-            crank_mass=p.crank_mass, crank_length=p.crank_length,
-            coupler_length=p.coupler_length, coupler_section=p.coupler_section,
-            coupler_density=p.coupler_density, slider_mass=p.slider_mass, speed=p.speed,
-            ramp_time=p.ramp_time, gravity=gravity)
-        return crank_slider(p.part, params, **options)
-    return four_bar(p.part, gravity=gravity, **options)
 
 
 class PartCore(InterfaceCore):

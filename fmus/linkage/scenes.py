@@ -137,9 +137,17 @@ def crank_slider(part: str = "whole", params: CrankSliderParameters = CrankSlide
                  start_time: float = 0.0, **linkage_options) -> Linkage:
     """A :class:`Linkage` of the whole crank slider or of one part
     (``"crank"``, ``"coupler"``, ``"slider"``); options go to :class:`Linkage`."""
-    mech = crank_slider_mechanism(params)
     if part == "whole":
-        return Linkage(mech, **linkage_options)
+        return Linkage(crank_slider_mechanism(params), **linkage_options)
+    return Linkage(crank_slider_part(part, params, start_time, **linkage_options),
+                   **linkage_options)
+
+
+def crank_slider_part(part: str, params: CrankSliderParameters = CrankSliderParameters(),
+                      start_time: float = 0.0, **linkage_options) -> Mechanism:
+    """The :class:`Mechanism` of one crank slider part, its initial state from the
+    whole mechanism initialized at ``start_time``."""
+    mech = crank_slider_mechanism(params)
     whole = _initialized_whole(mech, start_time, **linkage_options)
     l1, l2 = params.crank_length, params.coupler_length
     ports = {"crank": [Port("A", "crank", (l1 / 2.0, 0.0))],
@@ -148,7 +156,7 @@ def crank_slider(part: str = "whole", params: CrankSliderParameters = CrankSlide
              "slider": [Port("P", "slider", (0.0, 0.0))]}
     if part not in ports:
         raise ValueError(f"crank slider part must be whole or one of {CRANK_SLIDER_PARTS}")
-    return Linkage(_part(mech, part, ports[part], whole), **linkage_options)
+    return _part(mech, part, ports[part], whole)
 
 
 def four_bar(part: str = "whole", joints: str = "fixed", stiffness: float = 1e6,
@@ -156,17 +164,26 @@ def four_bar(part: str = "whole", joints: str = "fixed", stiffness: float = 1e6,
              start_time: float = 0.0, **linkage_options) -> Linkage:
     """A :class:`Linkage` of the whole four bar or of one part
     (``"crank"``, ``"coupler"``, ``"rocker"``); parts are the same for both joint kinds."""
-    mech = four_bar_mechanism(joints, stiffness, damping, gravity)
     if part == "whole":
-        return Linkage(mech, **linkage_options)
-    whole = _initialized_whole(four_bar_mechanism("fixed", gravity=gravity), start_time,
-                               **linkage_options)
+        return Linkage(four_bar_mechanism(joints, stiffness, damping, gravity),
+                       **linkage_options)
+    return Linkage(four_bar_part(part, gravity, start_time, **linkage_options),
+                   **linkage_options)
+
+
+def four_bar_part(part: str, gravity: tuple[float, float] = (0.0, 0.0),
+                  start_time: float = 0.0, **linkage_options) -> Mechanism:
+    """The :class:`Mechanism` of one four bar part (the same for both joint kinds),
+    its initial state from the whole fixed-joint four bar initialized at
+    ``start_time``."""
+    mech = four_bar_mechanism("fixed", gravity=gravity)
+    whole = _initialized_whole(mech, start_time, **linkage_options)
     ports = {"crank": [Port("A", "crank", (0.5, 0.0))],
              "coupler": [Port("A", "coupler", (-1.0, 0.0)), Port("B", "coupler", (1.0, 0.0))],
              "rocker": [Port("B", "rocker", (0.5, 0.0))]}
     if part not in ports:
         raise ValueError(f"four bar part must be whole or one of {FOUR_BAR_PARTS}")
-    return Linkage(_part(mech, part, ports[part], whole), **linkage_options)
+    return _part(mech, part, ports[part], whole)
 
 
 def crank_angle(t: float, params: CrankSliderParameters = CrankSliderParameters()) -> float:
