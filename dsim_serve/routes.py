@@ -53,9 +53,9 @@ def _store(request: Request) -> Store:
     return request.app.state.store
 
 
-def _render(request: Request, name: str, status: int = 200, **context) -> HTMLResponse:
+def _render(request: Request, name: str, code: int = 200, **context) -> HTMLResponse:
     return request.app.state.templates.TemplateResponse(request, name, context,
-                                                        status_code=status)
+                                                        status_code=code)
 
 
 def _found(row, what: str):

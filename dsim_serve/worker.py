@@ -99,11 +99,16 @@ class LiveObserver(Observer):
         self._file.close()
 
 
+#: set when the server that started this worker is gone
+ORPHANED = threading.Event()
+
+
 def _watch_parent(parent: int) -> None:
     """Stop the run as if cancelled when the server that started it is gone."""
     while True:
         time.sleep(0.5)
         if os.getppid() != parent:
+            ORPHANED.set()
             os.kill(os.getpid(), signal.SIGTERM)
             return
 
@@ -189,6 +194,8 @@ def main(argv=None) -> int:
         traceback.print_exc()
         outcome = {"status": "failed", "message": f"{type(error).__name__}: {error}",
                    "exit_code": 1, "steps": 0, "time": None, "warnings": []}
+    if ORPHANED.is_set():
+        outcome["message"] = f"the server stopped while it ran: {outcome['message']}"
     partial = folder / ".outcome.json.partial"
     partial.write_text(json.dumps(outcome, default=str))
     os.replace(partial, folder / "outcome.json")
