@@ -3,8 +3,9 @@
 boxes per glue joint between the two ports it ties (name, dofs, kind), and a
 dashed arrow above them per causal connection.
 
-Ports come from the FMU's conventional names (``P.f_x`` ...) and from the joints;
-a node set (``edge[1]``, ``edge[2]`` ...) is drawn as one port ``edge[]``.
+The ports drawn are those the joints use (a component in no joint shows its FMU's
+ports, by their conventional names ``P.f_x`` ...); a node set (``edge[1]``,
+``edge[2]`` ...) is drawn as one port ``edge[]``.
 """
 from __future__ import annotations
 
@@ -21,18 +22,22 @@ def _port_name(port: str) -> str:
 
 
 def _ports(scene: dict, models: dict) -> dict[str, list[str]]:
-    """component -> its ports to draw (sorted, node sets collapsed)."""
-    ports = {c["path"]: set() for c in scene["components"]}
-    for component in scene["components"]:
-        model = models.get(component.get("model_id"))
-        for port in (model or {}).get("ports", {}):
-            ports[component["path"]].add(_port_name(port))
+    """component -> its ports to draw: those its joints use, else (a component in no
+    joint) at most six of its FMU's; sorted, node sets collapsed."""
+    used = {c["path"]: set() for c in scene["components"]}
     for joint in scene["joints"]:
         for side in (joint["a"], joint["b"]):
             component, port = side.rsplit(".", 1)
-            if component in ports:
-                ports[component].add(_port_name(port))
-    return {path: sorted(names) for path, names in ports.items()}
+            if component in used:
+                used[component].add(_port_name(port))
+    ports = {}
+    for component in scene["components"]:
+        names = used[component["path"]]
+        if not names:
+            model = models.get(component.get("model_id")) or {}
+            names = sorted({_port_name(p) for p in model.get("ports", {})})[:6]
+        ports[component["path"]] = sorted(names)
+    return ports
 
 
 def _text(x, y, text, size=12, weight="normal", anchor="middle", fill="#222") -> str:
@@ -73,7 +78,7 @@ def scene_svg(scene: dict, models: dict) -> str:
             parts.append(f'<circle cx="{px:.1f}" cy="{py}" r="4.5" fill="#4a6fa5"/>')
             parts.append(_text(px, py - 9, port, 11))
         parts.append("</g>")
-    for joint in scene["joints"]:
+    for k, joint in enumerate(scene["joints"]):
         ends = [anchors.get((side.rsplit(".", 1)[0], _port_name(side.rsplit(".", 1)[1])))
                 for side in (joint["a"], joint["b"])]
         if None in ends:
@@ -85,8 +90,9 @@ def scene_svg(scene: dict, models: dict) -> str:
                      f'{bx:.1f},{low:.1f} {bx:.1f},{by}" fill="none" stroke="{color}" '
                      f'stroke-width="2.5"/>')
         label = f'{joint["name"]} ({" ".join(joint["dofs"])}, {joint["kind"]})'
-        parts.append(_text((ax + bx) / 2, 0.75 * low + 0.25 * max(ay, by) + 14, label, 11,
-                           fill=color))
+        # labels of neighbouring joints staggered, so that they do not cover each other
+        parts.append(_text((ax + bx) / 2, 0.75 * low + 0.25 * max(ay, by) + 14 + 12 * (k % 3),
+                           label, 11, fill=color))
     for k, connection in enumerate(scene["connections"]):
         start, end = (connection[key].split(".", 1)[0] for key in ("start", "end"))
         if start not in boxes or end not in boxes:

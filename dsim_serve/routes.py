@@ -64,6 +64,17 @@ def _found(row, what: str):
     return row
 
 
+def _get(store: Store, table: str, item: int) -> dict:
+    """The model or scene ``item`` (``table``: models or scenes), or 404."""
+    return _found(store.one(f"SELECT * FROM {table} WHERE id = ?", item), table[:-1])
+
+
+def _blob(store: Store, row: dict, suffix: str) -> FileResponse:
+    """The stored file of a model or scene, named after it."""
+    return FileResponse(store.blob_path(row["sha256"]), media_type="application/zip",
+                        filename=_download_name(row["name"], suffix))
+
+
 def _redirect(url: str) -> RedirectResponse:
     return RedirectResponse(url, status_code=303)
 
@@ -199,7 +210,7 @@ def models_page(request: Request, q: str = ""):
 @router.get("/models/{model_id}", response_class=HTMLResponse)
 def model_page(request: Request, model_id: int):
     store = _store(request)
-    model = _found(store.one("SELECT * FROM models WHERE id = ?", model_id), "model")
+    model = _get(store, "models", model_id)
     used = store.all("SELECT scenes.id, scenes.name, scene_models.component FROM "
                      "scene_models JOIN scenes ON scenes.id = scene_models.scene_id "
                      "WHERE model_id = ? ORDER BY scenes.id", model_id)
@@ -209,9 +220,7 @@ def model_page(request: Request, model_id: int):
 @router.get("/models/{model_id}/download")
 def model_download(request: Request, model_id: int):
     store = _store(request)
-    model = _found(store.one("SELECT * FROM models WHERE id = ?", model_id), "model")
-    return FileResponse(store.blob_path(model["sha256"]), media_type="application/zip",
-                        filename=_download_name(model["name"], ".fmu"))
+    return _blob(store, _get(store, "models", model_id), ".fmu")
 
 
 @api.get("/models")
@@ -223,7 +232,7 @@ def models_api(request: Request, q: str = ""):
 
 @api.get("/models/{model_id}")
 def model_api(request: Request, model_id: int):
-    return _found(_store(request).one("SELECT * FROM models WHERE id = ?", model_id), "model")
+    return _get(_store(request), "models", model_id)
 
 
 # --- scenes ----------------------------------------------------------------------------
@@ -292,7 +301,7 @@ def scene_page(request: Request, scene_id: int, parameter_set: str = ""):
     from master.settings import SETTINGS, choices
 
     store = _store(request)
-    scene = _found(store.one("SELECT * FROM scenes WHERE id = ?", scene_id), "scene")
+    scene = _get(store, "scenes", scene_id)
     root, members = family(store, scene_id)
     root_scene = store.one("SELECT baseline_run_id FROM scenes WHERE id = ?", root)
     d = scene["description"]
@@ -301,8 +310,9 @@ def scene_page(request: Request, scene_id: int, parameter_set: str = ""):
     settings = [{"keyword": k, "option": s.option, "help": s.help, "default": defaults.get(k),
                  "choices": choices(k) if s.kind is str and s.rule == "choice" else None}
                 for k, s in SETTINGS.items() if k != "parameter_set"]
-    return _render(request, "scene.html", scene=scene, d=d,
-                   svg=diagram.scene_svg(d, scene_models(store, scene)),
+    models = scene_models(store, scene)
+    return _render(request, "scene.html", scene=scene, d=d, models=models,
+                   svg=diagram.scene_svg(d, models),
                    runs=_runs_of(store, [scene_id]), sweeps=_runs_of(store, [scene_id], "sweep"),
                    settings=settings, chosen_set=parameter_set,
                    baseline=root_scene["baseline_run_id"],
@@ -314,7 +324,7 @@ def scene_page(request: Request, scene_id: int, parameter_set: str = ""):
 @router.get("/scenes/{scene_id}/diagram.svg")
 def scene_diagram(request: Request, scene_id: int):
     store = _store(request)
-    scene = _found(store.one("SELECT * FROM scenes WHERE id = ?", scene_id), "scene")
+    scene = _get(store, "scenes", scene_id)
     return Response(diagram.scene_svg(scene["description"], scene_models(store, scene)),
                     media_type="image/svg+xml")
 
@@ -322,15 +332,13 @@ def scene_diagram(request: Request, scene_id: int):
 @router.get("/scenes/{scene_id}/download")
 def scene_download(request: Request, scene_id: int):
     store = _store(request)
-    scene = _found(store.one("SELECT * FROM scenes WHERE id = ?", scene_id), "scene")
-    return FileResponse(store.blob_path(scene["sha256"]), media_type="application/zip",
-                        filename=_download_name(scene["name"], ".ssp"))
+    return _blob(store, _get(store, "scenes", scene_id), ".ssp")
 
 
 @router.get("/scenes/{scene_id}/parameters", response_class=HTMLResponse)
 def parameters_form(request: Request, scene_id: int):
     store = _store(request)
-    scene = _found(store.one("SELECT * FROM scenes WHERE id = ?", scene_id), "scene")
+    scene = _get(store, "scenes", scene_id)
     return _render(request, "parameters.html", scene=scene,
                    rows=editable_parameters(store, scene), problems=[], fields={})
 
@@ -339,7 +347,7 @@ def parameters_form(request: Request, scene_id: int):
 async def parameters_save(request: Request, scene_id: int):
     """A new .ssv of the changed values: a new scene (the old one plus the set)."""
     store = _store(request)
-    scene = _found(store.one("SELECT * FROM scenes WHERE id = ?", scene_id), "scene")
+    scene = _get(store, "scenes", scene_id)
     fields = _first(await _fields(request))
     rows = editable_parameters(store, scene)
     name = str(fields.get("set_name") or "").strip() or "edited"
@@ -375,7 +383,7 @@ def scenes_api(request: Request):
 
 @api.get("/scenes/{scene_id}")
 def scene_api(request: Request, scene_id: int):
-    return _found(_store(request).one("SELECT * FROM scenes WHERE id = ?", scene_id), "scene")
+    return _get(_store(request), "scenes", scene_id)
 
 
 # --- runs ----------------------------------------------------------------------------------
@@ -614,7 +622,7 @@ def _columns(store: Store, scene_id: int) -> list[str]:
 def compare_page(request: Request, scene_id: int, rtol: float = 1e-6, atol: float = 0.0,
                  column: str = ""):
     store = _store(request)
-    scene = _found(store.one("SELECT * FROM scenes WHERE id = ?", scene_id), "scene")
+    scene = _get(store, "scenes", scene_id)
     chosen = [int(v) for v in request.query_params.getlist("run") if v.isdigit()]
     found = comparison(store, scene_id, chosen, rtol, atol)
     columns = _columns(store, scene_id)

@@ -49,9 +49,9 @@ def shots(tmp_path):
     targets = [tmp_path] + ([Path(os.environ["DSIM_SCREENSHOTS"])]
                             if os.environ.get("DSIM_SCREENSHOTS") else [])
 
-    def shoot(page, name: str) -> Path:
+    def shoot(page, name: str, whole: bool = True) -> Path:
         path = tmp_path / f"{name}.png"
-        page.screenshot(path=str(path), full_page=True)
+        page.screenshot(path=str(path), full_page=whole)
         for folder in targets[1:]:
             folder.mkdir(parents=True, exist_ok=True)
             shutil.copy(path, folder / path.name)
@@ -96,7 +96,7 @@ def _scenario(page, url: str, built, shots) -> None:
     model = _id(page)
     expect(page.locator("h1")).to_contain_text("SpringMass")
     expect(page.locator("#variables")).to_contain_text("k_ground[1]")
-    shots(page, "model")
+    shots(page, "model", whole=False)  # its 83 variables go on below
     # find it
     page.goto(url + "/models")
     page.fill("#model-search", "spring")
@@ -173,7 +173,7 @@ def _scenario(page, url: str, built, shots) -> None:
     page.goto(f"{url}/scenes/{scene}/parameters")
     page.fill("input[data-name='right.F0[2]']", "20")
     page.fill("input[name=set_name]", "heavy")
-    shots(page, "parameters")
+    shots(page, "parameters", whole=False)
     page.click("#save-parameters")
     page.wait_for_url(re.compile(r"parameter_set=resources/parameters_1.ssv"))
     expect(page.locator("#parameter-sets")).to_contain_text("heavy")
