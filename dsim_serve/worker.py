@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import signal
 import sys
@@ -30,13 +31,18 @@ from master.observers import Observer
 SAMPLE_SECONDS = 0.05
 
 
+def _finite(value) -> float | None:
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
 class LiveObserver(Observer):
     """Appends the run's health and chosen signals to ``live.jsonl``, one JSON line
     per sample, at most every :data:`SAMPLE_SECONDS`: ``start`` (columns, components,
     span), then ``sample`` lines with the step ``i``, simulated time ``t``, wall
-    seconds, Newton iterations of the step and the most of any step since the last
-    sample, flexibility (Lambda) refreshes so far, residual, the chosen signals
-    ``v`` and the seconds spent inside each FMU so far."""
+    seconds, Newton iterations per step since the last sample (mean and most),
+    flexibility (Lambda) refreshes so far, residual, the chosen signals ``v`` and
+    the seconds spent inside each FMU so far (non-finite numbers as null)."""
 
     def __init__(self, path: Path, signals, execution=None):
         self.path = Path(path)
@@ -45,11 +51,11 @@ class LiveObserver(Observer):
         self.files = {}
         self._last = 0.0
         self._pending = None
-        self._most = 0
+        self._most = self._steps = self._iterations = 0
         self._refreshes = 0
 
     def _write(self, entry: dict) -> None:
-        self._file.write(json.dumps(entry, allow_nan=False, default=float) + "\n")
+        self._file.write(json.dumps(entry, allow_nan=False) + "\n")
         self._file.flush()
 
     def started(self, info) -> None:
@@ -71,21 +77,25 @@ class LiveObserver(Observer):
                 for counters in backend.counters()]
 
     def _sample(self, record) -> dict:
-        values = [float(record.values[i]) for i in self._index]
+        steps = max(self._steps, 1)
         return {"type": "sample", "i": record.index, "t": record.time,
                 "wall": round(time.perf_counter() - self._start, 4),
-                "it": record.iterations, "it_max": self._most,
-                "refreshes": self._refreshes, "res": float(record.residual),
-                "v": [v if v == v and abs(v) != float("inf") else None for v in values],
+                "it_mean": self._iterations / steps, "it_max": self._most,
+                "refreshes": self._refreshes, "res": _finite(record.residual),
+                "v": [_finite(record.values[i]) for i in self._index],
                 "fmu": self._fmu_seconds()}
 
     def stepped(self, record) -> None:
-        self._most = max(self._most, record.iterations)
-        self._refreshes += record.refreshed
+        if record.index:
+            self._steps += 1
+            self._iterations += record.iterations
+            self._most = max(self._most, record.iterations)
+            self._refreshes += record.refreshed
         now = time.perf_counter()
         if record.index == 0 or now - self._last >= SAMPLE_SECONDS:
             self._write(self._sample(record))
-            self._last, self._pending, self._most = now, None, 0
+            self._last, self._pending = now, None
+            self._most = self._steps = self._iterations = 0
         else:
             self._pending = record
 

@@ -34,7 +34,8 @@
         start = line.start; stop = line.stop;
         state.signals = plot(document.getElementById("chart-signals"), "time (s)", line.columns);
         state.health = plot(document.getElementById("chart-health"), "time (s)",
-                            ["iterations of the step", "most since last sample", "Lambda refreshes"],
+                            ["iterations per step (mean)", "iterations in one step (most)",
+                             "Lambda refreshes"],
                             {name: "refreshes", labels: ["Lambda refreshes"]});
         state.fmu = plot(document.getElementById("chart-fmu"), "wall (s)", line.components);
       } else if (line.type === "sample" && line.i > state.last && state.signals) {
@@ -43,7 +44,7 @@
         var s = state.signals.data, h = state.health.data, f = state.fmu.data;
         s[0].push(line.t);
         line.v.forEach(function (v, k) { s[k + 1].push(v); });
-        h[0].push(line.t); h[1].push(line.it); h[2].push(line.it_max); h[3].push(line.refreshes);
+        h[0].push(line.t); h[1].push(line.it_mean); h[2].push(line.it_max); h[3].push(line.refreshes);
         f[0].push(line.wall);
         line.fmu.forEach(function (v, k) { if (f[k + 1]) { f[k + 1].push(v); } });
         var fraction = stop > start ? (line.t - start) / (stop - start) : 1;
