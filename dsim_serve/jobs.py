@@ -171,7 +171,11 @@ class Jobs:
             run = self.store.one("SELECT * FROM runs WHERE status = 'queued' ORDER BY id")
             if run is None:
                 return
-            self._launch(run)
+            try:
+                self._launch(run)
+            except OSError as error:  # no process could be started: that run fails, once
+                self.store.update_run(run["id"], status="failed", ended=time.time(),
+                                      message=f"the run's process could not start: {error}")
 
     def _launch(self, run: dict) -> None:
         folder = self.store.run_folder(run["id"])

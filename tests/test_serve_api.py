@@ -169,6 +169,22 @@ def test_a_cancelled_run_stops_after_a_step_and_keeps_its_results(server):
     assert client.post(f"/api/runs/{run_id}/cancel").json() == {"cancelled": False}
 
 
+def test_runs_wait_for_a_free_slot_and_a_queued_run_can_be_cancelled(built, tmp_path):
+    from fastapi.testclient import TestClient
+    with TestClient(create_app(tmp_path / "db.sqlite", slots=1)) as client:
+        scene_id = upload(client, built["ssp"] / "spring_mass_linear.ssp").json()["id"]
+        running = launch(client, scene_id, stop="100000")
+        queued = launch(client, scene_id, stop="0.1")
+        wait_run(client, running, until=("running",))
+        assert client.get(f"/api/runs/{queued}").json()["status"] == "queued"
+        assert client.post(f"/api/runs/{queued}/cancel").json() == {"cancelled": True}
+        run = wait_run(client, queued)
+        assert run["status"] == "interrupted" and run["message"] == "cancelled before it started"
+        assert not (client.app.state.store.run_folder(queued) / "results.csv").exists()
+        client.post(f"/api/runs/{running}/cancel")
+        assert wait_run(client, running)["status"] == "interrupted"
+
+
 def test_an_assembled_scene_is_a_standard_ssp_that_dsim_runs(server, built, tmp_path):
     client, store, scene_id = server
     upload(client, built["fmus"] / "SpringMass.fmu")
