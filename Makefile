@@ -5,12 +5,12 @@ VENV ?= .venv
 BIN = $(VENV)/bin
 SCENE ?= spring_mass_nonlinear
 
-.PHONY: demo test fmus benchmarks clean
+.PHONY: demo test fmus browser screenshots benchmarks clean
 
 $(VENV)/installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet -e '.[test,serve]'
 	touch $@
 
 fmus: $(VENV)/installed
@@ -20,8 +20,22 @@ demo: fmus
 	$(BIN)/dsim run build/ssp/$(SCENE).ssp --out results/$(SCENE).csv --plot results/$(SCENE).png
 	$(BIN)/python -m examples.spring_mass --results results/$(SCENE).csv
 
-test: fmus
-	OMP_NUM_THREADS=1 $(BIN)/pytest -q
+test: fmus browser
+	OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs
+
+# Debian's Chromium for dsim serve's browser tests, installed when missing and allowed
+# (best effort: without it those tests are skipped, and pytest -rs says so)
+browser:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null || true; \
+	  elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then \
+	    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null || true; \
+	  else echo "make: no Chromium, and no way to install it here: the browser tests will be skipped"; fi; }
+
+# the screenshots of docs/serve.md, made by the browser tests
+screenshots: fmus browser
+	DSIM_SCREENSHOTS=docs/serve OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs tests/test_serve_browser.py
 
 benchmarks: fmus
 	OMP_NUM_THREADS=1 $(BIN)/python -m benchmarks.run_benchmarks

@@ -1,0 +1,204 @@
+"""What the web forms send, read into dsim's terms: run settings (checked by
+dsim's own rules, :func:`master.settings.resolve`), sweep grids
+(:func:`master.sweep.check`), scenes to assemble and parameter edits.  Each reader
+returns the value or raises :class:`FormError` listing every problem."""
+from __future__ import annotations
+
+import math
+
+from dsim_serve.assemble import ComponentSpec, SceneSpec, typed_value
+from dsim_serve.store import Store
+
+
+class FormError(Exception):
+    """What is wrong with a form, one line per problem."""
+
+    def __init__(self, problems):
+        self.problems = list(problems)
+        super().__init__("\n".join(self.problems))
+
+
+def run_settings(fields: dict) -> dict:
+    """``dsim run``'s settings from form fields named as its keywords; an empty field
+    keeps the scene's value."""
+    from master.errors import InputError
+    from master.scene import MasterSettings
+    from master.settings import SETTINGS, resolve
+
+    settings = {k: str(fields[k]).strip() for k in SETTINGS
+                if str(fields.get(k) or "").strip()}
+    try:
+        resolve(MasterSettings(), settings)
+    except InputError as error:
+        raise FormError(error.problems) from None
+    return settings
+
+
+def _list(text: str) -> list[str]:
+    return [v for v in text.replace(",", " ").split() if v]
+
+
+def sweep_spec(fields: dict, reference: str | None) -> dict:
+    """A sweep's grid (``step``, ``tolerance``, ``coupling``, ``predictor``: lists
+    separated by commas or spaces) and fixed settings (``stop``), checked as
+    ``dsim sweep`` checks a sweep file."""
+    from master.errors import InputError
+    from master.sweep import Sweep, check
+
+    grid = {name: _list(str(fields.get(name) or "")) for name in
+            ("step", "tolerance", "coupling", "predictor")}
+    grid = {name: values for name, values in grid.items() if values}
+    fixed = {"stop": str(fields["stop"]).strip()} if str(fields.get("stop") or "").strip() \
+        else {}
+    try:
+        check(Sweep(grid=grid, fixed=fixed))
+    except InputError as error:
+        raise FormError(error.problems) from None
+    return {"grid": grid, "fixed": fixed, "reference": reference}
+
+
+def _parameters(text: str, variables: dict, where: str, problems: list) -> list:
+    """(name, type, SSV text) of ``name = value`` lines, checked against the FMU."""
+    values = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        if not line.strip() or line.strip().startswith("#"):
+            continue
+        name, equals, value = line.partition("=")
+        name = name.strip()
+        variable = variables.get(name)
+        if not equals:
+            problems.append(f"{where}, parameter line {number}: write 'name = value'")
+        elif variable is None:
+            problems.append(f"{where}: the FMU has no variable '{name}'")
+        elif variable["causality"] not in ("parameter", "input"):
+            problems.append(f"{where}: '{name}' is a {variable['causality']} of the FMU: "
+                            "only parameters and inputs take values")
+        else:
+            try:
+                values.append((name, variable["type"], typed_value(variable["type"], value)))
+            except ValueError as error:
+                problems.append(f"{where}: parameter '{name}' ({variable['type']}): {error}")
+    return values
+
+
+def _joint(fields: dict, k: int, problems: list) -> dict | None:
+    def value(name):
+        values = fields.get(f"joint_{name}", [])
+        return str(values[k]).strip() if k < len(values) else ""
+
+    name, a, b = value("name"), value("a"), value("b")
+    if not (name or a or b):
+        return None
+    where = f"joint {k + 1}" + (f" '{name}'" if name else "")
+    for label, text in (("name", name), ("a", a), ("b", b)):
+        if not text:
+            problems.append(f"{where}: give its {label}")
+    joint = {"name": name, "a": a, "b": b, "dofs": value("dofs") or "x",
+             "kind": value("kind") or "fixed", "measure": value("measure") or "displacement"}
+    for key in ("k0", "k1", "c0", "c1"):
+        text = value(key)
+        if text:
+            try:
+                numbers = [float(v) for v in text.split()]
+                if not all(math.isfinite(x) for x in numbers):
+                    raise ValueError
+                joint[key] = " ".join(repr(x) for x in numbers)
+            except ValueError:
+                problems.append(f"{where}: {key} '{text}' is not a number")
+    if joint["kind"] == "flexible" and "k0" not in joint:
+        problems.append(f"{where}: a flexible joint needs its stiffness k0")
+    return joint
+
+
+def scene_spec(fields: dict, store: Store) -> tuple[SceneSpec, dict]:
+    """The scene the assembly form describes, and the stored FMU file of each model
+    it uses (sha256 -> path).  ``fields`` maps each form field to its list of values
+    (one per row)."""
+    problems = []
+    name = str((fields.get("name") or [""])[0]).strip()
+    if not name:
+        problems.append("give the scene a name")
+    spec = SceneSpec(name, str((fields.get("description") or [""])[0]).strip())
+    files, seen, variables_of = {}, set(), {}
+    names = fields.get("component_name", [])
+    for k, component in enumerate(names):
+        component = str(component).strip()
+        model_text = fields.get("component_model", [""] * len(names))[k]
+        if not component and not model_text:
+            continue
+        where = f"component {k + 1}" + (f" '{component}'" if component else "")
+        if not component or "." in component:
+            problems.append(f"{where}: give it a name without dots")
+            continue
+        if component in seen:
+            problems.append(f"{where}: the name is used twice")
+        seen.add(component)
+        model = store.one("SELECT * FROM models WHERE id = ?",
+                          int(model_text)) if str(model_text).isdigit() else None
+        if model is None:
+            problems.append(f"{where}: choose one of the stored FMUs")
+            continue
+        variables = {v["name"]: v for v in model["description"]["variables"]}
+        variables_of[component] = variables
+        text = fields.get("component_parameters", [""] * len(names))[k]
+        parameters = _parameters(str(text), variables, where, problems)
+        outputs = []
+        for output in _list(str(fields.get("component_record", [""] * len(names))[k])):
+            variable = variables.get(output)
+            if variable is None or variable["causality"] != "output":
+                problems.append(f"{where}: '{output}' is not an output of the FMU")
+            else:
+                outputs.append((output, variable["type"]))
+        spec.components.append(ComponentSpec(component, model["sha256"], parameters, outputs))
+        files[model["sha256"]] = store.blob_path(model["sha256"])
+    if not spec.components and not problems:
+        problems.append("add at least one component")
+    starts, ends = fields.get("connection_start", []), fields.get("connection_end", [])
+    for k, (start, end) in enumerate(zip(starts, ends)):
+        start, end = str(start).strip(), str(end).strip()
+        if not start and not end:
+            continue
+        if "." not in start or "." not in end:
+            problems.append(f"connection {k + 1}: write 'component.output' and "
+                            "'component.input'")
+            continue
+        spec.connections.append((tuple(start.split(".", 1)), tuple(end.split(".", 1))))
+    for k in range(len(fields.get("joint_name", []))):
+        joint = _joint(fields, k, problems)
+        if joint:
+            spec.joints.append(joint)
+    experiment = {key: str((fields.get(key) or [""])[0]).strip()
+                  for key in ("start", "stop", "step", "tolerance", "max_iterations")}
+    for key in ("start", "stop"):
+        try:
+            setattr(spec, key, float(experiment[key] or (0.0 if key == "start" else 1.0)))
+        except ValueError:
+            problems.append(f"experiment: {key} time '{experiment[key]}' is not a number")
+    try:
+        spec.master = {k: v for k, v in run_settings(
+            {k: experiment[k] for k in ("step", "tolerance", "max_iterations")}).items()}
+    except FormError as error:
+        problems += error.problems
+    if problems:
+        raise FormError(problems)
+    return spec, files
+
+
+def parameter_edits(fields: dict, rows: list[dict]) -> list:
+    """(root-relative name, type, SSV text) of every parameter whose field differs
+    from the value shown (``rows``: the editable parameters in page order)."""
+    problems, values = [], []
+    for k, row in enumerate(rows):
+        text = str(fields.get(f"value_{k}", row["value"])).strip()
+        if text == str(row["value"]):
+            continue
+        try:
+            values.append((f"{row['component']}.{row['name']}", row["type"],
+                           typed_value(row["type"], text)))
+        except ValueError as error:
+            problems.append(f"{row['component']}.{row['name']} ({row['type']}): {error}")
+    if problems:
+        raise FormError(problems)
+    if not values:
+        raise FormError(["no value changed: edit at least one parameter"])
+    return values

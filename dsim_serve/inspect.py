@@ -1,0 +1,216 @@
+"""Checks an uploaded FMU or .ssp with dsim's own checks and describes it, in a
+child process: ``python -m dsim_serve.inspect fmu|ssp FILE`` prints one JSON
+object, ``{"ok": true, "description": {...}}`` or ``{"ok": false, "problems":
+[...]}``.
+
+Why a child process: an uploaded file is untrusted.  Reading it loads its
+shared library (dsim's FMU check probes it in yet another process), unpacks
+archives into temporary folders and fills caches; all of that ends with the
+child, so a long-running server keeps none of it and a file that crashes the
+checker is only a message (:func:`dsim_serve.uploads.inspect_file`).
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import tempfile
+import zipfile
+from pathlib import Path, PurePosixPath
+
+#: largest unpacked size of an archive (its members added up), bytes
+MAX_UNPACKED = 2 << 30
+MAX_MEMBERS = 20000
+
+#: capability flags of <CoSimulation> shown on a model's page
+CAPABILITIES = ("canGetAndSetFMUstate", "canSerializeFMUstate",
+                "canHandleVariableCommunicationStepSize", "canInterpolateInputs",
+                "providesDirectionalDerivative", "canBeInstantiatedOnlyOncePerProcess",
+                "needsExecutionTool", "canNotUseMemoryManagementFunctions",
+                "canRunAsynchronuously", "maxOutputDerivativeOrder")
+
+
+class Refused(Exception):
+    """The file is not acceptable: the message says why, in one line."""
+
+
+def check_archive(path: Path, what: str, max_unpacked: int = MAX_UNPACKED) -> list[str]:
+    """Member names of a zip archive, refused when it is not one, unpacks to more than
+    ``max_unpacked`` bytes (a zip bomb) or names a member outside itself."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = archive.infolist()
+    except (zipfile.BadZipFile, OSError, EOFError) as error:
+        raise Refused(f"not a readable {what} (not a zip archive: {error})") from None
+    if len(members) > MAX_MEMBERS:
+        raise Refused(f"{what} archive has {len(members)} members (at most {MAX_MEMBERS})")
+    total = sum(m.file_size for m in members)
+    if total > max_unpacked:
+        raise Refused(f"{what} archive unpacks to {total / 2**20:.0f} MiB "
+                      f"(at most {max_unpacked / 2**20:.0f} MiB)")
+    for member in members:
+        name = PurePosixPath(member.filename)
+        if name.is_absolute() or ".." in name.parts or "\\" in member.filename:
+            raise Refused(f"{what} archive member '{member.filename}' points outside the "
+                          "archive")
+    return [m.filename for m in members]
+
+
+def _start(variable):
+    start = variable.start
+    if start is None:
+        return None
+    return start if isinstance(start, (int, float, str, bool)) else str(start)
+
+
+def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
+    """The summary of an FMU's modelDescription that a model's page shows, after
+    dsim's checks of an FMU (:func:`master.fmu_archive.fmu_problem`)."""
+    from master.fmu_archive import fmu_problem
+    from master.ports import conventional_ports, model_description
+
+    names = check_archive(path, "FMU", max_unpacked)
+    problem = fmu_problem(path)
+    if problem:
+        raise Refused(problem)
+    description = model_description(path)
+    cs = description.coSimulation
+    platforms = sorted({n.split("/")[1] for n in names
+                        if n.startswith("binaries/") and n.count("/") >= 2})
+    return {
+        "kind": "fmu",
+        "modelName": description.modelName,
+        "fmiVersion": description.fmiVersion,
+        "guid": description.guid,
+        "description": description.description or "",
+        "generationTool": description.generationTool or "",
+        "author": description.author or "",
+        "version": description.version or "",
+        "modelIdentifier": cs.modelIdentifier,
+        "platforms": platforms,
+        "capabilities": {name: getattr(cs, name, None) for name in CAPABILITIES},
+        "experiment": ({"startTime": description.defaultExperiment.startTime,
+                        "stopTime": description.defaultExperiment.stopTime,
+                        "stepSize": description.defaultExperiment.stepSize}
+                       if description.defaultExperiment else None),
+        "variables": [{"name": v.name, "causality": v.causality,
+                       "variability": v.variability, "type": v.type,
+                       "unit": v.unit or (v.declaredType.unit if v.declaredType else None),
+                       "start": _start(v), "description": v.description or ""}
+                      for v in description.modelVariables],
+        "ports": {port: sorted(dofs) for port, dofs in conventional_ports(path).items()},
+    }
+
+
+def _joint(joint) -> dict:
+    return {"name": joint.name, "a": ".".join(joint.a), "b": ".".join(joint.b),
+            "dofs": list(joint.dofs), "kind": joint.kind, "measure": joint.measure,
+            "k0": list(joint.k0), "k1": list(joint.k1), "c0": list(joint.c0),
+            "c1": list(joint.c1)}
+
+
+def _parameter_sets(folder: Path) -> list[dict]:
+    """Every .ssv file of a scene; ``bound``: a ParameterBinding of the SSD uses it
+    (else it is a set to choose for a run, ``dsim run --parameter-set``)."""
+    from lxml import etree
+
+    bound = {binding.get("source") for binding in _ssd_root(folder).iterfind(
+        ".//{*}ParameterBinding") if binding.get("source")}
+    found = []
+    for file in sorted(folder.rglob("*.ssv")):
+        try:
+            root = etree.parse(str(file)).getroot()
+        except etree.XMLSyntaxError:
+            continue
+        found.append({"path": file.relative_to(folder).as_posix(), "name": root.get("name"),
+                      "parameters": len(root.findall(".//{*}Parameter")),
+                      "bound": file.relative_to(folder).as_posix() in bound})
+    return found
+
+
+def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
+    """What a scene's page shows of an .ssp archive, after ``dsim validate``'s
+    checks (a scene that does not validate is refused with every problem)."""
+    import hashlib
+
+    from master.api import prepare
+    from master.validate import validate
+
+    names = check_archive(path, "SSP", max_unpacked)
+    if "SystemStructure.ssd" not in names:
+        raise Refused("not an SSP archive (no SystemStructure.ssd at its root)")
+    folder = Path(tempfile.mkdtemp(prefix="dsim-serve-"))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(folder)
+        found = validate(folder)
+        if not found.ok:
+            raise Refused("\n".join(p.replace(str(folder), "scene") for p in found.errors))
+        plan = prepare(folder)
+        layout, _ = plan.assemble()
+        scene = plan.scene
+        fmus = {}
+        components = []
+        for component in scene.components:
+            member = component.source.relative_to(folder).as_posix()
+            if member not in fmus:
+                fmus[member] = {"sha256": hashlib.sha256(component.source.read_bytes())
+                                .hexdigest(), "description": describe_fmu(component.source)}
+            components.append({"path": component.path, "fmu": member,
+                               "parameters": {k: list(v) for k, v in
+                                              component.parameters.items()},
+                               "outputs": [c.name for c in component.connectors
+                                           if c.kind == "output"]})
+        root = _ssd_root(folder)
+        return {
+            "kind": "ssp",
+            "name": scene.name,
+            "description": root.get("description", ""),
+            "start_time": scene.start_time,
+            "stop_time": scene.stop_time,
+            "master": dict(scene.master.__dict__),
+            "coupling": plan.coupling,
+            "components": components,
+            "glued": [scene.components[i].path for i in plan.glued],
+            "connections": [{"start": ".".join(c.start), "end": ".".join(c.end)}
+                            for c in scene.connections],
+            "joints": [_joint(j) for j in scene.joints],
+            "columns": list(plan.columns) + list(layout.labels) + list(plan.text_columns),
+            "parameter_sets": _parameter_sets(folder),
+            "fmus": fmus,
+            "summary": found.summary.replace(str(folder), scene.name),
+            "warnings": [w.replace(str(folder), "scene") for w in found.warnings],
+        }
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _ssd_root(folder: Path):
+    from lxml import etree
+
+    return etree.parse(str(folder / "SystemStructure.ssd")).getroot()
+
+
+def main(argv=None) -> int:
+    """Print the JSON answer for one file; exit 0 whatever the answer."""
+    from master.errors import InputError
+
+    argv = sys.argv[1:] if argv is None else argv
+    kind, path = argv[0], Path(argv[1])
+    max_unpacked = int(argv[2]) if len(argv) > 2 else MAX_UNPACKED
+    try:
+        describe = describe_fmu if kind == "fmu" else describe_scene
+        answer = {"ok": True, "description": describe(path, max_unpacked)}
+    except Refused as refused:
+        answer = {"ok": False, "problems": str(refused).splitlines()}
+    except InputError as error:
+        answer = {"ok": False, "problems": error.problems}
+    except Exception as error:  # a file nobody foresaw: a message, not a traceback
+        answer = {"ok": False, "problems": [f"cannot read the file: {type(error).__name__}: "
+                                            f"{error}"]}
+    print(json.dumps(answer))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,330 @@
+"""``dsim serve`` through its HTTP API and pages (FastAPI's TestClient over a real
+application: real FMUs, real worker processes, a real SQLite file)."""
+from __future__ import annotations
+
+import html
+import io
+import zipfile
+
+import numpy as np
+import pytest
+from lxml import etree
+
+from tests.serve_fixtures import (SPRING_MASS_FORM, create_app, launch, server,  # noqa: F401
+                                  upload, wait_run)
+
+import dsim
+from master.cli import main as dsim_main
+
+
+def test_an_fmu_is_stored_once_by_its_content_and_described(server, built):
+    client, store, _ = server
+    first = upload(client, built["fmus"] / "SpringMass.fmu", "../../../tmp/evil name.fmu")
+    again = upload(client, built["fmus"] / "SpringMass.fmu", "copy.fmu")
+    assert first.status_code == 200 and first.json()["kind"] == "model"
+    assert again.json() == first.json()  # the same content is the same model
+    model = client.get(f"/api/models/{first.json()['id']}").json()
+    assert store.blob_path(model["sha256"]).is_file()
+    # the name a user gave is shown, never used as a path
+    names = {p.name for p in store.files.rglob("*")}
+    assert not any("evil" in n or n.endswith(".fmu") for n in names)
+    page = client.get(f"/models/{model['id']}").text
+    for expected in ("k_ground[1]", "spring to ground k0", "canGetAndSetFMUstate",
+                     "parameter", "Real", "spring_mass_linear"):
+        assert expected in page, expected
+    assert [m["id"] for m in client.get("/api/models?q=spring").json()] == [model["id"]]
+    assert client.get("/api/models?q=no-such-model").json() == []
+
+
+def _fmu_bytes(built) -> bytes:
+    return (built["fmus"] / "SpringMass.fmu").read_bytes()
+
+
+@pytest.mark.parametrize("content, expected", [
+    (b"hello", "neither an FMU nor an SSP archive (not a zip archive)"),
+    ("truncated", "upload.fmu: its library binaries/linux64/SpringMass.so"),
+    ("no description", "neither an FMU (no modelDescription.xml)"),
+    ("ssp missing fmu", "FMU 'resources/nothing.fmu' not found"),
+])
+def test_bad_uploads_are_one_clear_line_each(server, built, tmp_path, content, expected):
+    client, store, _ = server
+    if content == "truncated":  # its shared library cut short
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(io.BytesIO(_fmu_bytes(built))) as old, \
+                zipfile.ZipFile(buffer, "w") as new:
+            for name in old.namelist():
+                data = old.read(name)
+                new.writestr(name, data[:len(data) // 3] if name.endswith(".so") else data)
+        content = buffer.getvalue()
+    elif content == "no description":
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w") as archive:
+            archive.writestr("readme.txt", "not an FMU")
+        content = buffer.getvalue()
+    elif content == "ssp missing fmu":
+        source = (built["ssp"] / "spring_mass_linear.ssp")
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(source) as old, zipfile.ZipFile(buffer, "w") as new:
+            for name in old.namelist():
+                if not name.endswith(".fmu"):
+                    data = old.read(name)
+                    if name == "SystemStructure.ssd":
+                        data = data.replace(b"resources/SpringMass.fmu",
+                                            b"resources/nothing.fmu")
+                    new.writestr(name, data)
+        content = buffer.getvalue()
+    path = tmp_path / "upload.bin"
+    path.write_bytes(content)
+    before = len(list(store.blobs.rglob("*")))
+    answer = upload(client, path, "upload.fmu")
+    assert answer.status_code == 400
+    problems = answer.json()["problems"]
+    assert any(expected in p for p in problems), problems
+    assert all("Traceback" not in p and "\n" not in p for p in problems)
+    assert len(list(store.blobs.rglob("*"))) == before  # nothing kept
+    page = client.post("/upload", files={"file": ("x.fmu", content)})
+    assert page.status_code == 400 and expected.split(":")[-1] in html.unescape(page.text)
+
+
+def test_an_upload_over_the_limit_is_refused(tmp_path):
+    app = create_app(tmp_path / "db.sqlite", max_upload=1000)
+    from fastapi.testclient import TestClient
+    with TestClient(app) as client:
+        answer = client.post("/api/upload", files={"file": ("big.fmu", b"x" * 5000)})
+    assert answer.status_code == 413
+    assert "larger than" in answer.text
+
+
+def test_a_run_gives_what_dsim_run_gives_and_its_files(server, tmp_path):
+    client, store, scene_id = server
+    run_id = launch(client, scene_id, ["right.x[2]", "j1.f_x"], stop="1")
+    run = wait_run(client, run_id)
+    assert run["status"] == "completed" and run["exit_code"] == 0, run
+    assert run["steps"] == 100 and run["time_reached"] == 1.0
+    scene = client.get(f"/api/scenes/{scene_id}").json()
+    model = client.get("/api/models?q=SpringMass").json()[0]
+    assert run["inputs"]["scene.ssp"] == scene["sha256"]
+    assert run["inputs"]["resources/SpringMass.fmu"] == model["sha256"]
+    assert run["statistics"]["iterations"]["mean_per_step"] > 0
+    # bit for bit what the Python API computes
+    csv = tmp_path / "run.csv"
+    csv.write_bytes(client.get(f"/runs/{run_id}/results.csv").content)
+    expected = dsim.simulate(store.blob_path(scene["sha256"]), stop=1.0)
+    found = dsim.read_columns(csv)
+    for column in expected.signals:
+        assert np.array_equal(found[column], expected[column]), column
+    mat = client.get(f"/runs/{run_id}/results.mat")
+    from scipy.io import loadmat
+    assert loadmat(io.BytesIO(mat.content))["time"].shape == (101, 1)
+    assert client.get(f"/runs/{run_id}/results.png").content[:4] == b"\x89PNG"
+    assert client.get(f"/runs/{run_id}/stats.json").json()["status"] == "completed"
+    assert client.get(f"/runs/{run_id}/../../db.sqlite").status_code == 404
+    events = client.get(f"/runs/{run_id}/events").text
+    assert "event: samples" in events and "event: done\ndata: completed" in events
+    assert '"type": "sample", "i": 100' in events
+    page = client.get(f"/runs/{run_id}").text
+    assert "Re-run exactly" in page and "resources/SpringMass.fmu" in page
+
+
+def test_a_rerun_uses_the_same_files_and_settings_and_gives_the_same_numbers(server):
+    client, store, scene_id = server
+    first = wait_run(client, launch(client, scene_id, stop="0.5", predictor="constant"))
+    answer = client.post(f"/runs/{first['id']}/rerun", follow_redirects=False)
+    assert answer.status_code == 303
+    again = wait_run(client, int(answer.headers["location"].rsplit("/", 1)[1]))
+    assert again["rerun_of"] == first["id"] and again["settings"] == first["settings"]
+    assert again["inputs"] == first["inputs"]
+    csv = [(store.run_folder(r["id"]) / "results.csv").read_bytes() for r in (first, again)]
+    assert csv[0] == csv[1]
+
+
+def test_bad_settings_are_refused_before_anything_runs(server):
+    client, _, scene_id = server
+    answer = client.post(f"/api/scenes/{scene_id}/runs",
+                         json={"settings": {"tolerance": "-1", "coupling": "sideways"}})
+    assert answer.status_code == 400
+    assert "setting coupling 'sideways' is not one of: iterative, explicit, causal" in \
+        answer.json()["problems"]
+    page = client.post(f"/scenes/{scene_id}/runs", data={"step": "zero"})
+    assert page.status_code == 400 and "setting step &#39;zero&#39; is not a number" in page.text
+
+
+def test_a_cancelled_run_stops_after_a_step_and_keeps_its_results(server):
+    client, store, scene_id = server
+    run_id = launch(client, scene_id, stop="100000")
+    live = store.run_folder(run_id) / "live.jsonl"
+    wait_run(client, run_id, until=("running",))
+    for _ in range(400):  # until it has stepped for a while
+        if live.exists() and live.read_text().count('"sample"') >= 3:
+            break
+        import time
+        time.sleep(0.05)
+    assert client.post(f"/api/runs/{run_id}/cancel").json() == {"cancelled": True}
+    run = wait_run(client, run_id)
+    assert run["status"] == "interrupted" and "SIGTERM" in run["message"], run
+    assert run["exit_code"] == 143 and 0 < run["steps"] < 10_000_000
+    columns = dsim.read_columns(store.run_folder(run_id) / "results.csv")
+    assert len(columns["time"]) == run["steps"] + 1
+    assert run["statistics"]["status"] == "interrupted"
+    assert client.post(f"/api/runs/{run_id}/cancel").json() == {"cancelled": False}
+
+
+def test_runs_wait_for_a_free_slot_and_a_queued_run_can_be_cancelled(built, tmp_path):
+    from fastapi.testclient import TestClient
+    with TestClient(create_app(tmp_path / "db.sqlite", slots=1)) as client:
+        scene_id = upload(client, built["ssp"] / "spring_mass_linear.ssp").json()["id"]
+        running = launch(client, scene_id, stop="100000")
+        queued = launch(client, scene_id, stop="0.1")
+        wait_run(client, running, until=("running",))
+        assert client.get(f"/api/runs/{queued}").json()["status"] == "queued"
+        assert client.post(f"/api/runs/{queued}/cancel").json() == {"cancelled": True}
+        run = wait_run(client, queued)
+        assert run["status"] == "interrupted" and run["message"] == "cancelled before it started"
+        assert not (client.app.state.store.run_folder(queued) / "results.csv").exists()
+        client.post(f"/api/runs/{running}/cancel")
+        assert wait_run(client, running)["status"] == "interrupted"
+
+
+def test_an_assembled_scene_is_a_standard_ssp_that_dsim_runs(server, built, tmp_path):
+    client, store, scene_id = server
+    upload(client, built["fmus"] / "SpringMass.fmu")
+    model = client.get("/api/models?q=SpringMass").json()[0]
+    answer = client.post("/scenes/new", data={**SPRING_MASS_FORM,
+                                              "component_model": [model["id"]] * 2},
+                         follow_redirects=False)
+    assert answer.status_code == 303, answer.text
+    new_id = int(answer.headers["location"].rsplit("/", 1)[1])
+    scene = client.get(f"/api/scenes/{new_id}").json()
+    assert scene["origin"] == "assembled" and scene["description"]["columns"] == [
+        "left.x[1]", "right.x[1]", "right.x[2]", "right.a[2]", "j1.f_x"]
+    archive = tmp_path / "two_masses.ssp"
+    archive.write_bytes(client.get(f"/scenes/{new_id}/download").content)
+    with zipfile.ZipFile(archive) as packed:  # files named by hash, never by the user
+        assert sorted(packed.namelist()) == ["SystemStructure.ssd",
+                                             f"resources/{model['sha256'][:16]}.fmu"]
+    assert dsim_main(["validate", str(archive)]) == 0
+    assert dsim_main(["run", str(archive), "--stop", "2", "--quiet",
+                      "--out", str(tmp_path / "two.csv")]) == 0
+    # the same physics as the shipped scene: the same numbers
+    shipped = dsim.simulate(built["ssp"] / "spring_mass_linear.ssp", stop=2.0)
+    found = dsim.read_columns(tmp_path / "two.csv")
+    assert np.array_equal(found["right.x[2]"], shipped["right.x[2]"])
+    page = client.get(f"/scenes/{new_id}").text
+    assert 'class="joint"' in page and "j1 (x, flexible)" in page
+    assert client.get(f"/models/{model['id']}").text.count("two_masses") >= 1
+
+
+@pytest.mark.parametrize("change, expected", [
+    ({"component_parameters": ["mass = 3", ""]}, "component 1 'left': the FMU has no "
+                                                 "variable 'mass'"),
+    ({"component_parameters": ["m[1] = heavy", ""]}, "parameter 'm[1]' (Real): could not "
+                                                     "convert"),
+    ({"component_model": ["", "1"]}, "component 1 'left': choose one of the stored FMUs"),
+    ({"joint_b": ["right.R"]}, "port 'R'"),
+    ({"component_name": ["left", "left"]}, "the name is used twice"),
+    ({"step": ["-1"]}, "setting step must be a finite number greater than 0"),
+])
+def test_assembly_mistakes_are_listed_and_the_form_kept(server, built, change, expected):
+    client, _, _ = server
+    upload(client, built["fmus"] / "SpringMass.fmu")
+    model = client.get("/api/models?q=SpringMass").json()[0]
+    fields = {**SPRING_MASS_FORM, "component_model": [model["id"]] * 2, **change}
+    answer = client.post("/scenes/new", data=fields)
+    assert answer.status_code == 400
+    text = answer.text.replace("&#39;", "'")
+    assert expected in text, text[text.find("problem"):][:800]
+    assert 'value="two_masses"' in text  # what was typed is still there
+
+
+def test_a_parameter_set_makes_a_new_scene_and_compare_finds_where_runs_differ(server):
+    client, store, scene_id = server
+    rows = client.get(f"/scenes/{scene_id}/parameters").text
+    assert 'data-name="right.F0[2]"' in rows
+    index = rows[:rows.index('data-name="right.F0[2]"')].rsplit('name="value_', 1)[1]
+    index = int(index.split('"', 1)[0])
+    answer = client.post(f"/scenes/{scene_id}/parameters",
+                         data={"set_name": "heavy load", f"value_{index}": "20"},
+                         follow_redirects=False)
+    assert answer.status_code == 303, answer.text
+    location = answer.headers["location"]
+    assert location.endswith("?parameter_set=resources/parameters_1.ssv")
+    new_id = int(location.split("?")[0].rsplit("/", 1)[1])
+    scene = client.get(f"/api/scenes/{new_id}").json()
+    assert scene["parent_id"] == scene_id and scene["origin"] == "parameters"
+    assert {"path": "resources/parameters_1.ssv", "name": "heavy load", "parameters": 1,
+            "bound": False} in scene["description"]["parameter_sets"]
+    base = wait_run(client, launch(client, scene_id, stop="1"))
+    heavy = wait_run(client, launch(client, new_id, stop="1",
+                                    parameter_set="resources/parameters_1.ssv"))
+    same = wait_run(client, launch(client, new_id, stop="1"))
+    assert heavy["status"] == same["status"] == "completed"
+    client.post(f"/scenes/{new_id}/baseline", data={"baseline": base["id"]})
+    verdicts = client.get(f"/api/scenes/{new_id}/compare?run={heavy['id']}&run={same['id']}"
+                          ).json()
+    assert verdicts["baseline"] == base["id"]
+    assert all(c["passed"] for c in verdicts["verdicts"][str(same["id"])]["columns"])
+    differs = {c["column"]: c for c in verdicts["verdicts"][str(heavy["id"])]["columns"]}
+    x3 = differs["right.x[2]"]
+    assert not x3["passed"] and x3["first"][0] <= x3["worst"][0] <= 1.0
+    assert x3["max_difference"] > x3["allowed"]
+    page = client.get(f"/scenes/{scene_id}/compare?run={heavy['id']}&run={same['id']}").text
+    assert "differs" in page and "passes" in page and "baseline" in page
+    overlay = client.get(f"/scenes/{scene_id}/overlay.json?column=right.x[2]"
+                         f"&run={heavy['id']}&run={base['id']}").json()
+    assert [s["label"] for s in overlay["series"]] == [f"run {heavy['id']}", f"run {base['id']}"]
+
+
+def test_a_sweep_shows_its_table_pareto_front_and_cheapest_point(server):
+    client, store, scene_id = server
+    answer = client.post(f"/scenes/{scene_id}/sweeps",
+                         data={"step": "0.02, 0.01", "stop": "0.5"}, follow_redirects=False)
+    assert answer.status_code == 303, answer.text
+    run_id = int(answer.headers["location"].rsplit("/", 1)[1])
+    sweep = wait_run(client, run_id)
+    assert sweep["status"] == "completed" and sweep["kind"] == "sweep", sweep
+    page = client.get(f"/runs/{run_id}?target=1").text
+    assert page.count("<tr class=\"pareto") >= 1 and "sweep.png" in page
+    assert "Cheapest for error ≤ 1: <strong>step=0.02</strong>" in page
+    # the reference is the tightest point itself: error 0
+    assert "<strong>step=0.01</strong>" in client.get(f"/runs/{run_id}?target=0").text
+    assert "is not a number" in client.get(f"/runs/{run_id}?target=small").text
+    assert client.get(f"/runs/{run_id}/sweep.png").content[:4] == b"\x89PNG"
+    bad = client.post(f"/scenes/{scene_id}/sweeps", data={"step": "fast"})
+    assert bad.status_code == 400 and "sweep: step &#39;fast&#39; is not a number" in bad.text
+
+
+def test_the_diagram_draws_every_component_joint_and_connection(server, built):
+    client, _, _ = server
+    chain = upload(client, built["ssp"] / "chain_10.ssp").json()["id"]
+    svg = etree.fromstring(client.get(f"/scenes/{chain}/diagram.svg").content)
+    groups = svg.findall(".//{*}g[@class='component']")
+    scene = client.get(f"/api/scenes/{chain}").json()["description"]
+    assert [g.get("data-name") for g in groups] == [c["path"] for c in scene["components"]]
+    assert len(groups) == 10
+    assert len(svg.findall(".//{*}path[@class='joint']")) == 9
+
+
+def test_a_server_bound_beyond_this_machine_needs_its_token(tmp_path):
+    from fastapi.testclient import TestClient
+    from dsim_serve.command import loopback
+
+    assert loopback("127.0.0.1") and loopback("::1") and loopback("localhost")
+    assert not loopback("0.0.0.0") and not loopback("192.0.2.7")
+    app = create_app(tmp_path / "db.sqlite", token="s3cret")
+    with TestClient(app) as client:
+        assert client.get("/").status_code == 401
+        assert client.get("/api/models").status_code == 401
+        assert client.get("/", headers={"Authorization": "Bearer wrong"}).status_code == 401
+        assert client.get("/api/models", headers={"Authorization": "Bearer s3cret"}
+                          ).status_code == 200
+        answer = client.get("/models?token=s3cret&q=x", follow_redirects=False)
+        assert answer.status_code == 303 and answer.headers["location"] == "/models?q=x"
+        assert client.get("/").status_code == 200  # the cookie carries it now
+        forged = client.post("/upload", files={"file": ("a.fmu", b"x")},
+                             headers={"Origin": "http://evil.example"})
+        assert forged.status_code == 403
+
+
+def test_dsim_serve_on_the_command_line_refuses_bad_options(capsys):
+    assert dsim_main(["serve", "--port", "70000"]) == 2
+    assert "--port 70000: not a port number" in capsys.readouterr().err
