@@ -27,6 +27,7 @@ from dsim_serve.forms import (FormError, parameter_edits, run_settings, scene_sp
                               sweep_spec)
 from dsim_serve.store import ACTIVE, Store
 from dsim_serve.uploads import UploadError, store_scene, store_upload
+from master.sweep import TIGHTEST
 
 router = APIRouter()
 api = APIRouter(prefix="/api")
@@ -413,7 +414,9 @@ async def sweep_form(request: Request, scene_id: int):
     store = _store(request)
     fields = _first(await _fields(request))
     reference = None
-    if str(fields.get("reference") or "").isdigit():
+    if fields.get("reference") == TIGHTEST:
+        reference = TIGHTEST
+    elif str(fields.get("reference") or "").isdigit():
         run = _found(store.run(int(fields["reference"])), "run")
         reference = str(_found(_csv(store, run), "results of that run"))
     try:

@@ -162,10 +162,12 @@ def run_scene(job: dict, folder: Path) -> dict:
 
 def run_sweep_job(job: dict, folder: Path) -> dict:
     """A ``dsim sweep`` of the scene; its outcome (points as ``sample`` lines)."""
-    from master.sweep import Sweep, run_sweep
+    from master.sweep import TIGHTEST, Sweep, run_sweep
 
+    reference = job.get("reference")
     sweep = Sweep(grid=job["grid"], fixed=job.get("fixed", {}),
-                  reference=Path(job["reference"]) if job.get("reference") else None)
+                  reference=Path(reference) if reference and reference != TIGHTEST
+                  else reference)
     (folder / "inputs.json").write_text(json.dumps({"scene.ssp": job["scene_sha256"]}))
     with open(folder / "live.jsonl", "a") as live:
         def progress(done, total, point):

@@ -277,7 +277,8 @@ def test_a_parameter_set_makes_a_new_scene_and_compare_finds_where_runs_differ(s
 def test_a_sweep_shows_its_table_pareto_front_and_cheapest_point(server):
     client, store, scene_id = server
     answer = client.post(f"/scenes/{scene_id}/sweeps",
-                         data={"step": "0.02, 0.01", "stop": "0.5"}, follow_redirects=False)
+                         data={"step": "0.02, 0.01", "stop": "0.5", "reference": "tightest"},
+                         follow_redirects=False)
     assert answer.status_code == 303, answer.text
     run_id = int(answer.headers["location"].rsplit("/", 1)[1])
     sweep = wait_run(client, run_id)
