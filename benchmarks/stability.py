@@ -47,14 +47,16 @@ def run_case(bed: Testbed, folder: Path, step: float, stop: float, coupling: str
            "message": result.message, "wall": result.statistics["wall_seconds"]}
     if bed.F0 == 0 and bed.Fa == 0 and bed.x0 != 0:  # a free vibration: energy drift
         glued, reference = energy(bed, result.signals), energy(bed, twin)
-        row["drift"] = float(np.max(np.abs(glued - glued[0]))) / reference[0]
-        row["twin_drift"] = float(np.max(np.abs(reference - reference[0]))) / reference[0]
+        row["drift"] = float(glued[-1] - glued[0]) / reference[0]
+        row["twin_drift"] = float(reference[-1] - reference[0]) / reference[0]
     return row
 
 
 def verdict(row: dict) -> str:
+    """stable; completed but off by more than the peak (unstable, or lost in phase
+    over a long run); or failed at the step where dsim stopped it."""
     if row["status"] == "completed":
-        return "stable" if row["error"] <= 1.0 else "completed, unbounded"
+        return "stable" if row["error"] <= 1.0 else "completed, error above the peak"
     return f"{row['status']} at step {row['steps'] + 1}"
 
 
@@ -125,8 +127,8 @@ def main(argv=None) -> None:
                    "x0 = 0.01 m)", "joint",
                    [(joint, replace(free, joint=joint), 1e-3, args.long_steps * 1e-3, {})
                     for joint in ("flexible", "fixed")], folder,
-                   extra=[("energy drift / E0", lambda r: f"{r['drift']:.2e}"),
-                          ("twin's drift / E0", lambda r: f"{r['twin_drift']:.2e}")]),
+                   extra=[("energy change at the end / E0", lambda r: f"{r['drift']:.2e}"),
+                          ("twin's change / E0", lambda r: f"{r['twin_drift']:.2e}")]),
             *table("Zero and very large loads (H = 0.01 s, 0 to 5 s)", "load",
                    [("none, at rest", replace(base, F0=0.0), 0.01, 5.0, {}),
                     ("1e12 N, absolute tolerance 1e-12 m", replace(base, F0=1e12), 0.01,
@@ -148,7 +150,11 @@ def main(argv=None) -> None:
         "linear predictor, at most 20 iterations and 4 step cuts. Explicit: one trial per "
         "step, the correction fed to the next step (docs/method.md). A run is *stable* when "
         "it completes with an error at most 1; *failed* runs name the step where dsim "
-        "detected the divergence (docs/method.md, Divergence), with every earlier step kept.",
+        "detected the divergence (docs/method.md, Divergence), with every earlier step kept. "
+        "The explicit runs that complete with an error above the peak are the cases the "
+        "divergence watch does not judge: runs of fewer than 60 steps, and the long undamped "
+        "run, whose explicit coupling loses energy (a decaying, not a growing, residual) "
+        "and drifts in phase.",
         "",
         *sections,
     ])

@@ -23,17 +23,17 @@ OUT_DIR = ROOT / "results" / "sweeps"
 #: scene -> its sweep: a grid of iterative points and the explicit baseline's points
 SWEEPS = {
     "spring_mass_nonlinear": Sweep(
-        grid={"step": [0.005, 0.01, 0.02], "tolerance": [1e-4, 1e-6, 1e-10],
+        grid={"step": [0.0025, 0.005, 0.01, 0.02], "tolerance": [1e-4, 1e-6, 1e-10],
               "predictor": ["linear", "quadratic"]},
         points=[{"step": step, "coupling": "explicit", "predictor": predictor}
                 for step in (0.005, 0.01) for predictor in ("constant", "quadratic")],
         fixed={"stop": 10.0}),
     "four_bar_singular_flexible": Sweep(
-        grid={"step": [0.005, 0.01, 0.02], "tolerance": [1e-6, 1e-8, 1e-10]},
-        points=[{"step": step, "coupling": "explicit"} for step in (0.005, 0.01)],
+        grid={"step": [0.001, 0.0025, 0.005, 0.01], "tolerance": [1e-6, 1e-8]},
+        points=[{"step": step, "coupling": "explicit"} for step in (0.001, 0.01)],
         fixed={"stop": 2.0}),
     "frame_split": Sweep(
-        grid={"step": [5e-5, 1e-4, 2e-4], "tolerance": [1e-10, 1e-12]},
+        grid={"step": [2.5e-5, 5e-5, 1e-4, 2e-4], "tolerance": [1e-10, 1e-12]},
         points=[{"step": 1e-4, "coupling": "explicit"}],
         fixed={"stop": 0.05}),
 }
