@@ -188,7 +188,8 @@ def glued_slave(cls):
     so far; this decorator adds the FMI callbacks every such wrapper shares (start
     time, initialisation, step, complete state and its serialisation).  A
     ``ValueError`` from ``build_core`` is logged as an fmi2Error, so a master can tell
-    the user which parameter the model refused.  (A decorator and not a base class:
+    the user which parameter the model refused; an ``ArithmeticError`` from a step
+    (the core's own iteration failed) discards the step.  (A decorator and not a base class:
     pythonfmu finds the model class by the literal line ``class Name(Fmi2Slave):``.)
     """
     from pythonfmu.enums import Fmi2Status
@@ -213,7 +214,14 @@ def glued_slave(cls):
         binding.initializing = False
 
     def do_step(self, current_time, step_size):
-        return self.binding.step(current_time, step_size)
+        # a core whose own iteration fails on this step (a linkage's Newton, a flexible
+        # link's PIM) discards the step (fmi2Discard): its state before the step can
+        # be restored and the master may retry a smaller one; anything else is fatal
+        try:
+            return self.binding.step(current_time, step_size)
+        except ArithmeticError as error:
+            self.log(f"{self.instance_name}: {error}", Fmi2Status.discard)
+            return False
 
     def _get_fmu_state(self):
         return self.binding.get_state()

@@ -35,3 +35,14 @@ class SimulationError(Exception):
         if self.step is not None:
             return self
         return SimulationError(self.message, time=time, step=step)
+
+
+class StepFailure(SimulationError):
+    """A macro step that did not pass (Newton out of iterations, a non-finite or
+    growing residual, an FMU that discarded its step): a smaller step may pass where
+    every subsystem accepts one.  ``iterations``: the Newton iterations the failed
+    attempt took."""
+
+    def __init__(self, message: str, time=None, step=None, iterations: int = 0):
+        super().__init__(message, time, step)
+        self.iterations = iterations

@@ -23,7 +23,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2FMUstate,
                        fmi2ValueReference)
 
-from master.errors import InputError, SimulationError
+from master.errors import InputError, SimulationError, StepFailure
 from master.fmu_archive import unzipped
 from master.ports import PortDof, model_description, variables_by_name
 from master.subsystem import Subsystem
@@ -284,8 +284,12 @@ class FmuSubsystem(Subsystem):
             raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
                              f"initialised with these parameters: "
                              f"{reason or f'{label} failed: {detail}'}")
-        raise SimulationError(f"component '{self.name}': {label} failed: {detail}"
-                              + (f" ({reason})" if reason else ""), time=self.time)
+        # a discarded step (fmi2Discard from fmi2DoStep) may pass when it is smaller:
+        # the coupling restores the step's start and cuts it where it can
+        error = StepFailure if label == "fmi2DoStep" and "fmi2Discard" in detail else \
+            SimulationError
+        raise error(f"component '{self.name}': {label} failed: {detail}"
+                    + (f" ({reason})" if reason else ""), time=self.time)
 
     def _call(self, label: str, function, *args):
         """Call through fmpy's convenience layer (set-up, rare calls)."""

@@ -207,7 +207,31 @@ def test_a_failed_step_is_cut_only_where_every_glued_fmu_accepts_variable_steps(
     fixed = simulate(scene(tmp_path / "fixed", built, c_fmus["fixed_step"]),
                      max_iterations=1, step_cuts=4)
     assert variable.status == fixed.status == "failed"
-    assert "the step was cut; the part ending at t = 0.0003125 s failed" in variable.message
+    assert "(the step was cut: a part of 0.0003125 s from t = 0 s failed too)" in variable.message
     assert fixed.message.startswith("step 1 (t = 0.005 s): joint 'j' (j.f_x) did not "
                                     "converge in 1 iterations")
     assert (variable.statistics["step_cuts"], fixed.statistics["step_cuts"]) == (1, 0)
+
+
+def test_a_step_an_fmu_discards_is_cut_and_equals_the_merged_model_at_the_cut_step(
+        c_fmus, built, tmp_path):
+    """The C FMU discards every step longer than 2.5 ms; the scene steps 5 ms: every
+    macro step is restored and taken as two halves, so the run is the merged model
+    integrated at 2.5 ms, read every 5 ms."""
+    folder = scene(tmp_path / "scene", built, c_fmus["state"])
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace(
+        '<ssv:Parameter name="s0"><ssv:Real value="0.01"/></ssv:Parameter>',
+        '<ssv:Parameter name="s0"><ssv:Real value="0.01"/></ssv:Parameter>'
+        '<ssv:Parameter name="h_max"><ssv:Real value="0.0025"/></ssv:Parameter>'))
+    result = simulate(folder, stop=0.5)
+    params = ChainParameters(n=1)
+    params.m[0], params.k_ground[0], params.x0[0] = 5.0, 500.0, 0.01
+    params.Fa[0], params.omega[0] = 5.0, 7.0
+    expected = SpringMassChain(params).history(200, 0.0025)[::2, 0]
+    assert result.status == "completed" and result.statistics["step_cuts"] == 100
+    assert np.max(np.abs(result["third.s"] - expected)) < 1e-9 * np.max(np.abs(expected))
+    refused = simulate(folder, stop=0.5, step_cuts=0)
+    assert refused.status == "failed"
+    assert "fmi2DoStep failed: it returned fmi2Discard (step of 0.005 s is longer than " \
+           "h_max)" in refused.message

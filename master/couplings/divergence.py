@@ -19,22 +19,10 @@ Two signs, one per coupling:
 """
 from __future__ import annotations
 
-from master.errors import SimulationError
-
 #: growth of the Newton residual over its smallest value in a step, after a refresh
 NEWTON_GROWTH = 1e4
 #: steps per block (one watch per size), growth per block, blocks in a row (explicit)
 BLOCK_SIZES, GROWTH, BLOCKS = (10, 30, 100, 300, 1000), 3.0, 5
-
-
-class StepFailure(SimulationError):
-    """A macro step that did not converge (iteration limit, non-finite or growing
-    residual): a smaller step may pass where every subsystem accepts one.
-    ``iterations``: the Newton iterations the failed attempt took."""
-
-    def __init__(self, message: str, time=None, step=None, iterations: int = 0):
-        super().__init__(message, time, step)
-        self.iterations = iterations
 
 
 def newton_diverging(history, refreshed: int) -> bool:

@@ -28,10 +28,10 @@ from scipy.linalg.lapack import dgecon
 from scipy.sparse.linalg import splu
 
 from master.couplings.base import Coupling, StepReport
-from master.couplings.divergence import StepFailure, newton_diverging
+from master.couplings.divergence import newton_diverging
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
-from master.errors import SimulationError
+from master.errors import SimulationError, StepFailure
 
 
 #: gluing matrices of at most this many joint dofs are factored dense
@@ -258,12 +258,12 @@ class IterativeCoupling(Coupling):
         try:
             report = self._cut_or_fail(time, step_size, step_index, 0, True)
         except StepFailure as failure:
-            if failure.time is None or abs(failure.time - (time + step_size)) <= 1e-12 * (
-                    abs(time) + step_size):
+            part = getattr(failure, "part", None)
+            if part is None:
                 raise
-            raise StepFailure(f"{failure.message} (the step was cut; the part ending at "
-                              f"t = {failure.time:.9g} s failed)", time + step_size,
-                              step_index, failure.iterations) from None
+            raise StepFailure(f"{failure.message} (the step was cut: a part of {part:g} s "
+                              f"from t = {failure.part_start:.9g} s failed too)",
+                              time + step_size, step_index, failure.iterations) from None
         if report.cuts:  # the predictor extrapolates over whole steps: start it afresh
             self._history.clear()
             self._history.append(self.forces.copy())
@@ -275,6 +275,8 @@ class IterativeCoupling(Coupling):
         try:
             return self._newton(time, step_size, step_index, save)
         except StepFailure as failure:
+            if depth and not hasattr(failure, "part"):  # where a cut part failed
+                failure.part, failure.part_start = step_size, time
             if depth >= self.cut_limit:
                 raise
             spent = failure.iterations

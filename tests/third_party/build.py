@@ -105,6 +105,7 @@ OSCILLATOR_VARIABLES = (
     Variable("v", 4, causality="output", initial="calculated"),
     Variable("a", 5, causality="output", initial="calculated"),
     Variable("s0", 6, causality="parameter", start=0.0),
+    Variable("h_max", 7, causality="parameter", start=0.0),
 )
 
 

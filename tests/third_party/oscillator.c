@@ -5,18 +5,21 @@
  * annotation has to map them onto a port.  Compiled with -DNO_STATE it declares
  * and implements no state saving, the case a master must refuse to iterate; with
  * -DLIVE_OUTPUTS its outputs follow its inputs in initialization mode too (FMI 2.0
- * allows either). */
+ * allows either).  A step longer than the parameter h_max (s; 0: no limit) is
+ * discarded (fmi2Discard, state unchanged), as an FMU whose own solver cannot take
+ * it would. */
 #include <stdlib.h>
 #include <string.h>
 #include "fmi2Functions.h"
 
-enum { VR_M, VR_K, VR_F, VR_S, VR_V, VR_A, VR_S0, N_VARS };
+enum { VR_M, VR_K, VR_F, VR_S, VR_V, VR_A, VR_S0, VR_HMAX, N_VARS };
 
 typedef struct {
     double x[N_VARS];
     double time;
     int initializing;
     fmi2CallbackFunctions cb;
+    char name[64];
 } Model;
 
 static void update_acceleration(Model *m) {
@@ -35,6 +38,7 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     Model *m = calloc(1, sizeof(Model));
     if (!m) return NULL;
     m->cb = *functions;
+    strncpy(m->name, name ? name : "", sizeof(m->name) - 1);
     m->x[VR_M] = 1.0; m->x[VR_K] = 1.0;
     return m;
 }
@@ -144,6 +148,11 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
                                   fmi2Boolean noSetPrior) {
     Model *m = c;
     double *x = m->x;
+    if (x[VR_HMAX] > 0.0 && h > x[VR_HMAX] * (1.0 + 1e-12)) {
+        m->cb.logger(m->cb.componentEnvironment, m->name, fmi2Discard, "logStatusDiscard",
+                     "step of %g s is longer than h_max", h);
+        return fmi2Discard;
+    }
     double s_pred = x[VR_S] + h * x[VR_V] + 0.25 * h * h * x[VR_A];
     double a1 = (x[VR_F] - x[VR_K] * s_pred) / (x[VR_M] + 0.25 * h * h * x[VR_K]);
     x[VR_V] += 0.5 * h * (x[VR_A] + a1);
