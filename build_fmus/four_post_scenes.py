@@ -63,21 +63,25 @@ def mesh_file(mesh: str) -> str:
     return f"meshes/four_post_plate_{MESH_SIZES[mesh]:g}.vtk"
 
 
-def write_plate_meshes(root: Path = ROOT) -> list[Path]:
-    """Linear hexahedral meshes of the plate, one element through the thickness."""
+def plate_mesh(size: float):
+    """A linear hexahedral mesh of the plate, ``size`` (m) in plane, one element through
+    the thickness (the 20-node elements of ``order = 2`` add the mid-side nodes)."""
     import numpy as np
     from skfem import MeshHex
 
     p = FOUR_POST
+    return MeshHex.init_tensor(np.linspace(0.0, p["length"], round(p["length"] / size) + 1),
+                               np.linspace(0.0, p["width"], round(p["width"] / size) + 1),
+                               np.array([0.0, p["thickness"]]))
+
+
+def write_plate_meshes(root: Path = ROOT) -> list[Path]:
+    """The plate's mesh files (coarse and fine) in fmus/elastic/meshes/."""
     written = []
     for mesh in MESH_SIZES:
-        size = MESH_SIZES[mesh]
-        hexes = MeshHex.init_tensor(np.linspace(0.0, p["length"], round(p["length"] / size) + 1),
-                                    np.linspace(0.0, p["width"], round(p["width"] / size) + 1),
-                                    np.array([0.0, p["thickness"]]))
         target = root / MESHES / Path(mesh_file(mesh)).name
         target.parent.mkdir(parents=True, exist_ok=True)
-        hexes.save(str(target))
+        plate_mesh(MESH_SIZES[mesh]).save(str(target))
         written.append(target)
     return written
 

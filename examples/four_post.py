@@ -35,9 +35,10 @@ CORNER_COLUMNS = [f"body.{port}.u_z" for port, _, _ in CORNERS.values()]
 FORCE_COLUMNS = [f"mount_{corner}.f_z" for corner in CORNERS]
 
 
-def plate_body(fidelity: str = "fine"):
-    """The plate core exactly as the scene's FMU builds it under fidelity set ``fidelity``."""
-    values = {**body_parameters(), **fidelity_values(fidelity)}
+def plate_body(fidelity: str = "fine", **overrides):
+    """The plate core exactly as the scene's FMU builds it under fidelity set ``fidelity``
+    (``overrides``: more ElasticBody parameters, e.g. another ``mesh_file``)."""
+    values = {**body_parameters(), **fidelity_values(fidelity), **overrides}
     return build_body(spec_from_parameters(values), RESOURCES)
 
 
@@ -75,15 +76,12 @@ def free_plate_frequencies(element_size: float, order: int, count: int = 6) -> n
     """Lowest ``count`` elastic frequencies (Hz) of the free plate as a solid: hexahedra of
     ``element_size`` in plane, one through the thickness, ``order`` 1 (8-node) or 2
     (20-node serendipity)."""
-    from skfem import MeshHex
-
+    from build_fmus.four_post_scenes import plate_mesh
     from fmus.elastic import ElasticBody, Material
 
     p = FOUR_POST
-    mesh = MeshHex.init_tensor(np.linspace(0, p["length"], round(p["length"] / element_size) + 1),
-                               np.linspace(0, p["width"], round(p["width"] / element_size) + 1),
-                               np.array([0.0, p["thickness"]]))
-    body = ElasticBody(mesh, Material(p["youngs_modulus"], p["poisson_ratio"], p["density"]),
+    body = ElasticBody(plate_mesh(element_size),
+                       Material(p["youngs_modulus"], p["poisson_ratio"], p["density"]),
                        order=order)
     return body.natural_frequencies(count + 6)[6:]  # skip the 6 rigid-body modes
 
@@ -109,13 +107,15 @@ def _mount_law(q, qd):
 
 def monolithic(joints: str = "flexible", fidelity: str = "fine",
                step: float = FOUR_POST["step"], stop: float = FOUR_POST["stop"],
-               snapshots=()) -> dict:
+               snapshots=(), ordering: str = "COLAMD", **overrides) -> dict:
     """The four-post rig in one solver: columns named as the glued run's CSV (``time``,
     ``body.rigidK.u_z``, ``body.probe1.u_z``, ``post_*.x[1]``, ``mount_*.f_z``; m, N),
     ``seconds`` (wall time), ``newton`` (iterations per step) and, for each time in
-    ``snapshots``, the plate's full displacement vector (``shapes``)."""
+    ``snapshots``, the plate's full displacement vector (``shapes``). ``ordering``: the
+    sparse LU's column ordering (another one shows the solution's round-off floor);
+    ``overrides`` change the plate's parameters (:func:`plate_body`)."""
     start = clock.perf_counter()
-    body, posts, h = plate_body(fidelity), _posts(), step
+    body, posts, h = plate_body(fidelity, **overrides), _posts(), step
     rows = [body.interface.index((port, "z")) for port, _, _ in CORNERS.values()]
     B = sp.csr_matrix(body._interface_map.matrix[rows])  # pad heights = B q (reference 0)
     n = body.stiffness.shape[0]
@@ -127,9 +127,9 @@ def monolithic(joints: str = "flexible", fidelity: str = "fine",
     a_body = sp.csc_matrix(stiffness + 2 / h * damping + 4 / h ** 2 * mass)
     a_post = k + 2 / h * c + 4 / h ** 2 * m
     if joints == "fixed":  # x_post = B q: the posts' mass, spring and damper on the pads
-        lu = splu(sp.csc_matrix(a_body + B.T @ sp.diags(a_post) @ B))
+        lu = splu(sp.csc_matrix(a_body + B.T @ sp.diags(a_post) @ B), permc_spec=ordering)
     else:
-        lu = splu(a_body)
+        lu = splu(a_body, permc_spec=ordering)
         U = sp.vstack([B.T, -sp.identity(4)]).tocsc()  # mount extension = U^T y
         Z = np.vstack([lu.solve(B.T.toarray()), -np.diag(1 / a_post)])  # A0^-1 U
         coupling = U.T @ Z  # d extension / d law: the mounts' flexibility
