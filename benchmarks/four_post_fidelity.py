@@ -21,7 +21,7 @@ from examples import four_post
 ROOT = Path(__file__).resolve().parent.parent
 #: the converged plate: 20-node hexahedra at this size (m), the reference of the table
 FINEST = 0.05
-LEVELS = (0.3, 0.1, 0.03, 0.01, 0.003, 0.001)
+LEVELS = (0.3, 0.1, 0.03, 0.01, 0.003, 0.001, 3e-4)
 SNAPSHOT = 0.56  # s, just after the front bump's crest
 
 
@@ -82,14 +82,18 @@ def fidelity_runs(stop: float) -> tuple[dict, dict]:
         mesh = Path(folder) / "plate_finest.vtk"
         plate_mesh(FINEST).save(str(mesh))
         reference = four_post.monolithic("flexible", stop=stop, mesh_file=str(mesh))
-    rows = {}
+    rows, runs = {}, {}
     for name in FIDELITY:
         glued = four_post.run_glued("flexible", stop, parameter_set=name, handle_signals=False)
         stats = glued.statistics
         errors = four_post.compare(glued.signals, reference)
+        runs[name] = glued.signals
         rows[name] = {**errors, "worst": max(errors.values()),
                       "seconds": stats["wall_seconds"],
                       "iterations": stats["iterations"]["mean_per_step"]}
+    default = {"columns": runs["fine"]}  # the scene's default model as a reference too
+    for name, row in rows.items():
+        row["default"] = max(four_post.compare(runs[name], default).values())
     return rows, reference
 
 
@@ -221,11 +225,12 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "four_post.md") -> st
         "build/ssp/four_post_flexible.ssp --parameter-set NAME`. Error: largest difference "
         "of the pad heights, mount forces and plate centre (the worst of the three) against "
         f"the converged plate (20-node hexahedra at {FINEST:g} m, full FE, monolithic); "
-        "wall time of the glued run with flexible mounts, set-up included.",
+        "wall time of the glued run with flexible mounts, set-up included. The column "
+        "against `fine` measures the reduction alone (the default model as reference).",
         "",
         "| set | plate model | pad heights | mount forces | plate centre | worst | "
-        "iterations / step | wall time (s) |",
-        "|---|---|---|---|---|---|---|---|",
+        "worst against `fine` | iterations / step | wall time (s) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     models = {"fine": "full FE, 0.1 m", "coarse": "full FE, 0.2 m",
               "cb4": "Craig-Bampton, 4 modes, 0.1 m", "cb12": "Craig-Bampton, 12 modes, 0.1 m",
@@ -233,7 +238,7 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "four_post.md") -> st
     for name, r in sorted(fidelity.items(), key=lambda item: item[1]["seconds"]):
         lines.append(f"| `{name}` | {models[name]} | {_fmt(r['heights'])} | "
                      f"{_fmt(r['forces'])} | {_fmt(r['centre'])} | {_fmt(r['worst'])} | "
-                     f"{r['iterations']:.2f} | {r['seconds']:.1f} |")
+                     f"{_fmt(r['default'])} | {r['iterations']:.2f} | {r['seconds']:.1f} |")
     lines += ["", "Cheapest set per error level (worst of the three signals):", "",
               "| error at most | cheapest set | wall time (s) |", "|---|---|---|"]
     for level in LEVELS:
