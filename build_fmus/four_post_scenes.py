@@ -27,9 +27,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from lxml import etree
-
-from build_fmus.scenes import ROOT, SceneWriter, parameter_set
+from build_fmus.scenes import ROOT, SceneWriter, write_parameter_sets
 
 FOUR_POST = {
     "length": 2.0, "width": 1.0, "thickness": 0.02, "pad": 0.1,
@@ -157,15 +155,9 @@ def write_four_post_scenes(root: Path = ROOT) -> None:
         folder = root / "ssp" / scene.name
         scene.write(folder, 0.0, p["stop"], step=p["step"], tolerance=p["tolerance"],
                     maxIterations=20, predictor=p["predictor"], refreshAfter=10)
-        sets = folder / "resources" / "fidelity"
-        sets.mkdir(parents=True, exist_ok=True)
-        for old in sets.glob("*.ssv"):
-            old.unlink()
-        for name in FIDELITY:
-            values = {f"body.{key}": value for key, value in fidelity_values(name).items()}
-            etree.ElementTree(parameter_set(name, values)).write(
-                str(sets / f"{name}.ssv"), pretty_print=True, xml_declaration=True,
-                encoding="UTF-8")
+        write_parameter_sets(folder, {
+            name: {f"body.{key}": value for key, value in fidelity_values(name).items()}
+            for name in FIDELITY})
 
 
 if __name__ == "__main__":

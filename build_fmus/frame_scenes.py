@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.scenes import ROOT, SceneWriter
+from build_fmus.scenes import ROOT, SceneWriter, write_parameter_sets
 from fmus.elastic import frame
 
 #: frame_split / frame_nested: Newmark, H = 1e-4 s, 0 to 0.2 s. The glued quantities are
@@ -29,6 +29,12 @@ FRAME = {"step": 1e-4, "stop": 0.2, "tolerance": 1e-14, "perturbation": 1.0,
          "element_size": 0.025}
 #: frame_nonmatching: cross members at half the rails' size (9 nodes face 5 on an edge).
 NONMATCHING_CROSS_SIZE = 0.0125
+#: frame_split's fidelity parameter sets: every part at twice the element size (3 nodes
+#: on an interface edge), or Craig-Bampton with N fixed-interface modes per part
+COARSE_SIZE = 0.05
+FIDELITY = {"coarse": {"element_size": COARSE_SIZE},
+            "cb10": {"fidelity": "craig_bampton", "modes": 10},
+            "cb40": {"fidelity": "craig_bampton", "modes": 40}}
 #: The plate of frame_nested: a steel strip x in [0.05, 3.95], y in [0.55, 0.65] (m),
 #: meshed at 0.05 m, pinned at the cross members' mid points.
 PLATE = {"mesh_file": "meshes/deck_plate.vtk", "bounds": (0.05, 3.95, 0.55, 0.65),
@@ -59,8 +65,9 @@ def write_frame_meshes(root: Path = ROOT) -> list[Path]:
     """The parts' mesh files (and the frame_nested plate's) in fmus/elastic/meshes/."""
     from fmus.elastic.geometry import rectangle
 
-    sizes = {part: (FRAME["element_size"],) if part.startswith("rail")
-             else (FRAME["element_size"], NONMATCHING_CROSS_SIZE) for part in frame.COMPONENTS}
+    sizes = {part: (FRAME["element_size"], COARSE_SIZE) if part.startswith("rail")
+             else (FRAME["element_size"], NONMATCHING_CROSS_SIZE, COARSE_SIZE)
+             for part in frame.COMPONENTS}
     written = []
     (root / MESHES).mkdir(parents=True, exist_ok=True)
     for part, part_sizes in sizes.items():
@@ -175,14 +182,31 @@ def frame_nested(flat: bool = False) -> SceneWriter:
     return scene
 
 
+def fidelity_values(name: str, root: Path = ROOT) -> dict:
+    """frame_split's parameter set ``name``: the parameters it changes, per part."""
+    change = FIDELITY[name]
+    values = {}
+    for part in frame.COMPONENTS:
+        if "element_size" in change:
+            default = part_parameters(part, root=root)
+            coarse = part_parameters(part, change["element_size"], root=root)
+            values.update({f"{part}.{k}": v for k, v in coarse.items() if default[k] != v})
+        else:
+            values.update({f"{part}.{k}": v for k, v in change.items()})
+    return values
+
+
 def write_frame_scenes(root: Path = ROOT) -> None:
-    """frame_split, frame_nonmatching, frame_nested, frame_nested_flat (and meshes)."""
+    """frame_split (with its fidelity sets), frame_nonmatching, frame_nested,
+    frame_nested_flat, and the meshes."""
     write_frame_meshes(root)
     for scene in (frame_split(), frame_nonmatching(), frame_nested(),
                   frame_nested(flat=True)):
         scene.write(root / "ssp" / scene.name, 0.0, FRAME["stop"], step=FRAME["step"],
                     tolerance=FRAME["tolerance"], maxIterations=20, predictor="linear",
                     refreshAfter=10, perturbation=FRAME["perturbation"])
+    write_parameter_sets(root / "ssp" / "frame_split",
+                         {name: fidelity_values(name, root) for name in FIDELITY})
 
 
 if __name__ == "__main__":

@@ -36,6 +36,19 @@ def parameter_set(name: str, values: dict) -> etree._Element:
     return root
 
 
+def write_parameter_sets(folder: Path, sets: dict[str, dict]) -> None:
+    """Named parameter sets of a scene (``dsim run --parameter-set NAME``), one .ssv each
+    in ``folder``/resources/fidelity/, values named from the root system (``body.modes``)."""
+    target = folder / "resources" / "fidelity"
+    target.mkdir(parents=True, exist_ok=True)
+    for old in target.glob("*.ssv"):
+        old.unlink()
+    for name, values in sets.items():
+        etree.ElementTree(parameter_set(name, values)).write(
+            str(target / f"{name}.ssv"), pretty_print=True, xml_declaration=True,
+            encoding="UTF-8")
+
+
 class SceneWriter:
     """Builds one SystemStructure.ssd with components, joints and master settings."""
 

@@ -179,3 +179,22 @@ def test_bad_mesh_through_the_console_is_one_line(built, tmp_path):
     assert process.returncode == 2
     assert len(process.stderr.splitlines()) == 1 and "Traceback" not in process.stderr
     assert process.stdout == ""
+
+
+def test_frame_fidelity_sets_apply(built, tmp_path):
+    """frame_split --parameter-set coarse is the frame at 0.05 m: it equals the one-mesh
+    frame at 0.05 m, not the 0.025 m one; cb40 reduces every part (Craig-Bampton, 40
+    modes) and stays within 1e-3 of the full parts over 0.01 s."""
+    stop = 0.01
+    scene = built["ssp"] / "frame_split.ssp"
+    coarse = simulate(scene, out=tmp_path / "coarse.csv", stop=stop, parameter_set="coarse")
+    assert coarse.ok
+    result = frame_example.compare(tmp_path / "coarse.csv",
+                                   monolithic_frame(element_size=0.05, stop_time=stop))
+    full = frame_example.compare(tmp_path / "coarse.csv", monolithic_frame(stop_time=stop))
+    reduced = simulate(scene, out=tmp_path / "cb40.csv", stop=stop, parameter_set="cb40")
+    cb = frame_example.compare(tmp_path / "cb40.csv", monolithic_frame(stop_time=stop))
+    print(f"coarse vs 0.05 m frame {result['relative_error']:.1e}, vs 0.025 m frame "
+          f"{full['relative_error']:.1e}; cb40 vs full {cb['relative_error']:.1e}")
+    assert result["relative_error"] < 1e-8 < 1e-3 < full["relative_error"]
+    assert cb["relative_error"] < 1e-3
