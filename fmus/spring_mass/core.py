@@ -211,7 +211,11 @@ class SpringMassChain(InterfaceCore):
             jacobian = np.diag(m) + 0.5 * h * C + 0.25 * h * h * K
             delta = np.linalg.solve(jacobian, residual)
             a1 = a1 - delta
-            scale = max(np.max(np.abs(a1)), 1.0)
+            # relative to the accelerations the force terms alone would give: a1 may cross
+            # zero while a stiff spring or damper makes large terms that cancel (their
+            # round-off then exceeds 1e-13 |a1|)
+            terms = np.abs(K) @ np.abs(x1) + np.abs(C) @ np.abs(v1) + np.abs(f_ext)
+            scale = max(np.max(np.abs(a1)), np.max(terms / m), 1.0)
             if not self.nonlinear or np.max(np.abs(delta)) <= self.newton_tolerance * scale:
                 break
         else:
