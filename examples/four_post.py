@@ -117,7 +117,7 @@ def monolithic(joints: str = "flexible", fidelity: str = "fine",
     start = clock.perf_counter()
     body, posts, h = plate_body(fidelity, **overrides), _posts(), step
     rows = [body.interface.index((port, "z")) for port, _, _ in CORNERS.values()]
-    B = sp.csr_matrix(body._interface_map.matrix[rows])  # pad heights = B q (reference 0)
+    B = body.interface_matrix[rows]  # pad heights = B q (their reference height is 0)
     n = body.stiffness.shape[0]
     stiffness, mass = body.stiffness, body.mass
     damping = body.damping if body.damping is not None else sp.csr_matrix((n, n))

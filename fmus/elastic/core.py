@@ -87,9 +87,12 @@ class ElasticBody(InterfaceCore):
         self.dim = mesh.dim()
         self.basis: Basis = vector_basis(mesh, order)
         self._nodes(order)
-        self.node_sets = {key: resolve_node_set(mesh, key, spec, self.points,
-                                                self._facet_nodes)
-                          for key, spec in (node_sets or {}).items()}
+        try:
+            self.node_sets = {key: resolve_node_set(mesh, key, spec, self.points,
+                                                    self._facet_nodes)
+                              for key, spec in (node_sets or {}).items()}
+        except ValueError as error:  # say which body (its mesh file, in the FMU)
+            raise ValueError(f"{name}: {error}") from None
         rigid_ports = dict(rigid_ports or {})
         for key in [*clamped, *ports, *rigid_ports]:
             if key not in self.node_sets:
@@ -287,6 +290,11 @@ class ElasticBody(InterfaceCore):
     def displacement(self) -> np.ndarray:
         """Full displacement vector (m), dofs of ``self.basis`` (``self.node_dofs[c, node]``)."""
         return np.asarray(self._full_map @ self._q).ravel()
+
+    @property
+    def interface_matrix(self) -> sp.csr_matrix:
+        """B, interface displacement = B q (rows in ``interface`` order; m per unit q)."""
+        return self._interface_map.matrix
 
     def port_coordinates(self, port: str) -> np.ndarray:
         """Reference coordinates (m) of a port's nodes, shape (N, dim), in interface order
