@@ -131,3 +131,31 @@ def test_scene_settings_are_the_seeds(built):
     assert scene.stop_time == FOUR_POST["stop"] and scene.master.step == FOUR_POST["step"]
     mount = next(j for j in scene.joints if j.name == "mount_fl")
     assert mount.dofs == ("z",) and mount.kind == "flexible"
+
+
+@pytest.mark.parametrize("before, after, message", [
+    ('value="box 0.0 0.0 0.0 0.1 0.1 0.02"', 'value="box 0.0 0.0 0.1 0.1"',
+     "a 3-D box needs 6 numbers"),
+    ('value="full"', 'value="modal"', "fidelity = 'modal' must be one of"),
+    ('value="meshes/four_post_plate_0.1.vtk"', 'value="elastic_body_fmu.py"',
+     "mesh file 'elastic_body_fmu.py': cannot be read as a mesh"),
+], ids=["2-D box on a 3-D mesh", "unknown fidelity", "not a mesh"])
+def test_a_plate_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,
+                                                         before, after, message):
+    import zipfile
+
+    from master.cli import main
+
+    bad = tmp_path / "bad.ssp"
+    with zipfile.ZipFile(built["ssp"] / "four_post_fixed.ssp") as old, \
+            zipfile.ZipFile(bad, "w") as new:
+        for name in old.namelist():
+            data = old.read(name)
+            if name == "resources/body.ssv":
+                assert before.encode() in data
+                data = data.replace(before.encode(), after.encode(), 1)
+            new.writestr(name, data)
+    code = main(["run", str(bad), "--out", str(tmp_path / "o.csv"), "--quiet"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    assert "Component 'body'" in lines[0] and message in lines[0]
