@@ -255,6 +255,8 @@ def plot_motion(glued: dict, reference: dict, fixed: dict, snapshot: tuple, png:
     axes[2].set_xlabel("time (s)")
     for axis in axes:
         axis.grid(True, alpha=0.3)
+        if times[-1] > 2.6:  # quiet before the first bump, decayed by 2.6 s
+            axis.set_xlim(0.4, 2.6)
     at, shape, body = snapshot
     axis = figure.add_subplot(grid[:, 1])
     vertices = body.mesh.p
