@@ -12,7 +12,8 @@ the post masses ride on the pads (x_post = z_pad), one linear solve per step.
 
 ``python -m examples.four_post`` runs the glued scene (flexible and fixed mounts), the
 reference, prints the differences and iterations per step and writes
-docs/four_post_motion.png; ``--stop`` shortens the runs.
+results/four_post_motion.png (benchmarks/four_post_fidelity.py writes the docs' copy);
+``--stop`` shortens the runs.
 """
 from __future__ import annotations
 
@@ -276,8 +277,8 @@ def plot_motion(glued: dict, reference: dict, fixed: dict, snapshot: tuple, png:
     save_figure(figure, png)
 
 
-def main(stop: float = FOUR_POST["stop"], png: Path | None = ROOT / "docs" / "four_post_motion.png",
-         **settings) -> dict:
+def main(stop: float = FOUR_POST["stop"],
+         png: Path | None = ROOT / "results" / "four_post_motion.png", **settings) -> dict:
     """Glued flexible and fixed scenes against their references; iterations per step."""
     report = {}
     snapshot_time = 0.56  # just after the front bump's crest
