@@ -171,6 +171,9 @@ def monolithic(joints: str = "flexible", fidelity: str = "fine",
                 law = law - delta
                 if np.max(np.abs(delta)) <= 1e-13 * max(1.0, np.max(np.abs(law))):
                     break
+            else:
+                raise ArithmeticError(f"four_post monolithic: the mount laws did not "
+                                      f"converge at t = {t1:g} s")
             newton.append(iteration)
             y = w - Z @ law
             q1, x1 = y[:n], y[n:]
