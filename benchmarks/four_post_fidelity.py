@@ -213,7 +213,7 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "four_post.md") -> st
         "flexible mounts and the scene's quadratic predictor: the interface flexibility is "
         "measured once (the plate and posts are linear, the bushings' nonlinearity enters "
         "through the joint law, which the master evaluates itself), the predictor's guess "
-        "is often already within the tolerance, and otherwise one Newton correction "
+        "is sometimes already within the tolerance, and otherwise one Newton correction "
         "converges.",
         "",
         "The glued pad heights agree with the monolithic solution at the round-off floor of "
