@@ -10,6 +10,7 @@ from build_fmus.four_post_scenes import FIDELITY, FOUR_POST
 from examples import four_post
 from master.api import simulate
 from master.ssp import load_scene
+from tests.scene_files import edited_archive
 
 #: through the front bump (0.5 to 0.6 s) and a little after; coarse mesh for speed
 STOP = 0.62
@@ -142,19 +143,10 @@ def test_scene_settings_are_the_seeds(built):
 ], ids=["2-D box on a 3-D mesh", "unknown fidelity", "not a mesh"])
 def test_a_plate_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,
                                                          before, after, message):
-    import zipfile
-
     from master.cli import main
 
-    bad = tmp_path / "bad.ssp"
-    with zipfile.ZipFile(built["ssp"] / "four_post_fixed.ssp") as old, \
-            zipfile.ZipFile(bad, "w") as new:
-        for name in old.namelist():
-            data = old.read(name)
-            if name == "resources/body.ssv":
-                assert before.encode() in data
-                data = data.replace(before.encode(), after.encode(), 1)
-            new.writestr(name, data)
+    bad = edited_archive(built["ssp"] / "four_post_fixed.ssp", tmp_path / "bad.ssp",
+                         "resources/body.ssv", before, after)
     code = main(["run", str(bad), "--out", str(tmp_path / "o.csv"), "--quiet"])
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(lines) == 1, lines

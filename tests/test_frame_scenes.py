@@ -3,7 +3,6 @@ the monolithic frame, frame_nested equals its flattened twin, rollback is bit fo
 through the FMU, and a body the parameters cannot make is bad input (exit 2, one line)."""
 import subprocess
 import sys
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ from master.cli import main
 from master.results import read_csv
 from master.api import prepare, simulate
 from master.ssp import load_scene
+from tests.scene_files import edited_archive
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -144,16 +144,8 @@ def test_parts_are_data_and_checked():
 
 def _edited(built, tmp_path, before, after):
     """frame_nested_flat.ssp with the plate's parameter file edited."""
-    target = tmp_path / "edited.ssp"
-    with zipfile.ZipFile(built["ssp"] / "frame_nested_flat.ssp") as old, \
-            zipfile.ZipFile(target, "w") as new:
-        for name in old.namelist():
-            data = old.read(name)
-            if name == "resources/plate.ssv":
-                assert before.encode() in data
-                data = data.replace(before.encode(), after.encode())
-            new.writestr(name, data)
-    return target
+    return edited_archive(built["ssp"] / "frame_nested_flat.ssp", tmp_path / "edited.ssp",
+                          "resources/plate.ssv", before, after)
 
 
 @pytest.mark.parametrize("before, after, message", [
