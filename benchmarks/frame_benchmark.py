@@ -18,16 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
+from build_fmus.frame_scenes import part_parameters
 from fmus.elastic import craig_bampton_error, frame
-from fmus.elastic.parts import PartSpec, build_body
+from fmus.elastic.body_spec import build_body, spec_from_parameters
 
 ROOT = Path(__file__).resolve().parent.parent
 MODES = (5, 10, 20, 40, 60)
-#: the frame parts and the node counts of their glued ports (frame_split's)
-PART_PORTS = {"rail_left": {"front": 5, "mid": 5, "rear": 5},
-              "rail_right": {"front": 5, "mid": 5, "rear": 5},
-              "cross_front": {"left": 5, "right": 5}, "cross_mid": {"left": 5, "right": 5},
-              "cross_rear": {"left": 5, "right": 5}}
+#: the ElasticBody FMU's resources (the parts' mesh files)
+RESOURCES = ROOT / "fmus" / "elastic"
 CB_STEPS = 500
 
 
@@ -66,10 +64,8 @@ def bare_cores_twice(stop: float) -> float:
     state save and restore between), no FMI and no master: the glued run's floor."""
     start = time.perf_counter()
     bodies = []
-    for part, ports in PART_PORTS.items():
-        spec = PartSpec(part=part)
-        spec.nodes.update(ports)
-        bodies.append(build_body(spec))
+    for part in frame.COMPONENTS:  # as frame_split's FMUs build them
+        bodies.append(build_body(spec_from_parameters(part_parameters(part)), RESOURCES))
         bodies[-1].initialize(0.0)
     for n in range(round(stop / frame.STEP_SIZE)):
         for body in bodies:
@@ -96,9 +92,8 @@ def profile_glued(stop: float = 0.01, top: int = 14) -> str:
 
 def part_step_seconds(part: str, modes: int | None, steps: int = 300) -> float:
     """Seconds per Newmark step of one frame part alone (ports glued, forces zero)."""
-    spec = PartSpec(part=part, modes=modes or 0)
-    spec.nodes.update(PART_PORTS[part])
-    body = build_body(spec)
+    reduced = {"fidelity": "craig_bampton", "modes": modes} if modes else {}
+    body = build_body(spec_from_parameters({**part_parameters(part), **reduced}), RESOURCES)
     body.initialize(0.0)
     start = time.perf_counter()
     for n in range(steps):
@@ -145,7 +140,7 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
     lines = [
         "# frame_split: glued versus monolithic, and Craig-Bampton", "",
         "Written by `python -m benchmarks.frame_benchmark` (OMP_NUM_THREADS=1, one process, "
-        "the in-process backend). Scene: build/ssp/frame_split.ssp, five ElasticBody2D FMUs "
+        "the in-process backend). Scene: build/ssp/frame_split.ssp, five ElasticBody FMUs "
         f"glued on six edges, H = 1e-4 s, 0 to {stop:g} s ({stats['steps']} steps). After a "
         "short warm-up of each, the glued run, the monolithic solve and the floor run in turn "
         f"{len(run['ratios'])} times; the table gives the least wall time of each (set-up "

@@ -8,6 +8,7 @@ the built modelDescription.xml is completed here.
 from __future__ import annotations
 
 import argparse
+import re
 import shutil
 import sys
 import tempfile
@@ -21,23 +22,17 @@ ROOT = Path(__file__).resolve().parent.parent
 #: FMU model identifier -> the pythonfmu script that defines it.
 FMU_SCRIPTS = {
     "SpringMass": "fmus/spring_mass/spring_mass_fmu.py",
-    "ElasticBody2D": "fmus/elastic/elastic_body_fmu.py",
+    "ElasticBody": "fmus/elastic/elastic_body_fmu.py",
     "Linkage2D": "fmus/linkage/linkage_fmu.py",
     "FlexibleLink2D": "fmus/flexible_link/flexible_link_fmu.py",
 }
-#: Folders copied into an FMU's resources folder besides the fmus package (a user's mesh
-#: files: ``mesh_file = "meshes/deck_plate.vtk"``).
+#: Folders copied into an FMU's resources folder besides its part of the fmus package
+#: (the shipped scenes' mesh files: ``mesh_file = "meshes/deck_plate.vtk"``).
 FMU_RESOURCES = {
-    "ElasticBody2D": ["fmus/elastic/meshes"],
+    "ElasticBody": ["fmus/elastic/meshes"],
 }
-#: The subpackages of fmus/ an FMU carries in its resources (with fmus/*.py, the
-#: binding every wrapper shares); an FMU not listed carries them all.
-FMU_PACKAGES = {
-    "SpringMass": ["spring_mass"],
-    "Linkage2D": ["linkage"],
-    "FlexibleLink2D": ["flexible_link"],
-    "ElasticBody2D": ["elastic"],
-}
+#: An import of another subpackage of fmus (absolute, or relative from a subpackage).
+_IMPORT = re.compile(r"^\s*(?:from|import)\s+(?:fmus\.|\.\.)(\w+)", re.MULTILINE)
 SSD_NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
 
 
@@ -70,6 +65,21 @@ def _complete_model_description(fmu: Path) -> None:
             archive.writestr(name, data)
 
 
+def fmu_packages(identifier: str, root: Path = ROOT) -> list[str]:
+    """The subpackages of fmus/ an FMU needs: its script's, and those it imports
+    (transitively). The top-level modules of fmus/ (the interface, the FMI binding)
+    always go in; other subpackages stay out, so each FMU carries only its own code."""
+    needed, queue = set(), [Path(FMU_SCRIPTS[identifier]).parts[1]]
+    while queue:
+        package = queue.pop()
+        if package in needed or not (root / "fmus" / package).is_dir():
+            continue
+        needed.add(package)
+        for source in (root / "fmus" / package).rglob("*.py"):
+            queue += _IMPORT.findall(source.read_text())
+    return sorted(needed)
+
+
 def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Path:
     """Build one FMU into ``out`` (default build/fmus) and return its path."""
     from pythonfmu.builder import FmuBuilder
@@ -78,19 +88,15 @@ def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Pa
     out.mkdir(parents=True, exist_ok=True)
     target = out / f"{identifier}.fmu"
     with tempfile.TemporaryDirectory(prefix="dsim-fmu-") as temp:
-        # the fmus package goes into the FMU's resources with only the subpackages
-        # this FMU uses (and no caches)
+        # the fmus package goes into the FMU's resources: its top-level modules and the
+        # subpackages this FMU needs, without caches or mesh data (FMU_RESOURCES)
         package = Path(temp) / "fmus"
-        wanted = FMU_PACKAGES.get(identifier)
-
-        def skipped(folder, names):
-            ignored = set(shutil.ignore_patterns("__pycache__", "*.pyc")(folder, names))
-            if wanted is not None and Path(folder) == root / "fmus":
-                ignored |= {n for n in names if (Path(folder) / n).is_dir()
-                            and n not in wanted}
-            return ignored
-
-        shutil.copytree(root / "fmus", package, ignore=skipped)
+        package.mkdir()
+        for module in (root / "fmus").glob("*.py"):
+            shutil.copy2(module, package / module.name)
+        for name in fmu_packages(identifier, root):
+            shutil.copytree(root / "fmus" / name, package / name,
+                            ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "meshes"))
         FmuBuilder.build_FMU(root / FMU_SCRIPTS[identifier], dest=target,
                              project_files=[package] + [
                                  root / extra for extra in FMU_RESOURCES.get(identifier, [])],

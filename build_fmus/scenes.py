@@ -36,6 +36,19 @@ def parameter_set(name: str, values: dict) -> etree._Element:
     return root
 
 
+def write_parameter_sets(folder: Path, sets: dict[str, dict]) -> None:
+    """Named parameter sets of a scene (``dsim run --parameter-set NAME``), one .ssv each
+    in ``folder``/resources/fidelity/, values named from the root system (``body.modes``)."""
+    target = folder / "resources" / "fidelity"
+    target.mkdir(parents=True, exist_ok=True)
+    for old in target.glob("*.ssv"):
+        old.unlink()
+    for name, values in sets.items():
+        etree.ElementTree(parameter_set(name, values)).write(
+            str(target / f"{name}.ssv"), pretty_print=True, xml_declaration=True,
+            encoding="UTF-8")
+
+
 class SceneWriter:
     """Builds one SystemStructure.ssd with components, joints and master settings."""
 
@@ -92,6 +105,16 @@ class SceneWriter:
             if values:
                 etree.SubElement(joint, _q(GLUE, tag), {k: repr(v) for k, v in values.items()})
         self.systems[system][2].append(joint)
+
+    def port_map(self, component: str, name: str, dofs: str, force: str, position: str,
+                 velocity: str = "", acceleration: str = "", system: str = "") -> None:
+        """A glue:Port mapping FMU variables onto port ``name`` of ``component`` (one
+        variable name per dof in each of force, position, velocity, acceleration)."""
+        attributes = dict(component=component, name=name, dofs=dofs, force=force,
+                          position=position)
+        attributes.update({k: v for k, v in (("velocity", velocity),
+                                             ("acceleration", acceleration)) if v})
+        self.systems[system][2].append(etree.Element(_q(GLUE, "Port"), attributes))
 
     def write(self, folder: Path, start_time: float, stop_time: float, **master) -> None:
         """Write SystemStructure.ssd and the .ssv files into ``folder``; ``master``
@@ -167,120 +190,6 @@ def chain(n: int) -> SceneWriter:
     return scene
 
 
-#: frame_split / frame_nested (SCENES.md; seed section 2.2): Newmark, H = 1e-4 s, 0 to 0.2 s.
-#: The glued quantities are global positions (about 1 m) while the response is about
-#: 1e-5 m: the tolerance is absolute and near round-off, and the flexibility is measured
-#: with a large force perturbation (the bodies are linear, so it has no truncation error).
-FRAME = {"step": 1e-4, "stop": 0.2, "tolerance": 1e-14, "perturbation": 1.0,
-         "element_size": 0.025}
-#: The plate of frame_nested: a steel strip x in [0.05, 3.95], y in [0.55, 0.65] (m),
-#: meshed at 0.05 m, pinned at the cross members' mid points; a user mesh file.
-PLATE = {"mesh_file": "meshes/deck_plate.vtk", "bounds": (0.05, 3.95, 0.55, 0.65),
-         "element_size": 0.05, "points": {"front": (0.05, 0.6), "mid": (2.0, 0.6),
-                                          "rear": (3.95, 0.6)}}
-
-
-def frame_part_parameters(part: str, element_size: float = FRAME["element_size"],
-                          center: bool = False, **options) -> dict:
-    """Parameters of the ElasticBody2D FMU for one ladder-frame part; ``S.nodes`` is the
-    part's node count on every port the scene glues (``center`` only if asked)."""
-    from fmus.elastic.parts import frame_port_nodes
-
-    values = {"part": part, "element_size": element_size, "mass": "consistent", "modes": 0}
-    values.update(options)
-    for port, count in frame_port_nodes(part, element_size).items():
-        if port != "center" or center:
-            values[f"{port}.nodes"] = count
-    return values
-
-
-def _frame(scene: SceneWriter, system: str = "", center: bool = False,
-           cross_element_size: float = FRAME["element_size"]) -> None:
-    """The five parts and six edge joints of frame_split, in system ``system``."""
-    from fmus.elastic.frame import COMPONENTS, JOINTS
-
-    for part in COMPONENTS:
-        outputs = ["load.u_x"] if part == "cross_front" else []
-        size = cross_element_size if part.startswith("cross") else FRAME["element_size"]
-        scene.component(part, "ElasticBody2D",
-                        frame_part_parameters(part, size, center=center),
-                        outputs=outputs, system=system)
-    for a, b in JOINTS:  # a = rail_<side>.<cross>, b = cross_<cross>.<side>
-        cross, side = b.split(".")[0].split("_")[1], b.split(".")[1]
-        scene.joint(f"{cross}_{side}", a, b, dofs="x y", system=system)
-
-
-def frame_split() -> SceneWriter:
-    """SCENES.md frame_split: the ladder frame as five FE FMUs glued node to node."""
-    scene = SceneWriter("frame_split", "Seed section 2.2.1: a ladder frame split into two "
-                        "rails and three cross members, glued node to node on six edges")
-    _frame(scene)
-    return scene
-
-
-#: frame_nonmatching (SCENES.md; seed section 2.2.3): cross members meshed at half the
-#: rails' element size, so 9 cross-member nodes face 5 rail nodes on every interface edge.
-NONMATCHING_CROSS_SIZE = 0.0125
-
-
-def frame_nonmatching() -> SceneWriter:
-    """SCENES.md frame_nonmatching: frame_split with finer cross members, glued by MLS."""
-    scene = SceneWriter("frame_nonmatching", "Seed section 2.2.3: the ladder frame with "
-                        "cross members meshed at 0.0125 m and rails at 0.025 m, glued on "
-                        "non-matching edges by moving least squares")
-    _frame(scene, cross_element_size=NONMATCHING_CROSS_SIZE)
-    return scene
-
-
-def plate_parameters() -> dict:
-    """The frame_nested plate: part 'mesh' from the FMU's resources, three one-node ports."""
-    values = {"part": "mesh", "mesh_file": PLATE["mesh_file"], "mass": "consistent",
-              "load.probe": 1, "load.point_x": PLATE["points"]["mid"][0],
-              "load.point_y": PLATE["points"]["mid"][1]}
-    for port, (x, y) in PLATE["points"].items():
-        values[f"{port}.set"] = f"point {x!r} {y!r}"
-        values[f"{port}.nodes"] = 1
-    return values
-
-
-def write_plate_mesh(root: Path = ROOT) -> Path:
-    """Write the plate's mesh file (what a user brings) into fmus/elastic/meshes/."""
-    from fmus.elastic.geometry import rectangle
-
-    x0, x1, y0, y1 = PLATE["bounds"]
-    target = root / "fmus" / "elastic" / PLATE["mesh_file"]
-    target.parent.mkdir(parents=True, exist_ok=True)
-    rectangle(x0, x1, y0, y1, PLATE["element_size"]).save(str(target))
-    return target
-
-
-def frame_nested(flat: bool = False) -> SceneWriter:
-    """SCENES.md frame_nested: the frame as the nested system ``frame`` (level 2), pinned
-    (dofs x y) at the cross members' mid points to a plate (level 1). ``flat``: the same
-    model with every component and joint in the root system (frame_nested_flat)."""
-    name = "frame_nested_flat" if flat else "frame_nested"
-    scene = SceneWriter(name, "Seed section 2.2.2: the ladder frame as a nested system "
-                        "glued to a plate" + (", flattened" if flat else ""))
-    system = "" if flat else scene.nested_system("frame")
-    prefix = "" if flat else "frame."
-    _frame(scene, system, center=True)
-    scene.component("plate", "ElasticBody2D", plate_parameters(), outputs=["load.u_x"])
-    for cross in ("front", "mid", "rear"):
-        scene.joint(f"plate_{cross}", f"{prefix}cross_{cross}.center", f"plate.{cross}",
-                    dofs="x y")
-    return scene
-
-
-def write_frame_scenes(root: Path = ROOT) -> None:
-    """frame_split, frame_nested, frame_nested_flat (and the plate's mesh file)."""
-    write_plate_mesh(root)
-    for scene in (frame_split(), frame_nonmatching(), frame_nested(),
-                  frame_nested(flat=True)):
-        scene.write(root / "ssp" / scene.name, 0.0, FRAME["stop"], step=FRAME["step"],
-                    tolerance=FRAME["tolerance"], maxIterations=20, predictor="linear",
-                    refreshAfter=10, perturbation=FRAME["perturbation"])
-
-
 def write_all(root: Path = ROOT) -> None:
     """(Re)write every generated scene folder."""
     p = SPRING_MASS
@@ -293,10 +202,13 @@ def write_all(root: Path = ROOT) -> None:
         scene = chain(n)
         scene.write(root / "ssp" / scene.name, 0.0, CHAIN["stop"], step=CHAIN["step"],
                     tolerance=1e-13, maxIterations=20, predictor="linear", refreshAfter=10)
-    write_frame_scenes(root)
+    from build_fmus.four_post_scenes import write_four_post_scenes
+    from build_fmus.frame_scenes import write_frame_scenes
     from build_fmus.linkage_scenes import write_all as write_linkage_scenes
 
+    write_frame_scenes(root)
     write_linkage_scenes(root)
+    write_four_post_scenes(root)
 
 
 if __name__ == "__main__":

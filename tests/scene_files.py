@@ -70,3 +70,16 @@ def pack(folder: Path, target: Path) -> Path:
             if file.is_file():
                 archive.write(file, file.relative_to(folder).as_posix())
     return target
+
+
+def edited_archive(source: Path, target: Path, member: str, before: str, after: str) -> Path:
+    """A copy of the .ssp ``source`` at ``target`` with the first ``before`` in archive
+    member ``member`` (which must hold it) replaced by ``after``."""
+    with zipfile.ZipFile(source) as old, zipfile.ZipFile(target, "w") as new:
+        for name in old.namelist():
+            data = old.read(name)
+            if name == member:
+                assert before.encode() in data, f"{member} has no {before!r}"
+                data = data.replace(before.encode(), after.encode(), 1)
+            new.writestr(name, data)
+    return target

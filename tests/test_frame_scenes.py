@@ -1,9 +1,9 @@
-"""The finite-element FMU (ElasticBody2D) and the frame scenes: frame_split glued equals
+"""The finite-element FMU (ElasticBody) and the frame scenes: frame_split glued equals
 the monolithic frame, frame_nested equals its flattened twin, rollback is bit for bit
 through the FMU, and a body the parameters cannot make is bad input (exit 2, one line)."""
 import subprocess
 import sys
-import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,24 +12,29 @@ from fmpy.fmi2 import FMU2Slave
 
 from examples import frame as frame_example
 from fmus.elastic.frame import monolithic_frame
-from fmus.elastic.parts import PartSpec, build_body, frame_port_nodes
+from build_fmus.frame_scenes import part_parameters
+from fmus.elastic.body_spec import build_body, port_node_counts, spec_from_parameters
 from master.cli import main
 from master.results import read_csv
 from master.api import prepare, simulate
 from master.ssp import load_scene
+from tests.scene_files import edited_archive
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_fmu_validates_and_runs_alone(built):
     from fmpy import simulate_fmu
     from fmpy.validation import validate_fmu
 
-    fmu = built["fmus"] / "ElasticBody2D.fmu"
+    fmu = built["fmus"] / "ElasticBody.fmu"
     assert validate_fmu(str(fmu)) == []
+    start = {key: value for key, value in part_parameters("cross_front").items()
+             if not key.startswith("port2")}
     result = simulate_fmu(str(fmu), stop_time=2e-3, output_interval=1e-4,
-                          start_values={"part": "cross_front", "left.nodes": 5},
-                          output=["load.u_x", "left[5].u_x"])
+                          start_values=start, output=["load.u_x", "port1[5].u_x"])
     assert np.all(np.isfinite(result["load.u_x"])) and result["load.u_x"][-1] > 0
-    assert result["left[5].u_x"][0] == pytest.approx(0.1)  # a global position, m
+    assert result["port1[5].u_x"][0] == pytest.approx(0.1)  # a global position, m
 
 
 def test_frame_split_glued_equals_monolithic(built, tmp_path):
@@ -55,7 +60,7 @@ def test_node_set_ports_glue_only_the_declared_nodes(built):
     assert sizes == {"rail_left": 30, "rail_right": 30, "cross_front": 20, "cross_mid": 20,
                      "cross_rear": 20}
     front = next(spec for spec in checked.specs if spec.name == "cross_front")
-    assert front.port_dofs[-1].port == "right[5]"
+    assert front.port_dofs[-1].port == "port2[5]"
 
 
 def test_frame_nested_equals_flat(built, tmp_path):
@@ -63,7 +68,7 @@ def test_frame_nested_equals_flat(built, tmp_path):
     nested = load_scene(built["ssp"] / "frame_nested.ssp")
     assert {c.path for c in nested.components} >= {"frame.cross_front", "plate"}
     assert [j.name for j in nested.joints][::6] == ["frame.front_left", "plate_front"]
-    assert nested.joints[-1].a == ("frame.cross_rear", "center")
+    assert nested.joints[-1].a == ("frame.cross_rear", "port3")
     results = {}
     for name in ("frame_nested", "frame_nested_flat"):
         out = tmp_path / f"{name}.csv"
@@ -77,28 +82,27 @@ def test_frame_nested_equals_flat(built, tmp_path):
 
 
 def _instance(built, parameters):
-    path = built["fmus"] / "ElasticBody2D.fmu"
+    path = built["fmus"] / "ElasticBody.fmu"
     description = read_model_description(str(path))
     variables = {v.name: v for v in description.modelVariables}
     fmu = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(path)),
-                    modelIdentifier="ElasticBody2D", instanceName="cross")
+                    modelIdentifier="ElasticBody", instanceName="cross")
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
+    setters = {"String": fmu.setString, "Integer": fmu.setInteger, "Real": fmu.setReal}
     for name, value in parameters.items():
-        setter = fmu.setString if isinstance(value, str) else fmu.setInteger
-        setter([variables[name].valueReference], [value])
+        setters[variables[name].type]([variables[name].valueReference], [value])
     fmu.exitInitializationMode()
     return fmu, variables
 
 
 def test_rollback_is_bit_for_bit_through_the_fmu(built):
-    fmu, variables = _instance(built, {"part": "cross_front", "left.nodes": 5,
-                                       "right.nodes": 5})
+    fmu, variables = _instance(built, part_parameters("cross_front"))
     forces = [variables[f"{p}[{k}].f_{d}"].valueReference
-              for p in ("left", "right") for k in range(1, 6) for d in "xy"]
-    watched = [variables[n].valueReference for n in ("load.u_x", "right[3].u_y",
-                                                     "left[2].a_x")]
+              for p in ("port1", "port2") for k in range(1, 6) for d in "xy"]
+    watched = [variables[n].valueReference for n in ("load.u_x", "port2[3].u_y",
+                                                     "port1[2].a_x")]
     rng = np.random.default_rng(3)
     h = 1e-4
     for n in range(3):
@@ -123,39 +127,32 @@ def test_rollback_is_bit_for_bit_through_the_fmu(built):
     assert np.array_equal(histories[0], histories[1])  # bit for bit
 
 
-def test_parts_check_node_counts_and_ports():
-    assert frame_port_nodes("rail_left") == {"front": 5, "mid": 5, "rear": 5}
-    spec = PartSpec(part="cross_mid")
-    spec.nodes.update(left=4)
-    with pytest.raises(ValueError, match="node set has 5 nodes but the parameter left.nodes"):
-        build_body(spec)
-    spec = PartSpec(part="rail_right")
-    spec.nodes.update(center=1)
-    with pytest.raises(ValueError, match="part 'rail_right' has no port 'center'"):
-        build_body(spec)
-    with pytest.raises(ValueError, match="part = 'wing' must be one of"):
-        build_body(PartSpec(part="wing"))
+def test_parts_are_data_and_checked():
+    resources = ROOT / "fmus" / "elastic"
+    spec = spec_from_parameters(part_parameters("rail_left"))
+    assert port_node_counts(spec, resources) == {"port1": 5, "port2": 5, "port3": 5}
+    spec = spec_from_parameters({**part_parameters("cross_mid"), "port1.nodes": 4})
+    with pytest.raises(ValueError, match="node set has 5 nodes but the parameter port1.nodes"):
+        build_body(spec, resources)
+    spec = spec_from_parameters({**part_parameters("rail_right"), "port4.nodes": 1})
+    with pytest.raises(ValueError, match="port4.nodes = 1 but no node set"):
+        build_body(spec, resources)
+    spec = spec_from_parameters({**part_parameters("rail_right"), "fidelity": "wing"})
+    with pytest.raises(ValueError, match="fidelity = 'wing' must be one of"):
+        build_body(spec, resources)
 
 
 def _edited(built, tmp_path, before, after):
     """frame_nested_flat.ssp with the plate's parameter file edited."""
-    target = tmp_path / "edited.ssp"
-    with zipfile.ZipFile(built["ssp"] / "frame_nested_flat.ssp") as old, \
-            zipfile.ZipFile(target, "w") as new:
-        for name in old.namelist():
-            data = old.read(name)
-            if name == "resources/plate.ssv":
-                assert before.encode() in data
-                data = data.replace(before.encode(), after.encode())
-            new.writestr(name, data)
-    return target
+    return edited_archive(built["ssp"] / "frame_nested_flat.ssp", tmp_path / "edited.ssp",
+                          "resources/plate.ssv", before, after)
 
 
 @pytest.mark.parametrize("before, after, message", [
     ("meshes/deck_plate.vtk", "elastic_body_fmu.py",
      "mesh file 'elastic_body_fmu.py': cannot be read as a mesh"),
     ("meshes/deck_plate.vtk", "meshes/missing.msh", "mesh file 'meshes/missing.msh': no such"),
-    ("point 0.05 0.6", "box 10 10 11 11", "node set 'front' is empty"),
+    ("point 0.05 0.6", "box 10 10 11 11", "node set 'port1' is empty"),
 ], ids=["garbage-mesh", "missing-mesh", "empty-node-set"])
 def test_a_body_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,
                                                         before, after, message):
@@ -163,7 +160,7 @@ def test_a_body_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,
     code = main(["run", str(bad), "--out", str(tmp_path / "o.csv"), "--quiet"])
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(lines) == 1, lines
-    assert "Component 'plate'" in lines[0] and "ElasticBody2D.fmu" in lines[0]
+    assert "Component 'plate'" in lines[0] and "ElasticBody.fmu" in lines[0]
     assert message in lines[0]
 
 
@@ -174,3 +171,22 @@ def test_bad_mesh_through_the_console_is_one_line(built, tmp_path):
     assert process.returncode == 2
     assert len(process.stderr.splitlines()) == 1 and "Traceback" not in process.stderr
     assert process.stdout == ""
+
+
+def test_frame_fidelity_sets_apply(built, tmp_path):
+    """frame_split --parameter-set coarse is the frame at 0.05 m: it equals the one-mesh
+    frame at 0.05 m, not the 0.025 m one; cb40 reduces every part (Craig-Bampton, 40
+    modes) and stays within 1e-3 of the full parts over 0.01 s."""
+    stop = 0.01
+    scene = built["ssp"] / "frame_split.ssp"
+    coarse = simulate(scene, out=tmp_path / "coarse.csv", stop=stop, parameter_set="coarse")
+    assert coarse.ok
+    result = frame_example.compare(tmp_path / "coarse.csv",
+                                   monolithic_frame(element_size=0.05, stop_time=stop))
+    full = frame_example.compare(tmp_path / "coarse.csv", monolithic_frame(stop_time=stop))
+    reduced = simulate(scene, out=tmp_path / "cb40.csv", stop=stop, parameter_set="cb40")
+    cb = frame_example.compare(tmp_path / "cb40.csv", monolithic_frame(stop_time=stop))
+    print(f"coarse vs 0.05 m frame {result['relative_error']:.1e}, vs 0.025 m frame "
+          f"{full['relative_error']:.1e}; cb40 vs full {cb['relative_error']:.1e}")
+    assert result["relative_error"] < 1e-8 < 1e-3 < full["relative_error"]
+    assert cb["relative_error"] < 1e-3

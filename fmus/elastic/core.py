@@ -1,9 +1,13 @@
 """A linear elastic finite-element body as a glueable core (no FMI here).
 
 Equations: M a + C v + K u = f_loads(t) + B^T F on the generalized coordinates q of
-:mod:`.constraints` (clamps, rigid sets), optionally Craig-Bampton reduced, integrated by
-Newmark average acceleration (:mod:`.newmark`), equilibrium at the end of each step.
-Units: SI (m, s, kg, N, Pa, rad).
+:mod:`.constraints` (clamps, rigid sets), optionally reduced (Craig-Bampton, or the body
+as one rigid body), integrated by Newmark average acceleration (:mod:`.newmark`),
+equilibrium at the end of each step. Units: SI (m, s, kg, N, Pa, rad).
+
+Nodes are the element's interpolation points: the mesh vertices for linear elements
+(``order=1``), vertices plus mid-side (and quad centre) points for quadratic ones
+(``order=2``); node sets, ports, clamps and loads select among them.
 
 Ports. A *node-set port* ``S`` glues every node of node set ``S``: its interface pairs
 are ``("S[1]", "x"), ("S[1]", "y"), ... ("S[N]", "y")`` (3-D adds z), nodes in the order
@@ -27,7 +31,7 @@ from .constraints import ROTATIONS, TRANSLATIONS, build_transformation
 from .geometry import NodeSetSpec, check_mesh, nearest_node, resolve_node_set
 from .maps import InterfaceMap
 from .newmark import NewmarkAverageAcceleration
-from .reduction import craig_bampton_basis, generalized_eigen
+from .reduction import craig_bampton_basis, generalized_eigen, rigid_body_basis
 
 
 @dataclass(frozen=True)
@@ -55,9 +59,10 @@ class ElasticBody(InterfaceCore):
     set names with u = 0), ``ports`` (node-set port names), ``rigid_ports`` (node set name
     -> reference point, None for the set's centroid), ``loads``, ``probes`` (name ->
     point; outputs ``name.u_x`` ...), ``modes`` (None for the full model, or the number of
-    Craig-Bampton fixed-interface modes), ``stress_outputs`` (add ``name.von_mises`` to
-    outputs), ``ties`` (hanging node -> (master nodes, weights): u = sum w u_master),
-    ``name`` (used in error messages).
+    Craig-Bampton fixed-interface modes), ``rigid`` (the body as one rigid body: its
+    rigid-body motions only, the lowest fidelity), ``order`` (1 linear, 2 quadratic
+    elements), ``stress_outputs`` (add ``name.von_mises`` to outputs), ``ties`` (hanging
+    node -> (master nodes, weights): u = sum w u_master), ``name`` (used in errors).
     """
 
     def __init__(self, mesh, material: Material = STEEL, *, thickness: float = 1.0,
@@ -67,17 +72,27 @@ class ElasticBody(InterfaceCore):
                  rigid_ports: Optional[Mapping[str, Optional[Sequence[float]]]] = None,
                  loads: Sequence[PointLoad] = (),
                  probes: Optional[Mapping[str, Sequence[float]]] = None,
-                 modes: Optional[int] = None, stress_outputs: bool = False,
+                 modes: Optional[int] = None, rigid: bool = False, order: int = 1,
+                 stress_outputs: bool = False,
                  ties: Optional[Mapping[int, tuple[Sequence[int], Sequence[float]]]] = None,
                  name: str = "body"):
         check_mesh(mesh, name)
         if mass not in ("consistent", "lumped"):
             raise ValueError(f"{name}: mass must be 'consistent' or 'lumped', got {mass!r}")
+        if mass == "lumped" and order != 1:  # row sums of quadratic elements go negative
+            raise ValueError(f"{name}: lumped mass needs linear elements (order 1)")
+        if rigid and modes is not None:
+            raise ValueError(f"{name}: a rigid body has no Craig-Bampton modes")
         self.name, self.mesh, self.material, self.thickness = name, mesh, material, thickness
         self.dim = mesh.dim()
-        self.basis: Basis = vector_basis(mesh)
-        self.node_sets = {key: resolve_node_set(mesh, key, spec)
-                          for key, spec in (node_sets or {}).items()}
+        self.basis: Basis = vector_basis(mesh, order)
+        self._nodes(order)
+        try:
+            self.node_sets = {key: resolve_node_set(mesh, key, spec, self.points,
+                                                    self._facet_nodes)
+                              for key, spec in (node_sets or {}).items()}
+        except ValueError as error:  # say which body (its mesh file, in the FMU)
+            raise ValueError(f"{name}: {error}") from None
         rigid_ports = dict(rigid_ports or {})
         for key in [*clamped, *ports, *rigid_ports]:
             if key not in self.node_sets:
@@ -88,16 +103,16 @@ class ElasticBody(InterfaceCore):
                              f"both node-set and rigid ports")
 
         # Constraints: u_full = T q.
-        nodal = self.basis.nodal_dofs
+        nodal = self.node_dofs
         clamped_nodes = np.unique(np.concatenate(
             [self.node_sets[key] for key in clamped] or [np.zeros(0, dtype=int)]))
-        rigid = {key: (self.node_sets[key],
-                       np.mean(mesh.p[:, self.node_sets[key]], axis=1) if point is None
+        rigid_sets = {key: (self.node_sets[key],
+                       np.mean(self.points[:, self.node_sets[key]], axis=1) if point is None
                        else np.asarray(point, dtype=float))
                  for key, point in rigid_ports.items()}
         ties = {int(node): (np.asarray(m, dtype=int), np.asarray(w, dtype=float))
                 for node, (m, w) in (ties or {}).items()}
-        transformation = build_transformation(nodal, mesh.p, clamped_nodes, rigid, ties)
+        transformation = build_transformation(nodal, self.points, clamped_nodes, rigid_sets, ties)
         T = transformation.matrix
 
         k_full = stiffness_matrix(self.basis, material, thickness)
@@ -105,23 +120,30 @@ class ElasticBody(InterfaceCore):
         stiffness = (T.T @ k_full @ T).tocsr()
         mass_q = (T.T @ m_full @ T).tocsr()
 
-        interface_map = self._build_interface(ports, rigid, transformation)
+        interface_map = self._build_interface(ports, rigid_sets, transformation)
         self.loads = tuple(loads)
         loads_q = self._build_loads(T)  # f(t) = loads_q @ values(t)
         self.probes = {key: np.asarray(point, dtype=float) for key, point in (probes or {}).items()}
         probe_map = self._build_probes(T)  # probe displacements = probe_map @ q
         self.stress_outputs = stress_outputs
 
-        # Craig-Bampton: q = Psi r, interface coordinates kept physical.
-        self.modes = modes
+        # Reduction q = Psi r: Craig-Bampton (interface coordinates kept physical) or
+        # the rigid-body motions alone.
+        self.modes, self.rigid = modes, bool(rigid)
         self._full_map = T  # u_full = _full_map @ q
+        psi = None
         if modes is not None:
             # loaded dofs stay physical too: the static response to a point load is then
             # exact, instead of converging slowly with the number of modes
             boundary = np.unique(np.concatenate([interface_map.indices,
                                                  sp.csc_matrix(loads_q).indices]))
             psi = craig_bampton_basis(stiffness, mass_q, boundary, modes)
+        elif rigid:
+            psi = rigid_body_basis(T, self.points, nodal, name)
+        if psi is not None:
             stiffness = sp.csr_matrix(psi.T @ (stiffness @ psi))
+            if rigid:  # rigid motions store no strain energy: drop the round-off
+                stiffness = sp.csr_matrix(stiffness.shape)
             mass_q = sp.csr_matrix(psi.T @ (mass_q @ psi))
             interface_map = sp.csr_matrix(interface_map @ psi)
             loads_q = sp.csr_matrix(psi.T @ loads_q.toarray())
@@ -140,9 +162,26 @@ class ElasticBody(InterfaceCore):
         self._forces = np.zeros(len(self.interface))
 
     # -- construction helpers --------------------------------------------------------------
+    def _nodes(self, order: int) -> None:
+        """Interpolation points ``self.points`` (dim, nnodes) and their dofs
+        ``self.node_dofs`` (dim, nnodes): the vertices for linear elements."""
+        if order == 1:
+            self.points, self.node_dofs = self.mesh.p, self.basis.nodal_dofs
+        else:  # every component's dofs sit at the same points, in the same order
+            split = self.basis.split_indices()
+            self.node_dofs = np.vstack(split)
+            self.points = self.basis.doflocs[:, split[0]]
+        self._node_of_dof = np.full(self.basis.N, -1)
+        self._node_of_dof[self.node_dofs[0]] = np.arange(self.node_dofs.shape[1])
+
+    def _facet_nodes(self, facets: np.ndarray) -> np.ndarray:
+        """Nodes on the given mesh facets (vertices and, quadratic, mid-side points)."""
+        nodes = self._node_of_dof[self.basis.get_dofs(facets=facets).all()]
+        return np.unique(nodes[nodes >= 0])
+
     def _build_interface(self, ports, rigid, transformation) -> sp.csr_matrix:
         """Interface pairs, reference positions and B (interface displacement = B q)."""
-        T, nodal, points = transformation.matrix, self.basis.nodal_dofs, self.mesh.p
+        T, nodal, points = transformation.matrix, self.node_dofs, self.points
         pairs, rows, reference = [], [], []
         self._port_slices: dict[str, slice] = {}
         for key in ports:  # node-set ports: rows of T
@@ -173,13 +212,13 @@ class ElasticBody(InterfaceCore):
             if load.dof not in TRANSLATIONS[self.dim]:
                 raise ValueError(f"{self.name}: load dof {load.dof!r} must be one of "
                                  f"{TRANSLATIONS[self.dim]}")
-            node = nearest_node(self.mesh, load.point)
-            columns.append(T[self.basis.nodal_dofs[TRANSLATIONS[self.dim].index(load.dof), node]].T)
+            node = nearest_node(self.points, load.point)
+            columns.append(T[self.node_dofs[TRANSLATIONS[self.dim].index(load.dof), node]].T)
         return sp.hstack(columns).tocsr() if columns else sp.csr_matrix((T.shape[1], 0))
 
     def _build_probes(self, T: sp.csr_matrix) -> sp.csr_matrix:
         """Rows interpolating each probe's displacement components from q."""
-        nodal = self.basis.nodal_dofs
+        nodal = self.node_dofs  # the scalar basis numbers its dofs as these nodes
         scalar = Basis(self.mesh, self.basis.elem.elem)  # nodal interpolation weights
         self._probe_elements, rows, self._output_names = {}, [], []
         for key, point in self.probes.items():
@@ -192,7 +231,7 @@ class ElasticBody(InterfaceCore):
             for c, dof in enumerate(TRANSLATIONS[self.dim]):
                 row = sp.csr_matrix((weights.data, (np.zeros(weights.nnz, dtype=int),
                                                     nodal[c, weights.indices])),
-                                    shape=(1, nodal.size))
+                                    shape=(1, self.basis.N))
                 rows.append(row @ T)
                 self._output_names.append(f"{key}.u_{dof}")
         return sp.vstack(rows).tocsr() if rows else sp.csr_matrix((0, T.shape[1]))
@@ -249,8 +288,13 @@ class ElasticBody(InterfaceCore):
         return force + self._loads @ values if self.loads else force
 
     def displacement(self) -> np.ndarray:
-        """Full nodal displacement vector (m), dofs as ``self.basis.nodal_dofs``."""
+        """Full displacement vector (m), dofs of ``self.basis`` (``self.node_dofs[c, node]``)."""
         return np.asarray(self._full_map @ self._q).ravel()
+
+    @property
+    def interface_matrix(self) -> sp.csr_matrix:
+        """B, interface displacement = B q (rows in ``interface`` order; m per unit q)."""
+        return self._interface_map.matrix
 
     def port_coordinates(self, port: str) -> np.ndarray:
         """Reference coordinates (m) of a port's nodes, shape (N, dim), in interface order
@@ -259,7 +303,7 @@ class ElasticBody(InterfaceCore):
             return self._rigid_points[port][None, :].copy()
         if port not in self._port_slices:
             raise ValueError(f"{self.name}: no port {port!r} (ports: {sorted(self._port_slices)})")
-        return self.mesh.p[:, self.node_sets[port]].T.copy()
+        return self.points[:, self.node_sets[port]].T.copy()
 
     def port_slice(self, port: str) -> slice:
         """The entries of the interface vectors that belong to ``port``."""

@@ -14,19 +14,21 @@ from pathlib import Path
 from typing import Callable, Sequence, Union
 
 import numpy as np
-from skfem import (ElementHex1, ElementQuad1, ElementTetP1, ElementTriP1, Mesh,
-                   MeshHex, MeshQuad, MeshTri)
+from skfem import (ElementHex1, ElementHexS2, ElementQuad1, ElementQuad2, ElementTetP1,
+                   ElementTetP2, ElementTriP1, ElementTriP2, Mesh, MeshHex, MeshQuad, MeshTri)
 
 #: A node set: node indices, a predicate ``f(x) -> bool mask`` on coordinates of shape
 #: ``(dim, nnodes)``, or the name of a boundary (facet set) stored in the mesh.
 NodeSetSpec = Union[Sequence[int], np.ndarray, Callable[[np.ndarray], np.ndarray], str]
 
-#: Linear (first order) meshes the core supports and their scalar element.
+#: Linear (first order) meshes the core supports and their scalar element per order:
+#: 1 the linear element, 2 a quadratic one on the same mesh (mid-side nodes added:
+#: 9-node quads, 6-node triangles, 20-node serendipity hexahedra, 10-node tetrahedra).
 ELEMENTS = {
-    "MeshQuad1": ElementQuad1,
-    "MeshTri1": ElementTriP1,
-    "MeshHex1": ElementHex1,
-    "MeshTet1": ElementTetP1,
+    "MeshQuad1": {1: ElementQuad1, 2: ElementQuad2},
+    "MeshTri1": {1: ElementTriP1, 2: ElementTriP2},
+    "MeshHex1": {1: ElementHex1, 2: ElementHexS2},
+    "MeshTet1": {1: ElementTetP1, 2: ElementTetP2},
 }
 
 
@@ -112,32 +114,42 @@ def sort_along(points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     return nodes[order]
 
 
-def resolve_node_set(mesh: Mesh, name: str, spec: NodeSetSpec) -> np.ndarray:
-    """Node indices of node set ``name`` (sorted along the set); ValueError if empty."""
+def resolve_node_set(mesh: Mesh, name: str, spec: NodeSetSpec, points=None,
+                     facet_nodes=None) -> np.ndarray:
+    """Node indices of node set ``name`` (sorted along the set); ValueError if empty.
+
+    ``points`` (dim, nnodes) are the nodes to choose from (default the mesh vertices;
+    a quadratic body passes its mid-side nodes too) and ``facet_nodes(facets)`` the
+    nodes on some facets (for a boundary name; default the facets' vertices).
+    """
+    points = mesh.p if points is None else points
     if isinstance(spec, str):
         if not mesh.boundaries or spec not in mesh.boundaries:
             known = sorted(mesh.boundaries or {})
             raise ValueError(f"node set {name!r}: the mesh has no boundary {spec!r} "
                              f"(boundaries: {known})")
-        nodes = np.unique(mesh.facets[:, mesh.boundaries[spec]])
+        facets = mesh.boundaries[spec]
+        nodes = (np.unique(mesh.facets[:, facets]) if facet_nodes is None
+                 else np.unique(facet_nodes(facets)))
     elif callable(spec):
-        mask = np.asarray(spec(mesh.p), dtype=bool)
+        mask = np.asarray(spec(points), dtype=bool)
         nodes = np.flatnonzero(mask)
     else:
         nodes = np.unique(np.asarray(spec, dtype=np.int64))
-        if nodes.size and (nodes[0] < 0 or nodes[-1] >= mesh.nvertices):
-            raise ValueError(f"node set {name!r}: node index out of range 0..{mesh.nvertices - 1}")
+        count = points.shape[1]
+        if nodes.size and (nodes[0] < 0 or nodes[-1] >= count):
+            raise ValueError(f"node set {name!r}: node index out of range 0..{count - 1}")
     if nodes.size == 0:
         raise ValueError(f"node set {name!r} is empty: it selects no node of the mesh")
-    return sort_along(mesh.p, nodes)
+    return sort_along(points, nodes)
 
 
-def nearest_node(mesh: Mesh, point: Sequence[float]) -> int:
-    """Index of the mesh node nearest to ``point`` (m)."""
+def nearest_node(points: np.ndarray, point: Sequence[float]) -> int:
+    """Index of the node (column of ``points``, shape (dim, nnodes)) nearest ``point`` (m)."""
     point = np.asarray(point, dtype=float)
-    if point.shape != (mesh.dim(),):
-        raise ValueError(f"point {point.tolist()} must have {mesh.dim()} coordinates")
-    return int(np.argmin(np.sum((mesh.p - point[:, None]) ** 2, axis=0)))
+    if point.shape != (points.shape[0],):
+        raise ValueError(f"point {point.tolist()} must have {points.shape[0]} coordinates")
+    return int(np.argmin(np.sum((points - point[:, None]) ** 2, axis=0)))
 
 
 def merge_meshes(meshes: Sequence[Mesh], tolerance: float = 1e-9) -> Mesh:

@@ -1,8 +1,9 @@
-"""Craig-Bampton reduction and its error against the full model.
+"""Reductions of an elastic body: Craig-Bampton, the rigid body, and their error.
 
-The boundary (interface) coordinates stay physical; the interior is described by the
-static constraint modes (interior response to a unit boundary displacement) plus the
-lowest ``modes`` fixed-interface normal modes (mass normalized).
+Craig-Bampton: the boundary (interface) coordinates stay physical; the interior is
+described by the static constraint modes (interior response to a unit boundary
+displacement) plus the lowest ``modes`` fixed-interface normal modes (mass normalized).
+Rigid: the body's rigid-body motions alone (small rotations), the lowest fidelity.
 """
 from __future__ import annotations
 
@@ -61,6 +62,32 @@ def craig_bampton_basis(stiffness: sp.spmatrix, mass: sp.spmatrix, boundary: np.
     if modes:
         _, vectors = generalized_eigen(k_ii, mass[interior][:, interior], modes)
         basis[np.ix_(interior, boundary.size + np.arange(modes))] = vectors
+    return basis
+
+
+def rigid_body_basis(transformation: sp.spmatrix, points: np.ndarray, node_dofs: np.ndarray,
+                     name: str = "body") -> np.ndarray:
+    """Generalized coordinates of the rigid-body motions, shape (n, 3) in 2-D (x, y, rz),
+    (n, 6) in 3-D: q with ``transformation @ q`` the motion of every node (``points``,
+    (dim, nnodes), m; ``node_dofs`` their dofs), rotations about the nodes' centroid.
+    ValueError if the constraints (clamps) stop a rigid-body motion."""
+    dim = points.shape[0]
+    d = points - points.mean(axis=1, keepdims=True)
+    zero, one = np.zeros(d.shape[1]), np.ones(d.shape[1])
+    if dim == 2:  # columns x, y, rz; rows u_x, u_y
+        rows = [[one, zero, -d[1]], [zero, one, d[0]]]
+    else:  # columns x, y, z, rx, ry, rz: u = t + theta x r
+        rows = [[one, zero, zero, zero, d[2], -d[1]],
+                [zero, one, zero, -d[2], zero, d[0]],
+                [zero, zero, one, d[1], -d[0], zero]]
+    T = sp.csr_matrix(transformation)
+    motion = np.zeros((T.shape[0], len(rows[0])))
+    for c in range(dim):
+        motion[node_dofs[c]] = np.column_stack(rows[c])
+    # T has full column rank: the least-squares q is exact when the motion is admissible
+    basis = splu(sp.csc_matrix(T.T @ T)).solve(np.asarray(T.T @ motion))
+    if np.linalg.norm(T @ basis - motion) > 1e-9 * np.linalg.norm(motion):
+        raise ValueError(f"{name}: a rigid body cannot have clamped nodes")
     return basis
 
 

@@ -13,8 +13,11 @@ all stiffness at d = -k0/k1, and the monolithic model of section 5.3.1 then
 fails at t = 2.88 s.  With absolute values both laws are monotone, so every
 force has exactly one extension: see docs/method.md.
 
-Each mass carries an external load ``F0 + Fa sin(omega t + phase)`` (N). The
-chain is integrated with the trapezoidal rule (Newmark average acceleration),
+Each mass carries an external load ``F0 + Fa sin(omega t + phase)`` (N). Its ground
+spring and damper may sit on a moving base instead of fixed ground: the base makes a
+half-sine bump ``bump sin(pi (t - bump_start) / bump_duration)`` (m) for ``bump_start <= t
+<= bump_start + bump_duration`` and stays at 0 otherwise (a shaker post), and the ground
+laws act on the mass's motion relative to it. The chain is integrated with the trapezoidal rule (Newmark average acceleration),
 solved for the end-of-step accelerations by Newton's method when a law is
 nonlinear.  Ports ``P`` and ``Q`` sit on chosen masses and take interface forces.
 """
@@ -59,6 +62,9 @@ class ChainParameters:
     phase: np.ndarray = field(default_factory=lambda: _vec(0.0))
     x0: np.ndarray = field(default_factory=lambda: _vec(0.0))
     v0: np.ndarray = field(default_factory=lambda: _vec(0.0))
+    bump: np.ndarray = field(default_factory=lambda: _vec(0.0))
+    bump_start: np.ndarray = field(default_factory=lambda: _vec(0.0))
+    bump_duration: np.ndarray = field(default_factory=lambda: _vec(0.0))
     port_P: int = 1
     port_Q: int = 1
 
@@ -76,6 +82,8 @@ class ChainParameters:
                 raise ValueError(f"port {port} on mass {index}, but the chain has {self.n}")
         if np.any(self.m[: self.n] <= 0):
             raise ValueError("every mass m[i] must be positive")
+        if np.any(self.bump_duration[: self.n] < 0):
+            raise ValueError("every bump_duration[i] must be >= 0 (0: no bump)")
 
 
 def _law(k0, k1, d):
@@ -107,11 +115,31 @@ class SpringMassChain(InterfaceCore):
         self.port_forces = np.zeros(2)
         self.newton_iterations = 0
         self._ports = np.array([params.port_P - 1, params.port_Q - 1])
+        self.moving_base = bool(np.any(params.bump[:n]) and np.any(params.bump_duration[:n]))
         if not self.nonlinear:  # the internal force is K x + C v: keep K and C
             _, self._stiffness, self._damping = self.internal_force(np.zeros(n), np.zeros(n))
         self._solver = None  # (step size, inverse of M + h/2 C + h^2/4 K) of a linear chain
 
     # --- forces -------------------------------------------------------------
+    def base(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Base position (m) and velocity (m/s) under each mass at time t."""
+        p, n = self.p, self.n
+        y, yd = np.zeros(n), np.zeros(n)
+        if not self.moving_base:
+            return y, yd
+        duration = p.bump_duration[:n]
+        elapsed = t - p.bump_start[:n]
+        phase = np.pi * elapsed / np.where(duration > 0, duration, 1.0)
+        # the base velocity jumps at both ends: the closed interval, with slack for a
+        # communication time that lands on an end in floating point (t = 1.1 may be
+        # 1.1000000000000008), makes every master sample the same side
+        slack = 1e-9 * max(1.0, abs(t))
+        active = (duration > 0) & (elapsed >= -slack) & (elapsed <= duration + slack)
+        y[active] = p.bump[:n][active] * np.sin(phase[active])
+        yd[active] = (p.bump[:n] * np.pi / np.where(duration > 0, duration, 1.0)
+                      * np.cos(phase))[active]
+        return y, yd
+
     def external_force(self, t: float) -> np.ndarray:
         """Loads at time t (N): constant part plus sine, plus interface forces."""
         p, n = self.p, self.n
@@ -121,12 +149,14 @@ class SpringMassChain(InterfaceCore):
         f[self._ports[1]] += forces[1]
         return f
 
-    def internal_force(self, x: np.ndarray, v: np.ndarray):
+    def internal_force(self, x: np.ndarray, v: np.ndarray, base=None):
         """Spring and damper forces on the masses (N) and their tangents
-        d f/d x, d f/d v (N/m, N.s/m) as dense n x n arrays."""
+        d f/d x, d f/d v (N/m, N.s/m) as dense n x n arrays; ``base`` = (y, yd), the
+        ground's position and velocity (default at rest)."""
         p, n = self.p, self.n
-        fs, ks = _law(p.k_ground[:n], p.k1_ground[:n], x)
-        fd, cs = _law(p.c_ground[:n], p.c1_ground[:n], v)
+        y, yd = base if base is not None else (0.0, 0.0)
+        fs, ks = _law(p.k_ground[:n], p.k1_ground[:n], x - y)
+        fd, cs = _law(p.c_ground[:n], p.c1_ground[:n], v - yd)
         f = fs + fd
         K = np.diag(ks)
         C = np.diag(cs)
@@ -149,7 +179,7 @@ class SpringMassChain(InterfaceCore):
     # --- InterfaceCore ------------------------------------------------------
     def initialize(self, start_time: float) -> None:
         self.time = float(start_time)
-        f, _, _ = self.internal_force(self.x, self.v)
+        f, _, _ = self.internal_force(self.x, self.v, self.base(self.time))
         self.a = (self.external_force(self.time) - f) / self.p.m[: self.n]
 
     def set_interface_forces(self, forces: np.ndarray) -> None:
@@ -162,9 +192,13 @@ class SpringMassChain(InterfaceCore):
         m = self.p.m[: self.n]
         t1 = time + h
         f_ext = self.external_force(t1)
+        base = self.base(t1)
         x_pred = self.x + h * self.v + 0.25 * h * h * self.a
         v_pred = self.v + 0.5 * h * self.a
         if not self.nonlinear:
+            if self.moving_base:  # linear ground laws: the base acts as a force
+                f_ext = f_ext + self.p.k_ground[:self.n] * base[0] \
+                    + self.p.c_ground[:self.n] * base[1]
             self._linear_step(x_pred, v_pred, f_ext, h)
             self.time = t1
             return
@@ -172,12 +206,16 @@ class SpringMassChain(InterfaceCore):
         for iteration in range(1, self.max_newton + 1):
             x1 = x_pred + 0.25 * h * h * a1
             v1 = v_pred + 0.5 * h * a1
-            f_int, K, C = self.internal_force(x1, v1)
+            f_int, K, C = self.internal_force(x1, v1, base)
             residual = m * a1 + f_int - f_ext
             jacobian = np.diag(m) + 0.5 * h * C + 0.25 * h * h * K
             delta = np.linalg.solve(jacobian, residual)
             a1 = a1 - delta
-            scale = max(np.max(np.abs(a1)), 1.0)
+            # relative to the accelerations the force terms alone would give: a1 may cross
+            # zero while a stiff spring or damper makes large terms that cancel (their
+            # round-off then exceeds 1e-13 |a1|)
+            terms = np.abs(K) @ np.abs(x1) + np.abs(C) @ np.abs(v1) + np.abs(f_ext)
+            scale = max(np.max(np.abs(a1)), np.max(terms / m), 1.0)
             if not self.nonlinear or np.max(np.abs(delta)) <= self.newton_tolerance * scale:
                 break
         else:

@@ -26,6 +26,9 @@ DESCRIPTIONS = {
     "c": "damper to next mass c0, N.s/m", "c1": "damper to next mass c1, N.s^2/m^2",
     "F0": "constant load, N", "Fa": "sine load amplitude, N", "omega": "sine load frequency, rad/s",
     "phase": "sine load phase, rad", "x0": "initial position, m", "v0": "initial velocity, m/s",
+    "bump": "half-sine bump of the ground under the mass: height, m",
+    "bump_start": "half-sine bump: start time, s",
+    "bump_duration": "half-sine bump: duration, s (0: no bump)",
 }
 
 
