@@ -110,3 +110,17 @@ def test_an_interrupted_sweep_keeps_its_finished_points(built, tmp_path):
     assert [r["status"] for r in rows] == ["completed", "interrupted"]
     assert (out / "sweep.md").is_file() and (out / "sweep.png").is_file()
     assert np.isfinite(float(rows[0]["error"]))
+
+
+def test_a_sweep_over_fidelity_sets_ranks_them_against_the_finest(built, tmp_path):
+    """four_post's parameter sets against its default fine plate: more Craig-Bampton
+    modes, less error; a rigid body misses the plate's bending altogether."""
+    scene = built["ssp"] / "four_post_flexible.ssp"
+    fine = tmp_path / "fine.csv"
+    assert main(["run", str(scene), "--stop", "0.6", "--out", str(fine), "--quiet"]) == 0
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(scene), "--stop", "0.6", "--parameter-set", "rigid,cb4,cb12,cb30",
+                 "--reference", str(fine), "--out", str(out)]) == 0
+    with open(out / "sweep.csv", newline="") as file:
+        error = {r["parameter_set"]: float(r["error"]) for r in csv.DictReader(file)}
+    assert error["cb30"] < error["cb12"] < error["cb4"] < 0.01 < error["rigid"]
