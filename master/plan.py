@@ -62,6 +62,8 @@ class Plan:
     text_recorded: tuple[tuple[str, str], ...] = ()
     text_index: tuple[int, ...] = ()
     text_transfer: object = None
+    #: what the backend is given besides the specs (``address`` of a Ray cluster)
+    backend_options: dict = None
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -267,11 +269,15 @@ def _passes(paths: list[str], links) -> int:
         return len(paths)
 
 
-def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
+def make_plan(scene: Scene, backend: str = "in-process", backend_options=None) -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem."""
+    from master.backends import BACKENDS
+
+    backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
     problems = list(scene.problems) + check_span(
         scene.start_time, scene.stop_time, scene.master.step, f"{scene.file}: DefaultExperiment")
+    problems += BACKENDS[backend].problems(**backend_options)
     coupling = scene.master.coupling
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
@@ -321,7 +327,8 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
         c.path, c.source, tuple(interfaces[c.path]), dict(c.parameters), tuple(reads[c.path]),
         tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
         kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
-        tuple(text_reads[c.path]), tuple(text_writes[c.path])) for c in scene.components)
+        tuple(text_reads[c.path]), tuple(text_writes[c.path]),
+        scene.placements.get(c.path, "")) for c in scene.components)
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
     text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
                   text_reads[p].index(n) for p, n in text_recorded]
@@ -335,4 +342,4 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
                 ports, start_transfer, _passes(paths, links), tuple(warnings),
                 bool(scene.joints) and coupling == "explicit" and any(
                     not can_save_state(scene.components[i].source) for i in glued),
-                text_recorded, tuple(text_index), text_transfer)
+                text_recorded, tuple(text_index), text_transfer, backend_options)

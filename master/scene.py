@@ -154,6 +154,8 @@ class Scene:
     #: what the reader found wrong (a scene read with ``strict=False``: the plan adds
     #: its own findings and raises them all)
     problems: tuple[str, ...] = ()
+    #: component path -> the Ray resource whose node runs it (``glue:Placement``)
+    placements: dict = field(default_factory=dict)
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

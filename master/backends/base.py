@@ -17,6 +17,13 @@ class Backend(ABC):
     name = ""
 
     @classmethod
+    def problems(cls, **options) -> list[str]:
+        """What is wrong with running on this backend with ``options`` (the run
+        options that are not master settings, such as ``address``), one line each."""
+        return [f"setting {key}: only the ray backend takes it (--backend ray)"
+                for key, value in options.items() if value is not None]
+
+    @classmethod
     @abstractmethod
     def from_specs(cls, specs, **options) -> "Backend":
         """Create every subsystem of a run from its
@@ -93,6 +100,10 @@ class Backend(ABC):
     @abstractmethod
     def counters(self) -> list[dict]:
         """Per subsystem: FMI function -> [calls, seconds]."""
+
+    def places(self) -> list:
+        """Per subsystem: where it ran ({"node": ..., "pid": ...}), or None (here)."""
+        return [None] * len(self)
 
     @abstractmethod
     def close(self) -> list[Exception]:
