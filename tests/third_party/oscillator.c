@@ -5,9 +5,11 @@
  * annotation has to map them onto a port.  Compiled with -DNO_STATE it declares
  * and implements no state saving, the case a master must refuse to iterate; with
  * -DLIVE_OUTPUTS its outputs follow its inputs in initialization mode too (FMI 2.0
- * allows either). */
+ * allows either); with -DCRASH_TIME=t its process ends abruptly (_exit) in the first
+ * step that reaches t, as a crashing FMU takes down whatever process loads it. */
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include "fmi2Functions.h"
 
 enum { VR_M, VR_K, VR_F, VR_S, VR_V, VR_A, VR_S0, N_VARS };
@@ -144,6 +146,9 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
                                   fmi2Boolean noSetPrior) {
     Model *m = c;
     double *x = m->x;
+#ifdef CRASH_TIME
+    if (t + h >= CRASH_TIME) _exit(70);
+#endif
     double s_pred = x[VR_S] + h * x[VR_V] + 0.25 * h * h * x[VR_A];
     double a1 = (x[VR_F] - x[VR_K] * s_pred) / (x[VR_M] + 0.25 * h * h * x[VR_K]);
     x[VR_V] += 0.5 * h * (x[VR_A] + a1);
