@@ -333,13 +333,13 @@ class PointRun:
     results: Path | None = None
 
 
-def run_point(scene, settings: dict, results: Path, observers=()) -> PointRun:
+def run_point(scene, settings: dict, results: Path) -> PointRun:
     """Run one point in this process, its results CSV (and statistics) at ``results``."""
     from master.api import simulate
 
     start = clock.perf_counter()
     try:
-        result = simulate(scene, out=results, observers=observers, **settings)
+        result = simulate(scene, out=results, **settings)
     except InputError as error:
         return PointRun(problems=list(error.problems))
     return PointRun(result, wall_seconds=clock.perf_counter() - start, results=results)

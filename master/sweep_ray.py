@@ -3,10 +3,11 @@
 Each point is an independent run: a Ray task (one CPU) that runs it in-process
 inside its worker and returns its result, with its results CSV and statistics as
 bytes that the driver writes into the sweep's folder (so a worker on another
-machine needs no shared folder).  Points are handed on as they finish.  SIGINT or
-SIGTERM on the driver raise a flag (a small actor) that every running point polls
-after each step: it ends after its current step, as interrupted, with its
-converged steps kept; points not yet started never run.
+machine needs no shared folder).  The driver keeps one point per CPU of the cluster
+in flight, hands points on as they finish and submits the next.  SIGINT or SIGTERM
+on the driver raise a flag (a small actor) that every running point looks at
+between steps: it ends after its current step, as interrupted, with its converged
+steps kept; no further point is submitted.
 """
 from __future__ import annotations
 
@@ -62,16 +63,21 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
         shipped = Shipment(ray).add(scene) if Path(scene).is_file() else None
         point_settings = {k: v for k, v in fixed.items() if k not in WHERE}
         task = ray.remote(_run_remote).options(num_cpus=1, max_retries=0)
-        pending = {task.remote(str(scene), shipped, {**point_settings, **settings},
-                               f"point_{k + 1:03d}", stop): k
-                   for k, settings in enumerate(configurations)}
-        while pending:
+        waiting = list(enumerate(configurations))[::-1]
+        width = max(1, connection.cpus())
+        pending: dict = {}
+        while waiting or pending:
+            # one point per CPU in flight: after an interrupt, none more
+            while waiting and len(pending) < width and not caught:
+                k, settings = waiting.pop()
+                pending[task.remote(str(scene), shipped, {**point_settings, **settings},
+                                    f"point_{k + 1:03d}", stop)] = k
+            if not pending:
+                break
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
             for ref in done:
                 k = pending.pop(ref)
-                run = _collect(ray, ref, out / f"point_{k + 1:03d}.csv", inputs)
-                if run is not None:
-                    finish(k, run)
+                finish(k, _collect(ray, ref, out / f"point_{k + 1:03d}.csv", inputs))
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
@@ -79,16 +85,14 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
         connection.close()
 
 
-def _collect(ray, ref, results: Path, inputs) -> PointRun | None:
-    """The point's run, its files written at ``results``; None if it never started."""
+def _collect(ray, ref, results: Path, inputs) -> PointRun:
+    """The point's run, its files written at ``results``."""
     try:
         answer = ray.get(ref)
     except ray.exceptions.RayError as error:  # the worker died (an FMU crashed it)
         from master.results import RunResult
         message = f"the worker process running the point died: {str(error).splitlines()[0]}"
         return PointRun(RunResult("failed", message, 0.0, 0, statistics={}), wall_seconds=0.0)
-    if answer is None:
-        return None
     run, files = answer
     if run.result is not None:
         for suffix, data in files.items():
@@ -98,37 +102,37 @@ def _collect(ray, ref, results: Path, inputs) -> PointRun | None:
 
 
 class _StopWhenAsked(Observer):
-    """Ends its run after the current step once the flag is up (looked at every
-    ``POLL_SECONDS`` of wall time at most: one small remote call)."""
+    """Ends its run after the current step once the flag is up.  It asks every
+    ``POLL_SECONDS`` and looks at the answer without waiting for it: a task that
+    waits on Ray lends its CPU to another task, which would start a point too many."""
 
     def __init__(self, flag):
         self.flag = flag
         self.execution = None
-        self._looked = clock.monotonic()
+        self._asked = None
+        self._when = clock.monotonic()
 
     def stepped(self, record):
         import ray
 
-        if clock.monotonic() - self._looked < POLL_SECONDS:
+        if self._asked is None:
+            if clock.monotonic() - self._when >= POLL_SECONDS:
+                self._asked, self._when = self.flag.get.remote(), clock.monotonic()
             return
-        self._looked = clock.monotonic()
-        number = ray.get(self.flag.get.remote())
+        if not ray.wait([self._asked], timeout=0)[0]:
+            return
+        number, self._asked = ray.get(self._asked), None
         if number:
             self.execution.stop(f"interrupted by {signal.Signals(number).name}", number)
 
 
 def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
-    """A point in a Ray worker: (PointRun, {suffix: file bytes}), or None when the
-    sweep was stopped before it started."""
-    import ray
-
+    """A point in a Ray worker: (PointRun, {suffix: file bytes})."""
     from master.api import prepare
     from master.errors import InputError
     from master.execution import Execution
     from master.observers import CsvRecorder, StatisticsWriter
 
-    if ray.get(flag.get.remote()):
-        return None
     if shipped is not None:
         scene = landed(shipped)
     with tempfile.TemporaryDirectory(prefix="dsim-point-") as folder:
