@@ -195,13 +195,15 @@ def frame_part_parameters(part: str, element_size: float = FRAME["element_size"]
 
 
 def _frame(scene: SceneWriter, system: str = "", center: bool = False,
-           cross_element_size: float = FRAME["element_size"]) -> None:
-    """The five parts and six edge joints of frame_split, in system ``system``."""
+           cross_element_size: float = FRAME["element_size"],
+           element_size: float = FRAME["element_size"]) -> None:
+    """The five parts and six edge joints of frame_split, in system ``system`` (rails
+    meshed at ``element_size``, cross members at ``cross_element_size``, m)."""
     from fmus.elastic.frame import COMPONENTS, JOINTS
 
     for part in COMPONENTS:
         outputs = ["load.u_x"] if part == "cross_front" else []
-        size = cross_element_size if part.startswith("cross") else FRAME["element_size"]
+        size = cross_element_size if part.startswith("cross") else element_size
         scene.component(part, "ElasticBody2D",
                         frame_part_parameters(part, size, center=center),
                         outputs=outputs, system=system)
@@ -210,11 +212,13 @@ def _frame(scene: SceneWriter, system: str = "", center: bool = False,
         scene.joint(f"{cross}_{side}", a, b, dofs="x y", system=system)
 
 
-def frame_split() -> SceneWriter:
-    """SCENES.md frame_split: the ladder frame as five FE FMUs glued node to node."""
-    scene = SceneWriter("frame_split", "Seed section 2.2.1: a ladder frame split into two "
+def frame_split(element_size: float = FRAME["element_size"],
+                name: str = "frame_split") -> SceneWriter:
+    """SCENES.md frame_split: the ladder frame as five FE FMUs glued node to node (every
+    part meshed at ``element_size``, m: finer makes heavier subsystems)."""
+    scene = SceneWriter(name, "Seed section 2.2.1: a ladder frame split into two "
                         "rails and three cross members, glued node to node on six edges")
-    _frame(scene)
+    _frame(scene, cross_element_size=element_size, element_size=element_size)
     return scene
 
 
