@@ -152,6 +152,18 @@ def test_a_glued_fmu_that_kills_its_worker_mid_newton_names_itself_and_the_time(
     assert np.all(np.isfinite(columns["third.s"])) and np.any(columns["j.f_x"] != 0.0)
 
 
+def test_a_worker_that_dies_while_its_fmu_is_instantiated_is_bad_input(
+        built, ray_local, tmp_path, capsys):
+    fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES,
+                defines=("CRASH_TIME=-1",))
+    folder = oscillator_scene(tmp_path / "scene", built, fmu)
+    code, lines = run_cli(capsys, folder, "--isolate", "--out", tmp_path / "run.csv")
+    assert code == 2
+    assert lines == ["dsim: error: component 'third': the worker process died while the FMU "
+                     "was instantiated (it crashed or was killed)"]
+    assert not (tmp_path / "run.csv").exists()
+
+
 def test_a_dead_worker_that_held_several_components_names_them_all(block_fmus, ray_local,
                                                                    tmp_path, capsys):
     """Three blocks on two CPUs: b1 and b3 share the first worker (dealt round-robin);

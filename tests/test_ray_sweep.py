@@ -14,8 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from master.cli import main
 from master.sweep import Sweep, run_sweep
-from tests.test_nothing_lost import DSIM, ROOT
+from tests.test_nothing_lost import DSIM, ROOT, block_scene
 
 
 def rows(path: Path) -> list[dict]:
@@ -46,6 +47,22 @@ def test_a_ray_sweep_measures_what_the_serial_sweep_measures(built, ray_local, t
         sorted(r["step"] + r["predictor"] for r in rows(tmp_path / "serial" / "sweep.csv"))
     assert (tmp_path / "spread" / "sweep.md").is_file()
     assert (tmp_path / "spread" / "sweep.png").is_file()
+
+
+def test_a_point_whose_fmu_crashes_its_worker_is_a_failed_row_and_the_sweep_goes_on(
+        block_fmus, ray_local, tmp_path, capsys):
+    """The block aborts its process at t = 0.0505 s: the 0.04 s point completes, the
+    0.2 s point takes its worker down (in-process it would take dsim down)."""
+    folder = block_scene(tmp_path / "scene", block_fmus["state"], failure=4, fail_time=0.0505)
+    code = main(["sweep", str(folder), "--stop", "0.2,0.04,0.03", "--backend", "ray",
+                 "--out", str(tmp_path / "sweep")])
+    assert code == 0
+    found = {r["stop"]: r for r in rows(tmp_path / "sweep" / "sweep.csv")}
+    assert found["0.2"]["status"] == "failed" and "worker process" in found["0.2"]["message"]
+    assert found["0.04"]["status"] == found["0.03"]["status"] == "completed"
+    # the first point that completed is the reference; both follow the same trajectory
+    assert float(found["0.04"]["error"]) == float(found["0.03"]["error"]) == 0.0
+    assert "point 3/3" in capsys.readouterr().err
 
 
 def test_an_interrupted_ray_sweep_ends_its_running_points_and_starts_no_other(built):

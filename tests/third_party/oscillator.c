@@ -6,7 +6,8 @@
  * and implements no state saving, the case a master must refuse to iterate; with
  * -DLIVE_OUTPUTS its outputs follow its inputs in initialization mode too (FMI 2.0
  * allows either); with -DCRASH_TIME=t its process ends abruptly (_exit) in the first
- * step that reaches t, as a crashing FMU takes down whatever process loads it. */
+ * step that reaches t (t < 0: when it is instantiated), as a crashing FMU takes down
+ * whatever process loads it. */
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -34,6 +35,9 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
                                           fmi2String resources,
                                           const fmi2CallbackFunctions *functions,
                                           fmi2Boolean visible, fmi2Boolean logging) {
+#ifdef CRASH_TIME
+    if (CRASH_TIME < 0) _exit(70);
+#endif
     Model *m = calloc(1, sizeof(Model));
     if (!m) return NULL;
     m->cb = *functions;
