@@ -48,6 +48,35 @@ def fine_frame(folder: Path, element_size: float) -> Path:
     return pack_scene(folder / "frame_fine", ROOT / "build" / "fmus", folder)
 
 
+def _busy(count: int) -> None:
+    """CPU work of a fixed size (pure Python: no library threads)."""
+    total = 0
+    for i in range(count):
+        total += i * i % 7
+    return total
+
+
+def machine_ceiling(workers: int, count: int = 6_000_000) -> float:
+    """How much faster ``workers`` processes do ``workers`` equal pieces of CPU work than
+    one process does them one after the other, now: the most any parallel backend can
+    gain on this machine at this moment (``workers`` on an idle machine, less when other
+    work holds cores)."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("fork")
+    started = time.perf_counter()
+    for _ in range(workers):
+        _busy(count)
+    alone = time.perf_counter() - started
+    started = time.perf_counter()
+    processes = [context.Process(target=_busy, args=(count,)) for _ in range(workers)]
+    for process in processes:
+        process.start()
+    for process in processes:
+        process.join()
+    return alone / (time.perf_counter() - started)
+
+
 def _phases(result) -> dict:
     """Seconds of a run: whole, set-up, steps, of which measuring the flexibility."""
     s = result.statistics
@@ -57,11 +86,14 @@ def _phases(result) -> dict:
             "statistics": s}
 
 
-def paired(scene, repetitions: int, **settings) -> list[tuple[dict, dict]]:
+def paired(scene, repetitions: int, ceilings=None, **settings) -> list[tuple[dict, dict]]:
     """In-process and Ray runs of ``scene`` in turn; (in-process, ray) per repetition,
-    their signals equal bit for bit."""
+    their signals equal bit for bit.  With a list ``ceilings``, the machine's ceiling
+    (:func:`machine_ceiling`) is measured before each pair and appended to it."""
     pairs = []
     for _ in range(repetitions):
+        if ceilings is not None:
+            ceilings.append(machine_ceiling(2))
         here = dsim.simulate(scene, handle_signals=False, **settings)
         there = dsim.simulate(scene, handle_signals=False, backend="ray", **settings)
         assert here.ok and there.ok, (here.message, there.message)
@@ -71,8 +103,9 @@ def paired(scene, repetitions: int, **settings) -> list[tuple[dict, dict]]:
     return pairs
 
 
-def sweep_pair(scene, out: Path, repetitions: int) -> list[tuple[float, float]]:
-    """Wall seconds of one sweep, serial then one point per worker, per repetition."""
+def sweep_pair(scene, out: Path, repetitions: int, ceilings) -> list[tuple[float, float]]:
+    """Wall seconds of one sweep, serial then one point per worker, per repetition (the
+    machine's ceiling measured before each, appended to ``ceilings``)."""
     from master.sweep import Sweep, run_sweep
 
     grid = {"predictor": ["none", "constant", "linear", "quadratic"],
@@ -80,6 +113,7 @@ def sweep_pair(scene, out: Path, repetitions: int) -> list[tuple[float, float]]:
     fixed = {"stop": "15", "step": "0.005"}
     times = []
     for k in range(repetitions):
+        ceilings.append(machine_ceiling(2))
         started = time.perf_counter()
         serial, _ = run_sweep(scene, Sweep(dict(grid), fixed=dict(fixed)), out / f"s{k}")
         middle = time.perf_counter()
@@ -94,93 +128,100 @@ def _ratio_text(ratios) -> str:
     return f"{stats.median(ratios):.2f} ({', '.join(f'{r:.2f}' for r in ratios)})"
 
 
-def report(args, startup: float, heavy, light, sweep, workers: int, fine: Path) -> str:
+def _worker_groups(statistics) -> list[list[str]]:
+    """The components of a Ray run grouped by the worker process that ran them."""
+    groups: dict[int, list[str]] = {}
+    for name, component in statistics["components"].items():
+        groups.setdefault(component["worker"]["pid"], []).append(name)
+    return list(groups.values())
+
+
+def report(args, startup: float, heavy, light, sweep, ceilings, workers: int) -> str:
+    """docs/ray_benchmark.md from the measurements."""
+    from fmus.elastic.parts import frame_port_nodes
+
     here0, there0 = heavy[0]
-    s = here0["statistics"]
-    per_fmu = {name: c["functions"]["fmi2DoStep"]["seconds"] / c["functions"]["fmi2DoStep"]
-               ["calls"] * 1e3 for name, c in s["components"].items()}
-    whole = [h["wall"] / r["wall"] for h, r in heavy]
-    stepping = [h["steps"] / r["steps"] for h, r in heavy]
-    flexibility = [h["flexibility"] / r["flexibility"] for h, r in heavy]
-    newton = [(h["steps"] - h["flexibility"]) / (r["steps"] - r["flexibility"])
-              for h, r in heavy]
+    do_step = {name: 1e3 * c["functions"]["fmi2DoStep"]["seconds"]
+               / c["functions"]["fmi2DoStep"]["calls"]
+               for name, c in here0["statistics"]["components"].items()}
+    rail_dofs = 2 * sum(frame_port_nodes("rail_left", args.element_size).values())
+    groups = _worker_groups(there0["statistics"])
+
+    def row(label, pairs, value):
+        return (f"| {label} | {min(value(h) for h, _ in pairs):.2f} s | "
+                f"{min(value(r) for _, r in pairs):.2f} s | "
+                f"{_ratio_text([value(h) / value(r) for h, r in pairs])} |")
+
     latency = [1e6 * (r["steps"] - h["steps"]) / h["iterations"] for h, r in light]
     per_step = [1e3 * h["steps"] / h["steps_count"] for h, _ in light]
     per_step_ray = [1e3 * r["steps"] / r["steps_count"] for _, r in light]
     sweeps = [a / b for a, b in sweep]
-    from fmus.elastic.parts import frame_port_nodes
-
-    rail_dofs = 2 * sum(frame_port_nodes("rail_left", args.element_size).values())
-    groups: dict[int, list[str]] = {}
-    for name, component in there0["statistics"]["components"].items():
-        groups.setdefault(component["worker"]["pid"], []).append(name)
-    groups = list(groups.values())
+    heavy_ceilings, sweep_ceilings = ceilings["heavy"], ceilings["sweep"]
     rows = [
-        "| measurement | in-process | Ray | speed-up in-process / Ray, median (each repetition) |",
+        "| measurement | in-process | Ray | speed-up in-process / Ray: median (each repetition) |",
         "|---|---|---|---|",
-        f"| frame_fine, whole run (set-up included) | {min(h['wall'] for h, _ in heavy):.2f} s "
-        f"| {min(r['wall'] for _, r in heavy):.2f} s | {_ratio_text(whole)} |",
-        f"| frame_fine, the steps (flexibility and Newton) | "
-        f"{min(h['steps'] for h, _ in heavy):.2f} s | {min(r['steps'] for _, r in heavy):.2f} s "
-        f"| {_ratio_text(stepping)} |",
-        f"| of which measuring the flexibility (perturbation steps) | "
-        f"{min(h['flexibility'] for h, _ in heavy):.2f} s | "
-        f"{min(r['flexibility'] for _, r in heavy):.2f} s | {_ratio_text(flexibility)} |",
-        f"| of which the Newton iterations | "
-        f"{min(h['steps'] - h['flexibility'] for h, _ in heavy):.2f} s | "
-        f"{min(r['steps'] - r['flexibility'] for _, r in heavy):.2f} s | {_ratio_text(newton)} |",
+        row("frame_fine, whole run (set-up included)", heavy, lambda m: m["wall"]),
+        row("frame_fine, the steps (flexibility and Newton)", heavy, lambda m: m["steps"]),
+        row("of which the perturbation steps measuring the flexibility", heavy,
+            lambda m: m["flexibility"]),
+        row("of which the Newton iterations", heavy, lambda m: m["steps"] - m["flexibility"]),
         f"| sweep of 8 points (spring_mass_nonlinear) | {min(a for a, _ in sweep):.2f} s | "
         f"{min(b for _, b in sweep):.2f} s | {_ratio_text(sweeps)} |",
+        f"| the machine's ceiling before each frame_fine pair: 2 busy processes against 1 "
+        f"| | | {_ratio_text(heavy_ceilings)} |",
+        f"| the same before each sweep pair | | | {_ratio_text(sweep_ceilings)} |",
     ]
     return "\n".join([
         "# The Ray backend against the in-process backend",
         "",
         f"Written by `OMP_NUM_THREADS=1 python -m benchmarks.ray_speedup` on {date.today()} "
-        f"({platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-        f"Ray {__import__('ray').__version__}). One local Ray instance with one worker per core "
-        f"({workers} workers) is started once; starting it took {startup:.1f} s, paid once "
-        "per `dsim run --backend ray` without `--address` (not in the table). Every "
-        "measurement runs the in-process backend and the Ray backend in turn, "
-        f"{args.repetitions} times; each ratio compares two runs made side by side on a "
-        "machine shared with other work, and the table gives the median ratio and every "
-        "repetition's. The Ray runs' results equal the in-process runs' bit for bit "
-        "(checked by the script).",
+        f"({platform.machine()}, {os.cpu_count()} cores shared with other work, Python "
+        f"{platform.python_version()}, Ray {__import__('ray').__version__}). One local Ray "
+        f"instance with one worker per core ({workers} workers) is started once (it took "
+        f"{startup:.1f} s: what `dsim run --backend ray` without `--address` pays on top, "
+        "not in the table). Each measurement runs the in-process backend and the Ray "
+        f"backend in turn, {args.repetitions} times, so every ratio compares two runs made "
+        "side by side; the table gives the median ratio and each repetition's. The Ray runs' "
+        "results equal the in-process runs' bit for bit (checked by the script).",
+        "",
+        "The machine is shared: before each pair the script measures its **ceiling**, how "
+        "much faster two processes do two equal pieces of CPU work than one process does "
+        "them in turn (2.0 on an idle 2-core machine; less while other work holds a core). "
+        "No parallel backend can beat it, so read each speed-up against the ceiling of its "
+        "repetition.",
         "",
         *rows,
         "",
         f"**Heavy subsystems.** frame_fine is frame_split with every part meshed at "
-        f"{args.element_size:g} m (five ElasticBody2D FMUs, glued node to node on six "
-        f"edges), {here0['steps_count']} steps of 1e-4 s. One fmi2DoStep takes "
-        + ", ".join(f"{v:.1f} ms ({k})" for k, v in per_fmu.items())
-        + f": the two rails carry most of the work. With {workers} workers the five parts "
-        f"are dealt round-robin ({'; '.join(', '.join(g) for g in groups)}), so each worker "
-        "steps one rail: the perturbation steps that measure the flexibility (one per glued "
-        f"dof, here {rail_dofs} per rail) and each Newton trial run side by side. The "
-        "speed-up stays below 2 by the cross members' share, the round trips and the "
-        "master's own work, which do not parallelise.",
+        f"{args.element_size:g} m: five ElasticBody2D FMUs glued node to node on six edges, "
+        f"{here0['steps_count']} steps of 1e-4 s. In-process one fmi2DoStep took "
+        + ", ".join(f"{v:.1f} ms ({k})" for k, v in do_step.items())
+        + f": the two rails carry most of the work. On {workers} workers the parts are dealt "
+        f"round-robin ({'; '.join(', '.join(g) for g in groups)}), so each worker steps one "
+        f"rail: the perturbation steps that measure the flexibility (one per glued dof, "
+        f"{rail_dofs} per rail) and every Newton trial run side by side. Even on an idle "
+        "machine the gain stays below 2: the cross members, the master's own work between "
+        "iterations and one round trip per iteration do not run in parallel.",
         "",
-        f"**Latency per iteration.** spring_mass_linear (two SpringMass FMUs, a step costs "
-        f"microseconds), {light[0][0]['steps_count']} steps, "
+        f"**Latency per iteration.** spring_mass_linear (two SpringMass FMUs whose step "
+        f"takes microseconds), {light[0][0]['steps_count']} steps, "
         f"{light[0][0]['iterations'] / light[0][0]['steps_count']:.0f} Newton iterations per "
         f"step: Ray adds {stats.median(latency):.0f} us per iteration (median; each "
-        f"repetition: {', '.join(f'{v:.0f}' for v in latency)} us): a step takes "
+        f"repetition: {', '.join(f'{v:.0f}' for v in latency)} us); a step takes "
         f"{stats.median(per_step):.2f} ms in-process and {stats.median(per_step_ray):.2f} ms "
-        "on Ray. Each iteration is one remote call per worker (restore, set forces, step, "
-        "read kinematics; the state save of the step travels with its first trial and the "
-        "outputs come back with every trial, so reading them after the step that converges "
-        "costs no round trip). Below a few milliseconds of FMU work per iteration the "
-        "in-process backend is faster; Ray pays off for heavy subsystems, for isolating "
-        "untrusted FMUs, and across machines.",
+        "on Ray. An iteration is one remote call per worker (restore, set forces, step, read "
+        "kinematics); the state save of a step travels with its first trial, and every "
+        "trial brings the outputs back, so reading them after the step that converged costs "
+        "no round trip. Below a few milliseconds of FMU work per iteration the in-process "
+        "backend is faster; Ray is for heavy subsystems, for isolating untrusted FMUs, and "
+        "for more machines.",
         "",
-        "**Sweep.** Eight points of spring_mass_nonlinear (predictor none, constant, "
-        "linear, quadratic times tolerance 1e-10, 1e-12; H = 5 ms, 15 s), each about a "
-        "second: one after the other in this process against one per worker "
-        f"({workers} at a time), each point in-process inside its worker (the points differ "
-        "in cost: the last to finish bounds the sweep); the measured errors are equal. Both "
-        "include writing sweep.csv, sweep.md and sweep.png.",
-        "",
-        f"Scene of the heavy runs: {fine.name}, built by the script from "
-        "build_fmus.scenes.frame_split(element_size).",
+        "**Sweep.** Eight points of spring_mass_nonlinear (predictor none, constant, linear, "
+        "quadratic times tolerance 1e-10, 1e-12; H = 5 ms, 15 s), about a second each: one "
+        f"after the other in this process against one per worker ({workers} at a time), each "
+        "point in-process inside its worker; the measured errors are equal. Both include "
+        "writing sweep.csv, sweep.md and sweep.png; the points differ in cost, and the last "
+        "to finish bounds the parallel sweep.",
     ])
 
 
@@ -203,15 +244,18 @@ def main(argv=None) -> str:
         with tempfile.TemporaryDirectory(prefix="dsim-raybench-") as temp:
             folder = Path(temp)
             fine = fine_frame(folder, args.element_size)
-            heavy = paired(fine, args.repetitions, stop=args.heavy_steps * 1e-4)
-            print("heavy:", [(round(h["wall"], 2), round(r["wall"], 2)) for h, r in heavy])
+            ceilings = {"heavy": [], "sweep": []}
+            heavy = paired(fine, args.repetitions, ceilings["heavy"],
+                           stop=args.heavy_steps * 1e-4)
+            print("heavy:", [(round(h["wall"], 2), round(r["wall"], 2)) for h, r in heavy],
+                  ceilings["heavy"])
             light = paired(ROOT / "build" / "ssp" / "spring_mass_linear.ssp",
                            args.repetitions, stop=args.light_stop)
             print("light:", [(round(h["steps"], 2), round(r["steps"], 2)) for h, r in light])
             sweep = sweep_pair(ROOT / "build" / "ssp" / "spring_mass_nonlinear.ssp",
-                               folder / "sweeps", args.repetitions)
-            print("sweep:", sweep)
-            text = report(args, startup, heavy, light, sweep, workers, fine)
+                               folder / "sweeps", args.repetitions, ceilings["sweep"])
+            print("sweep:", sweep, ceilings["sweep"])
+            text = report(args, startup, heavy, light, sweep, ceilings, workers)
     finally:
         connection.close()
     Path(args.docs).write_text(text + "\n")
