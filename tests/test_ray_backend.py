@@ -152,6 +152,24 @@ def test_a_glued_fmu_that_kills_its_worker_mid_newton_names_itself_and_the_time(
     assert np.all(np.isfinite(columns["third.s"])) and np.any(columns["j.f_x"] != 0.0)
 
 
+def test_an_fmu_that_refuses_its_parameters_is_the_same_line_on_the_ray_backend(
+        built, ray_local, tmp_path, capsys):
+    import zipfile
+
+    folder = tmp_path / "scene"
+    with zipfile.ZipFile(built["ssp"] / "frame_split.ssp") as archive:
+        archive.extractall(folder)
+    ssv = folder / "resources" / "rail_left.ssv"
+    ssv.write_text(ssv.read_text().replace('value="rail_left"', 'value="rail_middle"'))
+    said = {}
+    for backend in ("in-process", "ray"):
+        code, said[backend] = run_cli(capsys, folder, "--backend", backend, "--out",
+                                      tmp_path / "r.csv")
+        assert code == 2 and len(said[backend]) == 1
+    assert said["ray"] == said["in-process"]
+    assert "Component 'rail_left'" in said["ray"][0] and "rail_middle" in said["ray"][0]
+
+
 def test_a_worker_that_dies_while_its_fmu_is_instantiated_is_bad_input(
         built, ray_local, tmp_path, capsys):
     fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES,

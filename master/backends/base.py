@@ -108,3 +108,14 @@ class Backend(ABC):
     @abstractmethod
     def close(self) -> list[Exception]:
         """Terminate every subsystem, even if some fail; the errors they raised."""
+
+
+def terminate_all(subsystems) -> list[Exception]:
+    """Terminate every subsystem, even if some fail; the errors they raised."""
+    errors = []
+    for subsystem in subsystems:
+        try:
+            subsystem.terminate()
+        except Exception as error:  # gather: every subsystem must be released
+            errors.append(error)
+    return errors

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 
-from master.backends.base import Backend
+from master.backends.base import Backend, terminate_all
 from master.errors import InputError, SimulationError
 from master.ray_cluster import (INSTALL, Shipment, address_problem, available, connect,
                                 landed)
@@ -58,13 +58,7 @@ class Host:
 
     def close(self) -> list[Exception]:
         """Terminate every subsystem, even if some fail; the errors they raised."""
-        errors = []
-        for subsystem in self.subsystems:
-            try:
-                subsystem.terminate()
-            except Exception as error:  # gather: every subsystem must be released
-                errors.append(error)
-        self.subsystems = []
+        errors, self.subsystems = terminate_all(self.subsystems), []
         return errors
 
 
@@ -376,13 +370,15 @@ class RayBackend(Backend):
         ray = self._cluster.connection.ray
         counters = {}
         for h in live:
+            ahead = self._cluster.deferred.pop(h, [])  # counted, as in-process
             slots = [(slot, [("statistics", ())]) for slot in
                      range(len(self._cluster.owners[h]))]
             try:
-                values = ray.get(self._cluster.hosts[h].run.remote(slots))
+                values = ray.get(self._cluster.hosts[h].run.remote(ahead + slots))
             except ray.exceptions.RayError:
                 continue
-            counters.update(zip(self._cluster.owners[h], (v[0] for v in values)))
+            counters.update(zip(self._cluster.owners[h],
+                                (v[0] for v in values[len(ahead):])))
         return counters
 
 
