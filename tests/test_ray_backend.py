@@ -2,6 +2,7 @@
 every shipped scene gives the in-process numbers to the last bit; a worker whose
 FMU kills its process ends the run with one line naming the component and the time,
 the converged steps kept; bad input is one line and exit 2."""
+import json
 import os
 import re
 import signal
@@ -109,6 +110,33 @@ def test_a_run_with_no_address_starts_a_local_instance_and_shuts_it_down(built):
                              text=True, timeout=300)
     assert process.returncode == 0, process.stderr
     assert process.stdout.split() == ["completed", "20", "False"]
+
+
+def test_ctrl_c_ends_a_ray_run_after_its_step_with_everything_written(built, tmp_path):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C sends it: the workers
+    live on, the run ends after its current step as interrupted (exit 130)."""
+    target = tmp_path / "run.csv"
+    process = subprocess.Popen(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
+                                       "--stop", "1000", "--backend", "ray", "--out",
+                                       str(target), "--quiet"],
+                               cwd=ROOT, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    partial = tmp_path / ".run.csv.partial"
+    try:
+        deadline = time.monotonic() + 120
+        while not (partial.exists() and partial.stat().st_size > 2000):
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.05)
+        os.killpg(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("dsim: interrupted: interrupted by SIGINT (stopped at t = ")
+    header, data = read_csv(target)
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert stats["status"] == "interrupted" and stats["steps"] == data.shape[0] - 1 > 5
 
 
 # --- a worker that dies ------------------------------------------------------------
