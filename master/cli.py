@@ -103,6 +103,9 @@ def _cmd_info(args) -> int:
         print(f"  {component.path}: {component.source.name} "
               f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
         print(f"      {role}")
+        if component.path in scene.placements:
+            print(f"      placed on Ray resource {scene.placements[component.path]} "
+                  "(--backend ray)")
         print(f"      ports: {port_text or 'none'}")
         records = [name for path, name in checked.recorded if path == component.path]
         print(f"      records: {', '.join(records) or 'nothing'}")

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import dsim
+from master.cli import main
 from master.results import read_csv
 from tests.scene_files import component, scene_folder, ssd
 from tests.test_nothing_lost import DSIM, ROOT, block_scene, run_cli
@@ -252,13 +253,15 @@ def test_a_placement_on_a_resource_no_node_has_is_bad_input(built, ray_local, tm
 
 
 def test_a_node_resource_places_a_component_and_in_process_runs_ignore_placement(
-        built, ray_local, tmp_path):
+        built, ray_local, tmp_path, capsys):
     node = next(r for r in ray_local.cluster_resources() if r.startswith("node:")
                 and not r.startswith("node:__"))
     folder = placed_scene(built, tmp_path / "scene",
                           f'<glue:Placement component="right" resource="{node}"/>')
     plan = dsim.prepare(folder)
     assert [s.placement for s in plan.specs] == ["", node]
+    assert main(["info", str(folder)]) == 0
+    assert f"placed on Ray resource {node} (--backend ray)" in capsys.readouterr().out
     same_run(dsim.simulate(folder, stop=0.1), dsim.simulate(folder, stop=0.1, backend="ray"))
 
 
