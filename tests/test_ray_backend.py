@@ -160,11 +160,17 @@ def test_a_crashing_fmu_ends_an_isolated_run_with_one_line_and_the_converged_ste
     assert dsim.read_columns(target)["b1.y"][-1] != 0.0
 
 
-def test_the_same_crash_in_process_takes_the_whole_process_down(block_fmus, tmp_path):
+def test_the_same_crash_takes_dsim_down_in_process_and_is_two_lines_isolated(block_fmus,
+                                                                           tmp_path):
     folder = block_scene(tmp_path / "scene", block_fmus["state"], failure=4, fail_time=0.0505)
-    process = subprocess.run(DSIM + ["run", str(folder), "--out", str(tmp_path / "run.csv")],
-                             cwd=ROOT, capture_output=True, text=True, timeout=120)
+    command = DSIM + ["run", str(folder), "--out", str(tmp_path / "run.csv")]
+    process = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert process.returncode == -signal.SIGABRT
+    process = subprocess.run(command + ["--isolate"], cwd=ROOT, capture_output=True,
+                             text=True, timeout=300)
+    assert process.returncode == 1 and process.stdout == ""  # Ray's own notice is not shown
+    lines = process.stderr.strip().splitlines()
+    assert len(lines) == 2 and re.search(WORKER_DIED, lines[0])
 
 
 def test_a_glued_fmu_that_kills_its_worker_mid_newton_names_itself_and_the_time(
