@@ -60,7 +60,9 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
         for number in (signal.SIGINT, signal.SIGTERM):
             previous[number] = signal.signal(number, on_signal)
     try:
-        shipped = Shipment(ray).add(scene) if Path(scene).is_file() else None
+        # an .ssp archive holds the whole scene: it travels; a folder must be shared
+        archive = Path(scene).is_file() and Path(scene).suffix.lower() == ".ssp"
+        shipped = Shipment(ray).add(scene) if archive else None
         point_settings = {k: v for k, v in fixed.items() if k not in WHERE}
         task = ray.remote(_run_remote).options(num_cpus=1, max_retries=0)
         waiting = list(enumerate(configurations))[::-1]
