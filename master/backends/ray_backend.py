@@ -17,55 +17,16 @@ that crashes its process ends the run with a message, never dsim itself.
 """
 from __future__ import annotations
 
-import os
-
-from master.backends.base import Backend, terminate_all
+from master.backends.base import Backend
+from master.backends.ray_worker import Host, deal
 from master.errors import InputError, SimulationError
-from master.ray_cluster import (INSTALL, Shipment, address_problem, available, connect,
-                                landed)
+from master.ray_cluster import INSTALL, Shipment, address_problem, available, connect
 
 #: seconds to wait for the workers to start and instantiate their FMUs
 START_SECONDS = 300.0
 #: what a placed worker takes of its node's resource: little, so that any number of
 #: components can share a node (the resource says where, not how many)
 PLACEMENT_SHARE = 0.001
-
-
-class Host:
-    """A worker process (the Ray actor): some subsystems, called in order."""
-
-    def __init__(self):
-        self.subsystems = []
-
-    def open(self, specs, files) -> dict:
-        """Instantiate the FMUs of ``specs`` from the shipped ``files``
-        (:class:`~master.ray_cluster.Shipment`); where this worker runs."""
-        from dataclasses import replace
-
-        import ray
-
-        from master.fmu import FmuSubsystem
-
-        for spec, shipped in zip(specs, files):
-            self.subsystems.append(FmuSubsystem(replace(spec, path=landed(shipped))))
-        return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid()}
-
-    def run(self, calls) -> list:
-        """Each (slot, [(method, arguments), ...]) in order; the results of each
-        subsystem's calls (a list per subsystem)."""
-        return [[getattr(self.subsystems[slot], method)(*arguments)
-                 for method, arguments in steps] for slot, steps in calls]
-
-    def close(self) -> list[Exception]:
-        """Terminate every subsystem, even if some fail; the errors they raised."""
-        errors, self.subsystems = terminate_all(self.subsystems), []
-        return errors
-
-
-def deal(count: int, workers: int) -> list[list[int]]:
-    """Subsystem indices 0..count-1 dealt round-robin onto ``workers`` workers (two
-    heavy subsystems declared one after the other land on different workers)."""
-    return [list(range(w, count, workers)) for w in range(min(workers, count))]
 
 
 class _Cluster:
