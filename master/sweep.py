@@ -272,7 +272,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None) -> tuple[list[Point
     interrupted = None
     # measured in configuration order until there is a reference (the first point that
     # completes, unless the user gave one); in any order after that
-    finished: dict[int, tuple] = {}
+    finished: dict[int, PointRun] = {}
     order = iter(range(len(configurations)))
     waiting = next(order)
 
