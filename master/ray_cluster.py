@@ -71,11 +71,9 @@ class Connection:
     """This process's connection to Ray; ``owned`` when :func:`connect` made it (and
     then :meth:`close` undoes it)."""
 
-    def __init__(self, ray, owned: bool, local: bool):
+    def __init__(self, ray, owned: bool):
         self.ray = ray
         self.owned = owned
-        #: the instance was started here (it goes when the connection closes)
-        self.local = local
 
     def cpus(self, resource: str = "") -> int:
         """Logical CPUs of the live nodes (those holding ``resource``, if named)."""
@@ -103,7 +101,7 @@ def connect(address: str | None = None) -> Connection:
     ray = ray_module()
     _quiet_worker_deaths(ray)
     if ray.is_initialized():  # a script's (or a test session's) own instance
-        return Connection(ray, owned=False, local=False)
+        return Connection(ray, owned=False)
     if address:
         problem = address_problem(address)
         if problem:
@@ -126,7 +124,7 @@ def connect(address: str | None = None) -> Connection:
     finally:
         if in_main and previous is not None:
             signal.signal(signal.SIGTERM, previous)
-    return Connection(ray, owned=True, local=not address)
+    return Connection(ray, owned=True)
 
 
 def _check_reachable(address: str) -> None:
