@@ -152,13 +152,17 @@ class RayBackend(Backend):
         for h, ref in enumerate(opened):
             try:
                 places.append(ray.get(ref))
+            except ray.exceptions.RayTaskError as error:
+                raise _cause(error) from None
             except ray.exceptions.RayActorError:
                 self._cluster.dead.add(h)
                 raise InputError(f"{_who(self._cluster.owners[h])}: the worker process "
                                  "died while the FMU was instantiated (it crashed or was "
                                  "killed)") from None
-            except ray.exceptions.RayTaskError as error:
-                raise _cause(error) from None
+            except ray.exceptions.RayError as error:
+                self._cluster.dead.add(h)
+                raise InputError(f"{_who(self._cluster.owners[h])}: Ray could not start "
+                                 f"its worker: {_first_line(error)}") from None
         return places
 
     # --- the batched calls -------------------------------------------------------
@@ -192,17 +196,21 @@ class RayBackend(Backend):
 
     def _answer(self, host: int, ref):
         ray = self._cluster.connection.ray
+        who = _who(self._cluster.owners[host])
         try:
             return ray.get(ref)
+        except ray.exceptions.RayTaskError as error:
+            raise _cause(error) from None
         except ray.exceptions.RayActorError:
             self._cluster.dead.add(host)
             place = self._cluster.places[host] or {}
-            raise SimulationError(
-                f"{_who(self._cluster.owners[host])}: the worker process "
-                f"(pid {place.get('pid', '?')}) died: the FMU crashed or was killed",
-                time=self._cluster.time) from None
-        except ray.exceptions.RayTaskError as error:
-            raise _cause(error) from None
+            raise SimulationError(f"{who}: the worker process (pid {place.get('pid', '?')}) "
+                                  "died: the FMU crashed or was killed",
+                                  time=self._cluster.time) from None
+        except ray.exceptions.RayError as error:  # its node, or the cluster, is gone
+            self._cluster.dead.add(host)
+            raise SimulationError(f"{who}: Ray lost the worker: {_first_line(error)}",
+                                  time=self._cluster.time) from None
 
     def _each(self, method, *columns, time=None, answer: bool = True) -> list:
         """``method`` on every subsystem, with the i-th entry of each column: the
@@ -370,6 +378,10 @@ def _who(names) -> str:
 
 def _quoted(names) -> str:
     return ", ".join(f"'{n}'" for n in names)
+
+
+def _first_line(error) -> str:
+    return (str(error).strip().splitlines() or [type(error).__name__])[0]
 
 
 def _cause(error) -> Exception:
