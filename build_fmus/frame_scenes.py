@@ -96,12 +96,21 @@ def _with_node_counts(values: dict, root: Path) -> dict:
 
 
 def part_parameters(part: str, element_size: float = FRAME["element_size"],
-                    center: bool = False, root: Path = ROOT) -> dict:
+                    center: bool = False, root: Path = ROOT, meshes: Path | None = None) -> dict:
     """ElasticBody parameters of one ladder-frame part (SCENES.md): mesh file, steel,
     clamps, port node sets (``center``: the cross member's mid point as port3), and on
-    cross_front the load F_x = 1000 sin(50 pi t) N at (0.05, 0.6) with its probe."""
+    cross_front the load F_x = 1000 sin(50 pi t) N at (0.05, 0.6) with its probe.
+    ``meshes``: write the part's mesh there and name it by its absolute path (a mesh
+    size the FMU does not ship, as the Ray benchmark's fine frame)."""
     x0, x1, y0, y1 = _rectangle(part)
-    values = {"mesh_file": mesh_file(part, element_size), "thickness": frame.THICKNESS,
+    path = mesh_file(part, element_size)
+    if meshes is not None:
+        from fmus.elastic.geometry import rectangle
+
+        meshes.mkdir(parents=True, exist_ok=True)
+        path = str((meshes / Path(path).name).resolve())
+        rectangle(x0, x1, y0, y1, element_size).save(path)
+    values = {"mesh_file": path, "thickness": frame.THICKNESS,
               "youngs_modulus": 210e9, "poisson_ratio": 0.3, "density": 7850.0,
               "mass": "consistent", "fidelity": "full"}
     kind, side = part.split("_")
@@ -124,12 +133,15 @@ def part_parameters(part: str, element_size: float = FRAME["element_size"],
 
 
 def _frame(scene: SceneWriter, system: str = "", center: bool = False,
-           cross_element_size: float = FRAME["element_size"]) -> None:
-    """The five parts and six edge joints of frame_split, in system ``system``."""
+           cross_element_size: float = FRAME["element_size"],
+           element_size: float = FRAME["element_size"], meshes: Path | None = None) -> None:
+    """The five parts and six edge joints of frame_split, in system ``system`` (rails
+    meshed at ``element_size``, cross members at ``cross_element_size``, m)."""
     for part in frame.COMPONENTS:
         outputs = ["load.u_x"] if part == "cross_front" else []
-        size = cross_element_size if part.startswith("cross") else FRAME["element_size"]
-        scene.component(part, "ElasticBody", part_parameters(part, size, center=center),
+        size = cross_element_size if part.startswith("cross") else element_size
+        scene.component(part, "ElasticBody",
+                        part_parameters(part, size, center=center, meshes=meshes),
                         outputs=outputs, system=system)
     for a, b in frame.JOINTS:  # a = rail_<side>.<cross>, b = cross_<cross>.<side>
         rail, cross_edge = a.split(".")
@@ -138,11 +150,14 @@ def _frame(scene: SceneWriter, system: str = "", center: bool = False,
                     f"{member}.{CROSS_PORTS[side]}", dofs="x y", system=system)
 
 
-def frame_split() -> SceneWriter:
-    """SCENES.md frame_split: the ladder frame as five FE FMUs glued node to node."""
-    scene = SceneWriter("frame_split", "Seed section 2.2.1: a ladder frame split into two "
+def frame_split(element_size: float = FRAME["element_size"], name: str = "frame_split",
+                meshes: Path | None = None) -> SceneWriter:
+    """SCENES.md frame_split: the ladder frame as five FE FMUs glued node to node (every
+    part meshed at ``element_size``, m: finer makes heavier subsystems; a size the FMU
+    does not ship needs ``meshes``, a folder for the mesh files)."""
+    scene = SceneWriter(name, "Seed section 2.2.1: a ladder frame split into two "
                         "rails and three cross members, glued node to node on six edges")
-    _frame(scene)
+    _frame(scene, cross_element_size=element_size, element_size=element_size, meshes=meshes)
     return scene
 
 

@@ -23,7 +23,7 @@ def prepare(scene, **settings):
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
     options: stop, step, tolerance, relative_tolerance, max_iterations,
     refresh_after, perturbation, predictor, refresh, coupling, start, backend,
-    parameter_set).
+    address, parameter_set).
     Raises :class:`~master.errors.InputError` listing every problem."""
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
@@ -36,7 +36,8 @@ def prepare(scene, **settings):
         raise InputError(list(scene.problems) + error.problems) from None
     if "stop" in options:  # the user said when to stop: no default assumed
         scene = replace(scene, stop_time=options["stop"], experiment=True)
-    return make_plan(replace(scene, master=master), options.get("backend", "in-process"))
+    return make_plan(replace(scene, master=master), options.get("backend", "in-process"),
+                     {"address": options.get("address")})
 
 
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,

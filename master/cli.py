@@ -53,6 +53,12 @@ def _cmd_run(args) -> int:
 
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
+    if args.isolate:
+        if settings["backend"] not in (None, "isolated"):
+            raise InputError(f"--isolate runs every FMU in its own local worker process (the "
+                             f"isolated backend): it cannot be combined with --backend "
+                             f"{settings['backend']}")
+        settings["backend"] = "isolated"
     progress = ProgressBar(Path(args.scene).stem)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
                       **settings)
@@ -97,6 +103,9 @@ def _cmd_info(args) -> int:
         print(f"  {component.path}: {component.source.name} "
               f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
         print(f"      {role}")
+        if component.path in scene.placements:
+            print(f"      placed on Ray resource {scene.placements[component.path]} "
+                  "(--backend ray)")
         print(f"      ports: {port_text or 'none'}")
         records = [name for path, name in checked.recorded if path == component.path]
         print(f"      records: {', '.join(records) or 'nothing'}")
@@ -288,6 +297,10 @@ def parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
     run_parser.add_argument("--mat", help="write the results as a MATLAB .mat file too")
     run_parser.add_argument("--quiet", action="store_true", help="no summary")
+    run_parser.add_argument("--isolate", action="store_true",
+                            help="run every FMU in its own worker process on this machine "
+                            "(--backend isolated; needs dsim[ray]): an FMU that crashes ends "
+                            "the run with a message, never dsim")
     run_parser.set_defaults(handler=_cmd_run)
     validate_parser = commands.add_parser(
         "validate", help="every check of dsim run, without running: one line per finding, "

@@ -16,6 +16,10 @@ class InputError(Exception):
         self.warnings: list[str] = []
         super().__init__("\n".join(self.problems))
 
+    def __reduce__(self):
+        # whole across processes (a Ray worker's error reaches the driver by pickle)
+        return type(self), (self.problems,), {"warnings": self.warnings}
+
 
 class SimulationError(Exception):
     """The simulation itself failed (exit code 1): divergence, a joint that does
@@ -29,6 +33,10 @@ class SimulationError(Exception):
         self.message = message
         where = f"step {step} (t = {time:.6g} s): " if step is not None else ""
         super().__init__(where + message)
+
+    def __reduce__(self):
+        # whole across processes: message, time and step, not the formatted text
+        return type(self), (self.message, self.time, self.step)
 
     def located(self, step: int, time: float) -> "SimulationError":
         """This error, naming ``step`` and ``time`` unless it names a step already."""

@@ -127,7 +127,8 @@ class Execution:
             for observer in self.observers:
                 observer.started(info)
                 started.append(observer)
-            self.backend = BACKENDS[plan.backend].from_specs(plan.specs)
+            self.backend = BACKENDS[plan.backend].from_specs(plan.specs,
+                                                             **(plan.backend_options or {}))
             self._initialize(layout, joints)
         except BaseException as error:
             for observer in started:

@@ -103,6 +103,8 @@ class SubsystemSpec:
     #: the String inputs connections set
     text_reads: tuple[str, ...] = ()
     text_writes: tuple[str, ...] = ()
+    #: the Ray resource whose node runs the instance (``glue:Placement``; '' anywhere)
+    placement: str = ""
 
 
 class _Call:

@@ -65,6 +65,8 @@ class Plan:
     #: every glued FMU accepts a communication step other than the nominal one
     #: (canHandleVariableCommunicationStepSize): a failed macro step may be cut
     variable_steps: bool = False
+    #: what the backend is given besides the specs (``address`` of a Ray cluster)
+    backend_options: dict = None
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -270,11 +272,15 @@ def _passes(paths: list[str], links) -> int:
         return len(paths)
 
 
-def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
+def make_plan(scene: Scene, backend: str = "in-process", backend_options=None) -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem."""
+    from master.backends import BACKENDS
+
+    backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
     problems = list(scene.problems) + check_span(
         scene.start_time, scene.stop_time, scene.master.step, f"{scene.file}: DefaultExperiment")
+    problems += BACKENDS[backend].problems(**backend_options)
     coupling = scene.master.coupling
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
@@ -324,7 +330,8 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
         c.path, c.source, tuple(interfaces[c.path]), dict(c.parameters), tuple(reads[c.path]),
         tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
         kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
-        tuple(text_reads[c.path]), tuple(text_writes[c.path])) for c in scene.components)
+        tuple(text_reads[c.path]), tuple(text_writes[c.path]),
+        scene.placements.get(c.path, "")) for c in scene.components)
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
     text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
                   text_reads[p].index(n) for p, n in text_recorded]
@@ -340,4 +347,5 @@ def make_plan(scene: Scene, backend: str = "in-process") -> Plan:
                     not can_save_state(scene.components[i].source) for i in glued),
                 text_recorded, tuple(text_index), text_transfer,
                 all(model_description(scene.components[i].source).coSimulation
-                    .canHandleVariableCommunicationStepSize for i in glued))
+                    .canHandleVariableCommunicationStepSize for i in glued),
+                backend_options)

@@ -158,6 +158,8 @@ class Scene:
     #: results the scene ships as its reference (``resources/reference.csv``: its
     #: monolithic twin's, docs/sweep.md), or None
     reference: Path | None = None
+    #: component path -> the Ray resource whose node runs it (``glue:Placement``)
+    placements: dict = field(default_factory=dict)
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

@@ -77,7 +77,12 @@ SETTINGS = {s.keyword: s for s in (
     Setting("start", "start", str, "choice",
             "start forces: auto (flexible joints from their law), consistent (fixed "
             "joints too, from acceleration compatibility) or rest (zero)"),
-    Setting("backend", None, str, "choice", "where the subsystems run"),
+    Setting("backend", None, str, "choice",
+            "where the subsystems run: here, in Ray workers (a local instance or the "
+            "cluster at --address), or one local worker process per FMU (isolated)"),
+    Setting("address", None, str, "text",
+            "the Ray cluster of --backend ray: HOST:PORT of its head (`ray start --head` "
+            "prints it) or auto; without it dsim starts a local Ray instance for the run"),
     Setting("parameter_set", None, str, "text",
             "a parameter set of the scene applied on top of its bindings: an .ssv file's "
             "path in the scene or a ParameterSet's name"),

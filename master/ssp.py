@@ -24,7 +24,7 @@ from lxml import etree
 from master.errors import InputError
 from master.scene import Component, Connector, MasterSettings, Scene
 from master.settings import settings_from_annotation
-from master.ssp_gluing import floats, read_joint, read_port_map
+from master.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from master.ssp_hierarchy import Binding, RawConnection, resolve_bindings, resolve_connections
 from master.ssp_values import (NS, TYPES, apply_mapping, parameter_mapping, parameter_set,
                                transformation, units)
@@ -104,6 +104,8 @@ class _Reader:
         self.bindings: list[Binding] = []
         self.system_connectors: dict[str, dict[str, Connector]] = {}
         self.joints, self.port_maps = [], []
+        #: (component path, Ray resource, where) of each glue:Placement
+        self.placements: list[tuple[str, str, str]] = []
         self.files: list[Path] = [ssd]
 
     def where(self, element) -> str:
@@ -198,6 +200,9 @@ class _Reader:
             for port in gluing.iterfind("glue:Port", NS):
                 self.port_maps.append(read_port_map(port, prefix, self.where(port),
                                                     self.problems))
+            for placement in gluing.iterfind("glue:Placement", NS):
+                self.placements.append(read_placement(placement, prefix,
+                                                      self.where(placement), self.problems))
 
     def component(self, element, prefix: str, depth: int) -> None:
         where = self.where(element)
@@ -309,7 +314,8 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
     return Scene(name, path, start, stop, tuple(components), tuple(connections),
                  tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
                  scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
-                 reference if reference.is_file() else None)
+                 reference if reference.is_file() else None,
+                 {path: resource for path, resource, _ in reader.placements})
 
 
 def _check_references(reader: _Reader, components, connections) -> None:
@@ -332,6 +338,13 @@ def _check_references(reader: _Reader, components, connections) -> None:
     for port in reader.port_maps:
         if port.component not in paths:
             reader.problems.append(f"{port.location}: unknown component '{port.component}'")
+    placed = set()
+    for path, _, where in reader.placements:
+        if path not in paths:
+            reader.problems.append(f"{where}: unknown component '{path}'")
+        elif path in placed:
+            reader.problems.append(f"{where}: component '{path}' is placed twice")
+        placed.add(path)
     for connection in connections:
         for side in (connection.start, connection.end):
             if side[0] not in paths:

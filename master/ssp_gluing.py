@@ -74,6 +74,16 @@ def read_joint(element, prefix: str, where: str, problems: list) -> Joint:
         support=support, location=where, **values)
 
 
+def read_placement(element, prefix: str, where: str, problems: list) -> tuple[str, str, str]:
+    """A ``glue:Placement``: (component path, Ray resource, where) -- the component
+    runs on a node of the Ray cluster that has the resource (docs/distributed.md)."""
+    resource = (element.get("resource") or "").strip()
+    if not resource:
+        problems.append(f"{where}: attribute 'resource' missing (a Ray resource: a custom "
+                        "one of `ray start --resources`, or node:IP)")
+    return prefix + element.get("component", ""), resource, where
+
+
 def read_port_map(element, prefix: str, where: str, problems: list) -> PortMap:
     """A ``glue:Port`` map of the system at ``prefix``."""
     dofs = tuple((element.get("dofs") or "").split())

@@ -21,7 +21,8 @@ def _components(execution) -> dict:
     if execution.backend is None:
         return {}
     result = {}
-    for name, counters in zip(execution.backend.names, execution.backend.counters()):
+    backend = execution.backend
+    for name, counters, place in zip(backend.names, backend.counters(), backend.places()):
         functions = {f: {"calls": calls, "seconds": seconds}
                      for f, (calls, seconds) in sorted(counters.items())}
         result[name] = {"seconds": sum(f["seconds"] for f in functions.values()),
@@ -29,6 +30,8 @@ def _components(execution) -> dict:
                         "state_saves": _count(functions, SAVE),
                         "state_restores": _count(functions, RESTORE),
                         "functions": functions}
+        if place is not None:  # a worker process elsewhere: which node, which process
+            result[name]["worker"] = dict(place)
     return result
 
 

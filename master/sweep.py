@@ -277,11 +277,15 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None,
               bars: bool = False) -> tuple[list[Point], int | None]:
     """Run every point, writing ``out/sweep.csv`` as points finish, then
     ``out/sweep.md`` and ``out/sweep.png``; returns the points and the signal that
-    interrupted the sweep, if one did (SIGINT or SIGTERM end the running point after
-    its current step, and the sweep after it, with everything written).
+    interrupted the sweep, if one did (SIGINT or SIGTERM end the running points after
+    their current step, and the sweep after them, with everything written).
     ``progress(done, total, point)`` is called as points finish; ``bars`` shows each
-    point's progress bar on a terminal."""
-    from master.api import prepare, simulate
+    point's progress bar on a terminal (points run one after the other).
+
+    With the setting ``backend`` fixed to ``ray`` the points run side by side, one per
+    Ray worker (each in-process inside its worker: master/sweep_ray.py), on a local
+    Ray instance or the cluster at ``address``."""
+    from master.api import prepare
     from master.results import read_columns
 
     check(sweep)
@@ -299,46 +303,102 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None,
     label = ("the scene's monolithic twin (resources/reference.csv)"
              if reference_file and not sweep.reference else
              str(reference_file) if reference_file else "the tightest point")
-    points: list[Point] = []
+    points: dict[int, Point] = {}
     interrupted = None
+    # measured in configuration order until there is a reference (the first point that
+    # completes, unless the user gave one); in any order after that
+    finished: dict[int, PointRun] = {}
+    order = iter(range(len(configurations)))
+    waiting = next(order)
+
+    def measure(k: int, run) -> None:
+        nonlocal reference, label, interrupted
+        if reference is None and run.result is not None and run.result.ok:
+            reference = run.result.signals
+            label = f"the tightest point ({Point(configurations[k]).label})"
+        point = measured(Point(configurations[k]), run, reference, sweep.columns)
+        if point.status == "interrupted" and run.result.signal:
+            interrupted = run.result.signal
+        points[k] = point
+        table.add(point)
+        if progress:
+            progress(len(points), len(configurations), point)
+
+    def finish(k: int, run) -> None:
+        nonlocal waiting
+        finished[k] = run
+        while reference is None and waiting in finished:
+            measure(waiting, finished.pop(waiting))
+            waiting = next(order, None)
+        if reference is not None:
+            for key in sorted(finished):
+                measure(key, finished.pop(key))
+
+    parallel = sweep.fixed.get("backend") == "ray"
     try:
-        for k, settings in enumerate(configurations):
-            point = Point(settings)
-            results = out / f"point_{k + 1:03d}.csv"
-            start = clock.perf_counter()
-            try:
-                result = simulate(scene, out=results, progress=bars,
-                                  **{**sweep.fixed, **settings})
-            except InputError as error:
-                point.status, point.message = "bad input", "; ".join(error.problems)
-            else:
-                point.wall_seconds = clock.perf_counter() - start
-                point.status, point.message = result.status, result.message
-                stats = result.statistics
-                point.steps = result.steps
-                point.iterations_per_step = stats["iterations"]["mean_per_step"]
-                point.do_steps_per_fmu_step = (stats["do_steps_per_step"]
-                                               / max(len(stats["components"]), 1))
-                point.lambda_refreshes = stats["lambda_refreshes"]
-                point.results = results
-                if reference is None and result.ok:
-                    reference = result.signals
-                    label = f"the tightest point ({point.label})"
-                if reference is not None and result.steps:
-                    point.error = error_against(result.signals, reference, sweep.columns)
-                point.stable = result.ok and point.error <= 1.0
-                if result.status == "interrupted" and result.signal:
-                    interrupted = result.signal
-            points.append(point)
-            table.add(point)
-            if progress:
-                progress(k + 1, len(configurations), point)
-            if interrupted:
-                break
+        if parallel:
+            from master.sweep_ray import run_points
+            run_points(scene, configurations, sweep.fixed, out, plan.inputs, finish)
+        else:
+            for k, settings in enumerate(configurations):
+                finish(k, run_point(scene, {**sweep.fixed, **settings},
+                                    out / f"point_{k + 1:03d}.csv", bars))
+                if interrupted:
+                    break
+        for k in sorted(finished):  # no point completed: nothing to compare with
+            measure(k, finished.pop(k))
     finally:
         table.close()
-        mark_pareto(points)
-        write_whole(out / "sweep.md", markdown(points, names, label).encode(), plan.inputs)
-        if points:
-            write_whole(out / "sweep.png", plot_points(points, plan.scene.name), plan.inputs)
-    return points, interrupted
+        ordered = [points[k] for k in sorted(points)]
+        mark_pareto(ordered)
+        write_whole(out / "sweep.md", markdown(ordered, names, label).encode(), plan.inputs)
+        if ordered:
+            write_whole(out / "sweep.png", plot_points(ordered, plan.scene.name), plan.inputs)
+    return [points[k] for k in sorted(points)], interrupted
+
+
+@dataclass
+class PointRun:
+    """How one point ran: its :class:`~master.results.RunResult` (None for bad input),
+    the problems of bad input, wall seconds and where its results are."""
+
+    result: object = None
+    problems: list = field(default_factory=list)
+    wall_seconds: float = math.nan
+    results: Path | None = None
+
+
+def run_point(scene, settings: dict, results: Path, bars: bool = False) -> PointRun:
+    """Run one point in this process, its results CSV (and statistics) at ``results``
+    (``bars``: its progress bar on a terminal)."""
+    from master.api import simulate
+
+    start = clock.perf_counter()
+    try:
+        result = simulate(scene, out=results, progress=bars, **settings)
+    except InputError as error:
+        return PointRun(problems=list(error.problems))
+    return PointRun(result, wall_seconds=clock.perf_counter() - start, results=results)
+
+
+def measured(point: Point, run: PointRun, reference, columns) -> Point:
+    """``point`` with what its run measured (the error against ``reference``, if any)."""
+    if run.result is None:
+        point.status, point.message = "bad input", "; ".join(run.problems)
+        return point
+    result = run.result
+    point.wall_seconds = run.wall_seconds
+    point.status, point.message = result.status, result.message
+    stats = result.statistics
+    if not stats:  # its worker died: nothing was measured
+        return point
+    point.steps = result.steps
+    point.iterations_per_step = stats["iterations"]["mean_per_step"]
+    point.do_steps_per_fmu_step = (stats["do_steps_per_step"]
+                                   / max(len(stats["components"]), 1))
+    point.lambda_refreshes = stats["lambda_refreshes"]
+    point.results = run.results
+    if reference is not None and result.steps:
+        point.error = error_against(result.signals, reference, columns)
+    point.stable = result.ok and point.error <= 1.0
+    return point

@@ -26,3 +26,22 @@ def block_fmus(tmp_path_factory):
     folder = tmp_path_factory.mktemp("block")
     return {"state": c_fmu(folder, "block"),
             "nostate": c_fmu(folder, "block_nostate", can_save_state=False)}
+
+
+@pytest.fixture(scope="session")
+def ray_local():
+    """One local Ray instance for the whole session's Ray tests (2 CPUs, a small object
+    store, no dashboard): dsim's Ray backends and sweeps join it rather than start
+    their own, as they join any Ray instance their process is connected to."""
+    import logging
+    import signal
+
+    import ray
+
+    previous = signal.getsignal(signal.SIGTERM)  # ray.init replaces it
+    ray.init(address="local", num_cpus=2, include_dashboard=False,
+             object_store_memory=100 * 1024 ** 2, log_to_driver=False,
+             logging_level=logging.ERROR)
+    signal.signal(signal.SIGTERM, previous)
+    yield ray
+    ray.shutdown()

@@ -60,7 +60,7 @@ def test_a_failed_run_is_a_result_too(built, tmp_path):
      "setting predictor 'cubic' is not one of: none, constant, linear, quadratic"),
     (dict(refresh="sometimes"), "setting refresh 'sometimes' is not one of: adaptive, iterations"),
     (dict(start="moving"), "setting start 'moving' is not one of: auto, consistent, rest"),
-    (dict(backend="cloud"), "setting backend 'cloud' is not one of: in-process"),
+    (dict(backend="cloud"), "setting backend 'cloud' is not one of: in-process, ray, isolated"),
     (dict(tolerence=1e-9), "unknown setting 'tolerence'"),
     (dict(stop=1e300), "steps of 0.01 s from 0 to 1e+300 s: more than 4.5e+15"),
 ])
@@ -151,7 +151,7 @@ def test_registries_name_the_implementations():
     assert set(dsim.COUPLINGS) == {"iterative", "explicit", "causal"}
     assert set(dsim.PREDICTORS) == {"none", "constant", "linear", "quadratic"}
     assert set(dsim.REFRESH_POLICIES) == {"adaptive", "iterations"}
-    assert set(dsim.BACKENDS) == {"in-process"}
+    assert set(dsim.BACKENDS) == {"in-process", "ray", "isolated"}
     for coupling in dsim.COUPLINGS.values():
         assert issubclass(coupling, dsim.Coupling)
     for backend in dsim.BACKENDS.values():

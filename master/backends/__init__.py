@@ -6,7 +6,10 @@ backend can run them side by side without the algorithm knowing.
 """
 from master.backends.base import Backend
 from master.backends.inprocess import InProcessBackend
+from master.backends.ray_backend import IsolatedBackend, RayBackend
 
-BACKENDS = {InProcessBackend.name: InProcessBackend}
+# the Ray backends import Ray only when a run uses them (it is an optional extra)
+BACKENDS = {backend.name: backend for backend in (InProcessBackend, RayBackend,
+                                                   IsolatedBackend)}
 
-__all__ = ["BACKENDS", "Backend", "InProcessBackend"]
+__all__ = ["BACKENDS", "Backend", "InProcessBackend", "IsolatedBackend", "RayBackend"]

@@ -17,6 +17,13 @@ class Backend(ABC):
     name = ""
 
     @classmethod
+    def problems(cls, **options) -> list[str]:
+        """What is wrong with running on this backend with ``options`` (the run
+        options that are not master settings, such as ``address``), one line each."""
+        return [f"setting {key}: only the ray backend takes it (--backend ray)"
+                for key, value in options.items() if value is not None]
+
+    @classmethod
     @abstractmethod
     def from_specs(cls, specs, **options) -> "Backend":
         """Create every subsystem of a run from its
@@ -94,6 +101,21 @@ class Backend(ABC):
     def counters(self) -> list[dict]:
         """Per subsystem: FMI function -> [calls, seconds]."""
 
+    def places(self) -> list:
+        """Per subsystem: where it ran ({"node": ..., "pid": ...}), or None (here)."""
+        return [None] * len(self)
+
     @abstractmethod
     def close(self) -> list[Exception]:
         """Terminate every subsystem, even if some fail; the errors they raised."""
+
+
+def terminate_all(subsystems) -> list[Exception]:
+    """Terminate every subsystem, even if some fail; the errors they raised."""
+    errors = []
+    for subsystem in subsystems:
+        try:
+            subsystem.terminate()
+        except Exception as error:  # gather: every subsystem must be released
+            errors.append(error)
+    return errors

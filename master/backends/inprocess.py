@@ -1,7 +1,7 @@
 """Every subsystem in this process, called one after the other."""
 from __future__ import annotations
 
-from master.backends.base import Backend
+from master.backends.base import Backend, terminate_all
 
 
 class InProcessBackend(Backend):
@@ -90,10 +90,4 @@ class InProcessBackend(Backend):
         return [s.statistics() for s in self.subsystems]
 
     def close(self) -> list[Exception]:
-        errors = []
-        for subsystem in self.subsystems:
-            try:
-                subsystem.terminate()
-            except Exception as error:  # gather: every subsystem must be released
-                errors.append(error)
-        return errors
+        return terminate_all(self.subsystems)

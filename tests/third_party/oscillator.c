@@ -7,9 +7,12 @@
  * -DLIVE_OUTPUTS its outputs follow its inputs in initialization mode too (FMI 2.0
  * allows either).  A step longer than the parameter h_max (s; 0: no limit) is
  * discarded (fmi2Discard, state unchanged), as an FMU whose own solver cannot take
- * it would. */
+ * it would.  With -DCRASH_TIME=t its process ends abruptly (_exit) in the first
+ * step that reaches t (t < 0: when it is instantiated), as a crashing FMU takes down
+ * whatever process loads it. */
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include "fmi2Functions.h"
 
 enum { VR_M, VR_K, VR_F, VR_S, VR_V, VR_A, VR_S0, VR_HMAX, N_VARS };
@@ -35,6 +38,9 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
                                           fmi2String resources,
                                           const fmi2CallbackFunctions *functions,
                                           fmi2Boolean visible, fmi2Boolean logging) {
+#ifdef CRASH_TIME
+    if (CRASH_TIME < 0) _exit(70);
+#endif
     Model *m = calloc(1, sizeof(Model));
     if (!m) return NULL;
     m->cb = *functions;

@@ -1,0 +1,335 @@
+"""The Ray backends on a real local Ray instance (one per test session, 2 CPUs):
+every shipped scene gives the in-process numbers to the last bit; a worker whose
+FMU kills its process ends the run with one line naming the component and the time,
+the converged steps kept; bad input is one line and exit 2."""
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dsim
+from master.cli import main
+from master.results import read_csv
+from tests.scene_files import component, scene_folder, ssd
+from tests.test_nothing_lost import DSIM, ROOT, block_scene, run_cli
+from tests.test_third_party_fmu import scene as oscillator_scene
+from tests.third_party.build import OSCILLATOR_VARIABLES, c_fmu
+
+#: every scene dsim ships (ssp/NAME is packed into build/ssp/NAME.ssp)
+SHIPPED = sorted(p.name for p in (ROOT / "ssp").iterdir() if p.is_dir())
+#: macro steps compared per scene (chain_1000 instantiates a thousand FMUs)
+STEPS = {"chain_1000": 4}
+
+
+def same_run(here, there) -> None:
+    """Two results of one scene hold the same numbers, bit for bit."""
+    assert (there.status, there.message, there.steps) == (here.status, here.message,
+                                                         here.steps)
+    assert list(there.signals) == list(here.signals)
+    for column, values in here.signals.items():
+        assert np.array_equal(there[column], values), column
+    for name, counts in here.statistics["components"].items():
+        other = there.statistics["components"][name]
+        assert (other["do_steps"], other["state_saves"], other["state_restores"]) == (
+            counts["do_steps"], counts["state_saves"], counts["state_restores"]), name
+
+
+def workers(result) -> set[int]:
+    """The process ids that ran the result's components."""
+    return {c["worker"]["pid"] for c in result.statistics["components"].values()}
+
+
+def test_every_shipped_scene_is_packed(built):
+    assert SHIPPED and sorted(p.stem for p in built["ssp"].glob("*.ssp")) == SHIPPED
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_the_ray_backend_gives_the_in_process_numbers_to_the_last_bit(built, ray_local, name):
+    scene = built["ssp"] / f"{name}.ssp"
+    found = dsim.prepare(scene).scene
+    stop = found.start_time + STEPS.get(name, 60) * found.master.step
+    here = dsim.simulate(scene, stop=stop)
+    there = dsim.simulate(scene, stop=stop, backend="ray")
+    assert here.steps > 0 and there.statistics["backend"] == "ray"
+    same_run(here, there)
+    # one worker per FMU, at most one per CPU of the instance (2), none of them this one
+    assert len(workers(there)) == min(len(found.components), 2)
+    assert os.getpid() not in workers(there)
+
+
+@pytest.fixture(scope="module")
+def crashing(tmp_path_factory):
+    """The C oscillator built to end its process abruptly at t = 0.4975 s."""
+    return c_fmu(tmp_path_factory.mktemp("crash"), "oscillator", "oscillator.c",
+                 OSCILLATOR_VARIABLES, defines=("CRASH_TIME=0.4975",))
+
+
+def test_the_isolated_backend_runs_each_fmu_in_its_own_process(built, ray_local):
+    scene = built["ssp"] / "frame_split.ssp"
+    here = dsim.simulate(scene, stop=0.02)
+    there = dsim.simulate(scene, stop=0.02, backend="isolated")
+    same_run(here, there)
+    assert len(workers(there)) == len(there.statistics["components"]) == 5
+
+
+def test_a_glued_third_party_c_fmu_runs_in_a_worker_too(built, ray_local, tmp_path):
+    fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES)
+    folder = oscillator_scene(tmp_path / "scene", built, fmu)
+    same_run(dsim.simulate(folder, stop=0.5), dsim.simulate(folder, stop=0.5, backend="ray"))
+
+
+def test_the_workers_end_with_the_run_and_the_session_instance_stays(built, ray_local):
+    result = dsim.simulate(built["ssp"] / "spring_mass_linear.ssp", stop=0.1, backend="ray")
+    assert result.ok and ray_local.is_initialized()  # joined, not owned: not shut down
+
+    def alive(pid):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    deadline = time.monotonic() + 30
+    while any(alive(pid) for pid in workers(result)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(alive(pid) for pid in workers(result))
+
+
+def test_a_run_with_no_address_starts_a_local_instance_and_shuts_it_down(built):
+    script = ("import dsim, ray\n"
+              f"result = dsim.simulate({str(built['ssp'] / 'spring_mass_linear.ssp')!r}, "
+              "stop=0.2, backend='ray')\n"
+              "print(result.status, result.steps, ray.is_initialized())\n")
+    process = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
+                             text=True, timeout=300)
+    assert process.returncode == 0, process.stderr
+    assert process.stdout.split() == ["completed", "20", "False"]
+
+
+def test_ctrl_c_ends_a_ray_run_after_its_step_with_everything_written(built, tmp_path):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C sends it: the workers
+    live on, the run ends after its current step as interrupted (exit 130)."""
+    target = tmp_path / "run.csv"
+    process = subprocess.Popen(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
+                                       "--stop", "1000", "--backend", "ray", "--out",
+                                       str(target), "--quiet"],
+                               cwd=ROOT, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    partial = tmp_path / ".run.csv.partial"
+    try:
+        deadline = time.monotonic() + 120
+        while not (partial.exists() and partial.stat().st_size > 2000):
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.05)
+        os.killpg(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("dsim: interrupted: interrupted by SIGINT (stopped at t = ")
+    header, data = read_csv(target)
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert stats["status"] == "interrupted" and stats["steps"] == data.shape[0] - 1 > 5
+
+
+# --- a worker that dies ------------------------------------------------------------
+WORKER_DIED = r"the worker process \(pid \d+\) died: the FMU crashed or was killed"
+
+
+def test_a_crashing_fmu_ends_an_isolated_run_with_one_line_and_the_converged_steps(
+        block_fmus, ray_local, tmp_path, capsys):
+    """The block aborts its process in the step to t = 0.051 s (failure mode 4)."""
+    folder = block_scene(tmp_path / "scene", block_fmus["state"], failure=4, fail_time=0.0505)
+    target = tmp_path / "run.csv"
+    code, lines = run_cli(capsys, folder, "--isolate", "--out", target)
+    assert code == 1
+    assert re.fullmatch(r"dsim: simulation failed: step 51 \(t = 0\.051 s\): component 'b1': "
+                        + WORKER_DIED, lines[0])
+    assert lines[1:] == [f"dsim: the 50 converged steps are in {target}, statistics in "
+                         f"{target.with_suffix('.stats.json')}"]
+    header, data = read_csv(target)
+    assert data.shape[0] == 51 and np.allclose(np.diff(data[:, 0]), 1e-3)
+    assert dsim.read_columns(target)["b1.y"][-1] != 0.0
+
+
+def test_the_same_crash_takes_dsim_down_in_process_and_is_two_lines_isolated(block_fmus,
+                                                                           tmp_path):
+    folder = block_scene(tmp_path / "scene", block_fmus["state"], failure=4, fail_time=0.0505)
+    command = DSIM + ["run", str(folder), "--out", str(tmp_path / "run.csv")]
+    process = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert process.returncode == -signal.SIGABRT
+    process = subprocess.run(command + ["--isolate"], cwd=ROOT, capture_output=True,
+                             text=True, timeout=300)
+    assert process.returncode == 1 and process.stdout == ""  # Ray's own notice is not shown
+    lines = process.stderr.strip().splitlines()
+    assert len(lines) == 2 and re.search(WORKER_DIED, lines[0])
+
+
+def test_a_glued_fmu_that_kills_its_worker_mid_newton_names_itself_and_the_time(
+        built, ray_local, crashing, tmp_path, capsys):
+    folder = oscillator_scene(tmp_path / "scene", built, crashing)
+    target = tmp_path / "run.csv"
+    code, lines = run_cli(capsys, folder, "--backend", "ray", "--out", target)
+    assert code == 1
+    assert re.fullmatch(r"dsim: simulation failed: step 100 \(t = 0\.5 s\): component "
+                        "'third': " + WORKER_DIED, lines[0])
+    header, data = read_csv(target)
+    assert data.shape[0] == 100 and abs(data[-1, 0] - 0.495) < 1e-12
+    columns = dsim.read_columns(target)
+    assert np.all(np.isfinite(columns["third.s"])) and np.any(columns["j.f_x"] != 0.0)
+
+
+def test_an_fmu_that_refuses_its_parameters_is_the_same_line_on_the_ray_backend(
+        built, ray_local, tmp_path, capsys):
+    import zipfile
+
+    folder = tmp_path / "scene"
+    with zipfile.ZipFile(built["ssp"] / "frame_split.ssp") as archive:
+        archive.extractall(folder)
+    ssv = folder / "resources" / "rail_left.ssv"
+    ssv.write_text(ssv.read_text().replace('value="rail_left"', 'value="rail_middle"'))
+    said = {}
+    for backend in ("in-process", "ray"):
+        code, said[backend] = run_cli(capsys, folder, "--backend", backend, "--out",
+                                      tmp_path / "r.csv")
+        assert code == 2 and len(said[backend]) == 1
+    assert said["ray"] == said["in-process"]
+    assert "Component 'rail_left'" in said["ray"][0] and "rail_middle" in said["ray"][0]
+
+
+def test_a_worker_that_dies_while_its_fmu_is_instantiated_is_bad_input(
+        built, ray_local, tmp_path, capsys):
+    fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES,
+                defines=("CRASH_TIME=-1",))
+    folder = oscillator_scene(tmp_path / "scene", built, fmu)
+    code, lines = run_cli(capsys, folder, "--isolate", "--out", tmp_path / "run.csv")
+    assert code == 2
+    assert lines == ["dsim: error: component 'third': the worker process died while the FMU "
+                     "was instantiated (it crashed or was killed)"]
+    assert not (tmp_path / "run.csv").exists()
+
+
+def test_a_dead_worker_that_held_several_components_names_them_all(block_fmus, ray_local,
+                                                                   tmp_path, capsys):
+    """Three blocks on two CPUs: b1 and b3 share the first worker (dealt round-robin);
+    b3 aborts it."""
+    blocks = [component(f"b{i}", "resources/block.fmu", {"failure": 4, "fail_time": 0.0105}
+                        if i == 3 else {}, outputs=["y"]) for i in (1, 2, 3)]
+    folder = scene_folder(tmp_path / "scene", ssd("blocks", blocks, stop=0.1,
+                                                  master='step="0.001"'),
+                          {"block.fmu": block_fmus["state"]})
+    code, lines = run_cli(capsys, folder, "--backend", "ray", "--out", tmp_path / "run.csv")
+    assert code == 1
+    assert re.fullmatch(r"dsim: simulation failed: step 11 \(t = 0\.011 s\): components "
+                        r"'b1', 'b3' \(one worker process\): " + WORKER_DIED, lines[0])
+    assert read_csv(tmp_path / "run.csv")[1].shape[0] == 11
+
+
+# --- placement ----------------------------------------------------------------------
+def placed_scene(built, folder: Path, placements: str) -> Path:
+    """spring_mass_linear unpacked, with ``placements`` added to its glue:Gluing."""
+    import zipfile
+
+    with zipfile.ZipFile(built["ssp"] / "spring_mass_linear.ssp") as archive:
+        archive.extractall(folder)
+    ssd_file = folder / "SystemStructure.ssd"
+    text = ssd_file.read_text()
+    assert text.count("</glue:Gluing>") == 1
+    ssd_file.write_text(text.replace("</glue:Gluing>", placements + "</glue:Gluing>"))
+    return folder
+
+
+def test_a_placement_on_a_resource_no_node_has_is_bad_input(built, ray_local, tmp_path,
+                                                            capsys):
+    folder = placed_scene(built, tmp_path / "scene",
+                          '<glue:Placement component="right" resource="gpu_node"/>')
+    code, lines = run_cli(capsys, folder, "--backend", "ray", "--out", tmp_path / "r.csv")
+    assert code == 2 and len(lines) == 1
+    assert lines[0].startswith("dsim: error: component 'right' is placed on Ray resource "
+                               "'gpu_node', which no node of the cluster has (it has: ")
+    assert not (tmp_path / "r.csv").exists()
+
+
+def test_a_node_resource_places_a_component_and_in_process_runs_ignore_placement(
+        built, ray_local, tmp_path, capsys):
+    node = next(r for r in ray_local.cluster_resources() if r.startswith("node:")
+                and not r.startswith("node:__"))
+    folder = placed_scene(built, tmp_path / "scene",
+                          f'<glue:Placement component="right" resource="{node}"/>')
+    plan = dsim.prepare(folder)
+    assert [s.placement for s in plan.specs] == ["", node]
+    assert main(["info", str(folder)]) == 0
+    assert f"placed on Ray resource {node} (--backend ray)" in capsys.readouterr().out
+    same_run(dsim.simulate(folder, stop=0.1), dsim.simulate(folder, stop=0.1, backend="ray"))
+
+
+@pytest.mark.parametrize("placements, problem", [
+    ('<glue:Placement component="nobody" resource="x"/>', "unknown component 'nobody'"),
+    ('<glue:Placement component="right"/>', "attribute 'resource' missing"),
+    ('<glue:Placement component="right" resource="a"/>'
+     '<glue:Placement component="right" resource="b"/>', "component 'right' is placed twice"),
+])
+def test_a_bad_placement_is_bad_input_naming_the_element(built, tmp_path, placements, problem):
+    with pytest.raises(dsim.InputError) as caught:
+        dsim.prepare(placed_scene(built, tmp_path / "scene", placements))
+    assert len(caught.value.problems) == 1
+    assert "Placement" in caught.value.problems[0] and problem in caught.value.problems[0]
+
+
+# --- bad input: one line, exit 2, no traceback ----------------------------------------
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.mark.parametrize("arguments, expected", [
+    (["--backend", "ray", "--address", "127.0.0.1:{port}"],
+     "dsim: error: setting address '127.0.0.1:{port}': no Ray cluster answers there "
+     "(Connection refused); start one with `ray start --head` and give the address it prints"),
+    (["--backend", "ray", "--address", "head-node"],
+     "dsim: error: setting address 'head-node' is not HOST:PORT, ray://HOST:PORT or auto (the "
+     "address that `ray start --head` prints)"),
+    (["--address", "127.0.0.1:6379"],
+     "dsim: error: setting address: only the ray backend takes it (--backend ray)"),
+    (["--isolate", "--backend", "ray"],
+     "dsim: error: --isolate runs every FMU in its own local worker process (the isolated "
+     "backend): it cannot be combined with --backend ray"),
+    (["--backend", "isolated", "--address", "auto"],
+     "dsim: error: setting address: the isolated backend runs on this machine; use --backend "
+     "ray to run on a cluster"),
+])
+def test_a_bad_address_or_backend_option_is_one_line(built, tmp_path, arguments, expected):
+    port = free_port()
+    arguments = [a.format(port=port) for a in arguments]
+    started = time.monotonic()
+    process = subprocess.run(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
+                                     "--out", str(tmp_path / "r.csv"), *arguments],
+                             cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert process.returncode == 2 and process.stdout == ""
+    assert process.stderr.strip().splitlines() == [expected.format(port=port)]
+    assert time.monotonic() - started < 60 and not (tmp_path / "r.csv").exists()
+
+
+@pytest.mark.parametrize("arguments", [["--backend", "ray"], ["--isolate"]])
+def test_the_ray_backends_without_ray_installed_are_one_line(built, tmp_path, arguments):
+    script = ("import sys\nsys.modules['ray'] = None  # as if it were not installed\n"
+              "from master.cli import main\nsys.exit(main(sys.argv[1:]))\n")
+    process = subprocess.run([sys.executable, "-c", script, "run",
+                              str(built["ssp"] / "spring_mass_linear.ssp"), *arguments,
+                              "--out", str(tmp_path / "r.csv")],
+                             cwd=ROOT, capture_output=True, text=True, timeout=120)
+    backend = "isolated" if arguments == ["--isolate"] else "ray"
+    assert process.returncode == 2
+    assert process.stderr.strip().splitlines() == [
+        f"dsim: error: backend '{backend}' needs the ray package: pip install 'dsim[ray]'"]

@@ -1,0 +1,131 @@
+"""docs/distributed.md, tested: a two-node Ray cluster on this machine (`ray start
+--head`, then `ray start --address` with a resource of its own), started and stopped
+by the tests, with token authentication as a real cluster would have; dsim runs a
+scene on it with a component placed on the second node, and a sweep."""
+import json
+import os
+import secrets
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.test_nothing_lost import DSIM, ROOT
+from tests.test_ray_backend import free_port, placed_scene
+
+RAY = str(Path(sys.executable).parent / "ray")
+
+
+def start_node(arguments, env, log: Path) -> subprocess.Popen:
+    """`ray start ... --block` in its own process group; returns once it is up."""
+    process = subprocess.Popen([RAY, "start", *arguments, "--block"], env=env, cwd=ROOT,
+                               stdout=open(log, "w"), stderr=subprocess.STDOUT,
+                               start_new_session=True)
+    deadline = time.monotonic() + 120
+    while "block forever" not in log.read_text():
+        if process.poll() is not None or time.monotonic() > deadline:
+            stop_node(process)
+            pytest.fail(f"ray start {' '.join(arguments)} did not come up:\n{log.read_text()}")
+        time.sleep(0.2)
+    return process
+
+
+def stop_node(process: subprocess.Popen) -> None:
+    """End the node's process group (only the processes this test started), gently
+    first: `ray stop` would end every Ray process of the machine."""
+    for number, grace in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 10.0)):
+        try:
+            os.killpg(process.pid, number)
+        except ProcessLookupError:
+            break
+        try:
+            process.wait(timeout=grace)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A head node (1 CPU, resource head_node) and a worker node (1 CPU, resource
+    right_node); its address and the environment a driver needs (the token)."""
+    folder = Path(tempfile.mkdtemp(prefix="dsimray", dir="/tmp"))  # short: socket paths
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
+           "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
+    port = free_port()
+    address = f"127.0.0.1:{port}"
+    nodes = []
+    try:
+        nodes.append(start_node(["--head", f"--port={port}", "--num-cpus=1",
+                                 '--resources={"head_node": 1}', "--include-dashboard=false",
+                                 f"--temp-dir={folder}", "--object-store-memory=100000000"],
+                                env, folder / "head.log"))
+        nodes.append(start_node([f"--address={address}", "--num-cpus=1",
+                                 '--resources={"right_node": 1}',
+                                 "--object-store-memory=100000000"], env, folder / "node.log"))
+        yield {"address": address, "env": env}
+    finally:
+        for node in reversed(nodes):
+            stop_node(node)
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def nodes_with(cluster) -> dict[str, str]:
+    """Custom resource -> the id of the node that has it, as the cluster says."""
+    script = ("import json, logging, sys, ray\n"
+              "ray.init(address=sys.argv[1], logging_level=logging.ERROR)\n"
+              "print(json.dumps({r: n['NodeID'] for n in ray.nodes() if n['Alive'] "
+              "for r in n['Resources'] if r.endswith('_node')}))\n")
+    process = subprocess.run([sys.executable, "-c", script, cluster["address"]],
+                             env=cluster["env"], cwd=ROOT, capture_output=True, text=True,
+                             timeout=120)
+    assert process.returncode == 0, process.stderr
+    return json.loads(process.stdout.strip().splitlines()[-1])
+
+
+def test_a_run_on_the_cluster_places_components_on_their_nodes(built, cluster, tmp_path):
+    folder = placed_scene(built, tmp_path / "scene",
+                          '<glue:Placement component="left" resource="head_node"/>'
+                          '<glue:Placement component="right" resource="right_node"/>')
+    here = subprocess.run(DSIM + ["run", str(folder), "--out", str(tmp_path / "here.csv"),
+                                  "--quiet", "--stop", "1"],
+                          cwd=ROOT, env=cluster["env"], capture_output=True, text=True,
+                          timeout=300)
+    there = subprocess.run(DSIM + ["run", str(folder), "--out", str(tmp_path / "there.csv"),
+                                   "--stop", "1", "--backend", "ray", "--address",
+                                   cluster["address"]],
+                           cwd=ROOT, env=cluster["env"], capture_output=True, text=True,
+                           timeout=300)
+    assert here.returncode == 0 and there.returncode == 0, there.stderr
+    assert there.stderr == "" and "ray backend" in there.stdout
+    assert (tmp_path / "there.csv").read_bytes() == (tmp_path / "here.csv").read_bytes()
+    stats = json.loads((tmp_path / "there.stats.json").read_text())
+    nodes = nodes_with(cluster)
+    assert nodes["head_node"] != nodes["right_node"]
+    assert stats["components"]["left"]["worker"]["node"] == nodes["head_node"]
+    assert stats["components"]["right"]["worker"]["node"] == nodes["right_node"]
+
+
+def test_a_sweep_on_the_cluster_gives_the_points_of_a_serial_sweep(built, cluster, tmp_path):
+    scene = built["ssp"] / "spring_mass_nonlinear.ssp"
+    points = ["--step", "0.01,0.02", "--stop", "2"]
+    serial = subprocess.run(DSIM + ["sweep", str(scene), *points, "--out",
+                                    str(tmp_path / "serial")],
+                            cwd=ROOT, env=cluster["env"], capture_output=True, text=True,
+                            timeout=300)
+    spread = subprocess.run(DSIM + ["sweep", str(scene), *points, "--out",
+                                    str(tmp_path / "spread"), "--backend", "ray",
+                                    "--address", cluster["address"]],
+                            cwd=ROOT, env=cluster["env"], capture_output=True, text=True,
+                            timeout=300)
+    assert serial.returncode == 0 and spread.returncode == 0, spread.stderr
+    for name in ("point_001.csv", "point_002.csv"):
+        assert (tmp_path / "spread" / name).read_bytes() == \
+            (tmp_path / "serial" / name).read_bytes()
+    columns = (tmp_path / "spread" / "sweep.csv").read_text().splitlines()
+    assert len(columns) == 3 and all(",completed,true," in row for row in columns[1:])
