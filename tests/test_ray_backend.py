@@ -195,7 +195,8 @@ def test_an_fmu_that_refuses_its_parameters_is_the_same_line_on_the_ray_backend(
     with zipfile.ZipFile(built["ssp"] / "frame_split.ssp") as archive:
         archive.extractall(folder)
     ssv = folder / "resources" / "rail_left.ssv"
-    ssv.write_text(ssv.read_text().replace('value="rail_left"', 'value="rail_middle"'))
+    ssv.write_text(ssv.read_text().replace('frame_rail_left_0.025.vtk',
+                                           'frame_rail_middle_0.025.vtk'))
     said = {}
     for backend in ("in-process", "ray"):
         code, said[backend] = run_cli(capsys, folder, "--backend", backend, "--out",
@@ -333,3 +334,23 @@ def test_the_ray_backends_without_ray_installed_are_one_line(built, tmp_path, ar
     assert process.returncode == 2
     assert process.stderr.strip().splitlines() == [
         f"dsim: error: backend '{backend}' needs the ray package: pip install 'dsim[ray]'"]
+
+
+def test_a_step_an_fmu_discards_on_its_worker_is_cut_as_in_process(built, ray_local, tmp_path):
+    """The fmi2Discard of a C FMU on a Ray worker comes back as the step failure it is
+    in-process: the master cuts the step, and the run equals the in-process one."""
+    from tests.test_third_party_fmu import scene
+    from tests.third_party.build import OSCILLATOR_VARIABLES, c_fmu
+
+    fmu = c_fmu(tmp_path / "fmu", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES)
+    folder = scene(tmp_path / "scene", built, fmu)
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace(
+        '<ssv:Parameter name="s0"><ssv:Real value="0.01"/></ssv:Parameter>',
+        '<ssv:Parameter name="s0"><ssv:Real value="0.01"/></ssv:Parameter>'
+        '<ssv:Parameter name="h_max"><ssv:Real value="0.0025"/></ssv:Parameter>'))
+    here = dsim.simulate(folder, stop=0.1)
+    there = dsim.simulate(folder, stop=0.1, backend="ray")
+    assert there.status == here.status == "completed"
+    assert there.statistics["step_cuts"] == here.statistics["step_cuts"] == 20
+    assert np.array_equal(there["third.s"], here["third.s"])

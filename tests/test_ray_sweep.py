@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from master.cli import main
-from master.sweep import Sweep, run_sweep
+from master.sweep import TIGHTEST, Sweep, run_sweep
 from tests.test_nothing_lost import DSIM, ROOT, block_scene
 
 
@@ -26,10 +26,12 @@ def rows(path: Path) -> list[dict]:
 def test_a_ray_sweep_measures_what_the_serial_sweep_measures(built, ray_local, tmp_path):
     scene = built["ssp"] / "spring_mass_nonlinear.ssp"
     grid = {"step": ["0.005", "0.01", "0.02", "0.04"], "predictor": ["linear", "constant"]}
-    serial, _ = run_sweep(scene, Sweep(dict(grid), fixed={"stop": "2"}), tmp_path / "serial")
+    serial, _ = run_sweep(scene, Sweep(dict(grid), fixed={"stop": "2"}, reference=TIGHTEST),
+                          tmp_path / "serial")
     seen = []
     spread, interrupted = run_sweep(scene, Sweep(dict(grid), fixed={"stop": "2",
-                                                                    "backend": "ray"}),
+                                                                    "backend": "ray"},
+                                                 reference=TIGHTEST),
                                     tmp_path / "spread", lambda *args: seen.append(args))
     assert interrupted is None and len(spread) == len(serial) == 8
     assert [done for done, total, _ in seen] == list(range(1, 9))
