@@ -169,7 +169,8 @@ def test_bad_mesh_through_the_console_is_one_line(built, tmp_path):
     process = subprocess.run([sys.executable, "-m", "master.cli", "run", str(bad), "--out",
                               str(tmp_path / "o.csv")], capture_output=True, text=True)
     assert process.returncode == 2
-    assert len(process.stderr.splitlines()) == 1 and "Traceback" not in process.stderr
+    assert len(process.stderr.splitlines()) == 1 and "Traceback" not in process.stderr, \
+        process.stderr
     assert process.stdout == ""
 
 
