@@ -6,6 +6,7 @@ from __future__ import annotations
 import ipaddress
 import os
 import secrets
+import socket
 
 from master.errors import InputError
 
@@ -29,6 +30,22 @@ def _missing() -> list[str]:
     return [name for name in NEEDED if find_spec(name) is None]
 
 
+def _bind(host: str, port: int) -> socket.socket:
+    """A listening socket on ``host``:``port`` (0: a free port), bound here rather than
+    by uvicorn so that the printed address has the real port and a port in use is one
+    line."""
+    try:
+        family = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0][0]
+        listening = socket.socket(family, socket.SOCK_STREAM)
+        listening.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listening.bind((host, port))
+        listening.listen(128)
+    except OSError as error:
+        raise InputError(f"--host {host} --port {port}: cannot listen there "
+                         f"({error.strerror or error})") from None
+    return listening
+
+
 def serve(args) -> int:
     """Run the server until Ctrl-C."""
     missing = _missing()
@@ -44,18 +61,20 @@ def serve(args) -> int:
 
     from dsim_serve.app import create_app
 
+    listening = _bind(args.host, args.port)
+    port = listening.getsockname()[1]  # the one the system chose for --port 0
     app = create_app(args.db, token=token, slots=args.jobs,
                      max_upload=int(args.max_upload_mb * 2**20))
-    config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")
+    config = uvicorn.Config(app, host=args.host, port=port, log_level="warning")
     server = uvicorn.Server(config)
     shown = f"[{args.host}]" if ":" in args.host else args.host
-    address = f"http://{shown}:{args.port}/"
+    address = f"http://{shown}:{port}/"
     print(f"dsim serve: database {os.path.abspath(args.db)}")
     print(f"dsim serve: open {address}" + (f"?token={token}" if token else ""), flush=True)
     if token and not args.token:
         print("dsim serve: bound beyond this machine, so every request needs this token",
               flush=True)
-    server.run()
+    server.run(sockets=[listening])
     return 0
 
 

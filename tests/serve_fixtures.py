@@ -7,6 +7,7 @@ they are skipped, saying why, when the ``serve`` extra is not installed."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -80,36 +81,33 @@ def server(built, tmp_path_factory):
         yield client, app.state.store, answer.json()["id"]
 
 
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 class ServerProcess:
-    """``dsim serve`` in its own process on a free port of 127.0.0.1."""
+    """``dsim serve --port 0`` in its own process: the port the system chose, read from
+    the address it prints."""
 
     def __init__(self, db: Path, *options: str):
-        self.db, self.port = Path(db), free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
-        self.log = self.db.with_suffix(f".{self.port}.log")
+        self.db = Path(db)
+        self.log = self.db.with_suffix(f".{time.monotonic_ns()}.log")
         with open(self.log, "wb") as log:
             self.process = subprocess.Popen(
-                [sys.executable, "-m", "master.cli", "serve", "--db", str(db), "--port",
-                 str(self.port), *options], stdout=log, stderr=subprocess.STDOUT, cwd=ROOT,
+                [sys.executable, "-m", "master.cli", "serve", "--db", str(db), "--port", "0",
+                 *options], stdout=log, stderr=subprocess.STDOUT, cwd=ROOT,
                 env={**os.environ, "PYTHONPATH": str(ROOT)})
-        self._wait_listening()
+        self.port = self._wait_listening()
+        self.url = f"http://127.0.0.1:{self.port}"
 
-    def _wait_listening(self, timeout: float = 30) -> None:
+    def _wait_listening(self, timeout: float = 30) -> int:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if self.process.poll() is not None:
                 raise AssertionError(f"dsim serve exited: {self.log.read_text()}")
-            try:
-                socket.create_connection(("127.0.0.1", self.port), timeout=0.2).close()
-                return
-            except OSError:
-                time.sleep(0.1)
+            found = re.search(r"open http://127\.0\.0\.1:(\d+)/", self.log.read_text())
+            if found:
+                port = int(found.group(1))
+                assert port != 0
+                socket.create_connection(("127.0.0.1", port), timeout=5).close()
+                return port
+            time.sleep(0.1)
         raise AssertionError(f"dsim serve not listening after {timeout} s")
 
     def kill(self, number=signal.SIGKILL) -> None:

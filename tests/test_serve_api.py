@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import io
+import socket
 import zipfile
 
 import numpy as np
@@ -124,6 +125,20 @@ def test_a_run_gives_what_dsim_run_gives_and_its_files(server, tmp_path):
     assert '"type": "sample", "i": 100' in events
     page = client.get(f"/runs/{run_id}").text
     assert "Re-run exactly" in page and "resources/SpringMass.fmu" in page
+
+
+def test_a_run_on_the_isolated_backend_gives_the_in_process_numbers(server):
+    """The scene page's backend choice reaches the run: each FMU in its own worker
+    process, the CSV bit for bit the in-process one."""
+    client, store, scene_id = server
+    page = client.get(f"/scenes/{scene_id}").text
+    assert all(f'value="{name}"' in page for name in ("in-process", "isolated", "ray"))
+    runs = [wait_run(client, launch(client, scene_id, stop="0.3", backend=backend))
+            for backend in ("in-process", "isolated")]
+    assert [r["status"] for r in runs] == ["completed", "completed"], runs
+    assert runs[1]["settings"]["backend"] == "isolated"
+    csv = [(store.run_folder(r["id"]) / "results.csv").read_bytes() for r in runs]
+    assert csv[0] == csv[1] and csv[0].count(b"\n") == 32  # header + 31 steps
 
 
 def test_a_rerun_uses_the_same_files_and_settings_and_gives_the_same_numbers(server):
@@ -326,6 +341,15 @@ def test_a_server_bound_beyond_this_machine_needs_its_token(tmp_path):
         assert forged.status_code == 403
 
 
-def test_dsim_serve_on_the_command_line_refuses_bad_options(capsys):
+def test_dsim_serve_on_the_command_line_refuses_bad_options(capsys, tmp_path):
     assert dsim_main(["serve", "--port", "70000"]) == 2
     assert "--port 70000: not a port number" in capsys.readouterr().err
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        assert dsim_main(["serve", "--db", str(tmp_path / "db.sqlite"), "--port",
+                          str(port)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert not (tmp_path / "db.sqlite").exists()
+    assert len(lines) == 1 and f"--port {port}: cannot listen there" in lines[0], lines
