@@ -25,7 +25,7 @@ from fmus.elastic.body_spec import build_body, spec_from_parameters
 ROOT = Path(__file__).resolve().parent.parent
 MODES = (5, 10, 20, 40, 60)
 #: the ElasticBody FMU's resources (the parts' mesh files)
-RESOURCES = ROOT / "fmus" / "elastic"
+SCENE = ROOT / "ssp" / "frame_split"  # its mesh_file values are paths in it
 CB_STEPS = 500
 
 
@@ -65,7 +65,7 @@ def bare_cores_twice(stop: float) -> float:
     start = time.perf_counter()
     bodies = []
     for part in frame.COMPONENTS:  # as frame_split's FMUs build them
-        bodies.append(build_body(spec_from_parameters(part_parameters(part)), RESOURCES))
+        bodies.append(build_body(spec_from_parameters(part_parameters(part)), SCENE))
         bodies[-1].initialize(0.0)
     for n in range(round(stop / frame.STEP_SIZE)):
         for body in bodies:
@@ -93,7 +93,7 @@ def profile_glued(stop: float = 0.01, top: int = 14) -> str:
 def part_step_seconds(part: str, modes: int | None, steps: int = 300) -> float:
     """Seconds per Newmark step of one frame part alone (ports glued, forces zero)."""
     reduced = {"fidelity": "craig_bampton", "modes": modes} if modes else {}
-    body = build_body(spec_from_parameters({**part_parameters(part), **reduced}), RESOURCES)
+    body = build_body(spec_from_parameters({**part_parameters(part), **reduced}), SCENE)
     body.initialize(0.0)
     start = time.perf_counter()
     for n in range(steps):

@@ -41,7 +41,7 @@ def fine_frame(folder: Path, element_size: float) -> Path:
     from build_fmus.build import pack_scene
     from build_fmus.frame_scenes import FRAME, frame_split
 
-    scene = frame_split(element_size, name="frame_fine", meshes=folder / "meshes")
+    scene = frame_split(element_size, name="frame_fine")  # its meshes in its resources
     scene.write(folder / "frame_fine", 0.0, FRAME["stop"], step=FRAME["step"],
                 tolerance=FRAME["tolerance"], maxIterations=20, predictor="linear",
                 refreshAfter=10, perturbation=FRAME["perturbation"])

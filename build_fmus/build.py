@@ -26,11 +26,6 @@ FMU_SCRIPTS = {
     "Linkage2D": "fmus/linkage/linkage_fmu.py",
     "FlexibleLink2D": "fmus/flexible_link/flexible_link_fmu.py",
 }
-#: Folders copied into an FMU's resources folder besides its part of the fmus package
-#: (the shipped scenes' mesh files: ``mesh_file = "meshes/deck_plate.vtk"``).
-FMU_RESOURCES = {
-    "ElasticBody": ["fmus/elastic/meshes"],
-}
 #: An import of another subpackage of fmus (absolute, or relative from a subpackage).
 _IMPORT = re.compile(r"^\s*(?:from|import)\s+(?:fmus\.|\.\.)(\w+)", re.MULTILINE)
 SSD_NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
@@ -89,17 +84,17 @@ def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Pa
     target = out / f"{identifier}.fmu"
     with tempfile.TemporaryDirectory(prefix="dsim-fmu-") as temp:
         # the fmus package goes into the FMU's resources: its top-level modules and the
-        # subpackages this FMU needs, without caches or mesh data (FMU_RESOURCES)
+        # subpackages this FMU needs, without caches (a scene's mesh files are the
+        # scene's: resources/meshes/ in its .ssp)
         package = Path(temp) / "fmus"
         package.mkdir()
         for module in (root / "fmus").glob("*.py"):
             shutil.copy2(module, package / module.name)
         for name in fmu_packages(identifier, root):
             shutil.copytree(root / "fmus" / name, package / name,
-                            ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "meshes"))
+                            ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
         FmuBuilder.build_FMU(root / FMU_SCRIPTS[identifier], dest=target,
-                             project_files=[package] + [
-                                 root / extra for extra in FMU_RESOURCES.get(identifier, [])],
+                             project_files=[package],
                              canGetAndSetFMUstate=True,
                              canSerializeFMUstate=True)
     _complete_model_description(target)

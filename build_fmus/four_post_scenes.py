@@ -52,13 +52,12 @@ FIDELITY = {
     "cb30": {"fidelity": "craig_bampton", "modes": 30},
     "rigid": {"fidelity": "rigid", "modes": 0},
 }
-MESHES = Path("fmus") / "elastic" / "meshes"
 OUTPUTS = [f"{port}.u_z" for port, _, _ in CORNERS.values()] + ["probe1.u_z"]
 
 
 def mesh_file(mesh: str) -> str:
-    """The plate's mesh file (relative to the FMU's resources) for ``coarse``/``fine``."""
-    return f"meshes/four_post_plate_{MESH_SIZES[mesh]:g}.vtk"
+    """The plate's mesh file (its path in the scene) for ``coarse``/``fine``."""
+    return f"resources/meshes/four_post_plate_{MESH_SIZES[mesh]:g}.vtk"
 
 
 def plate_mesh(size: float):
@@ -71,17 +70,6 @@ def plate_mesh(size: float):
     return MeshHex.init_tensor(np.linspace(0.0, p["length"], round(p["length"] / size) + 1),
                                np.linspace(0.0, p["width"], round(p["width"] / size) + 1),
                                np.array([0.0, p["thickness"]]))
-
-
-def write_plate_meshes(root: Path = ROOT) -> list[Path]:
-    """The plate's mesh files (coarse and fine) in fmus/elastic/meshes/."""
-    written = []
-    for mesh in MESH_SIZES:
-        target = root / MESHES / Path(mesh_file(mesh)).name
-        target.parent.mkdir(parents=True, exist_ok=True)
-        plate_mesh(MESH_SIZES[mesh]).save(str(target))
-        written.append(target)
-    return written
 
 
 def pad(corner: str) -> tuple[str, str]:
@@ -123,6 +111,9 @@ def four_post(joints: str) -> SceneWriter:
     scene = SceneWriter(f"four_post_{joints}",
                         "Seed sections 4.2.2 and 5.3.4: an FE plate body on a four-post "
                         f"shaker, {joints} body mounts")
+    for mesh, size in MESH_SIZES.items():  # the fine one, and the coarse one of a set
+        scene.file(mesh_file(mesh), lambda target, size=size: plate_mesh(size).save(
+            str(target)))
     scene.component("body", "ElasticBody", body_parameters(), outputs=OUTPUTS)
     for corner, (port, _, _) in CORNERS.items():
         post = f"post_{corner}"
@@ -147,9 +138,8 @@ def fidelity_values(name: str) -> dict:
 
 
 def write_four_post_scenes(root: Path = ROOT) -> None:
-    """four_post_flexible and four_post_fixed, their fidelity sets and the plate meshes."""
+    """four_post_flexible and four_post_fixed, their fidelity sets and plate meshes."""
     p = FOUR_POST
-    write_plate_meshes(root)
     for joints in ("flexible", "fixed"):
         scene = four_post(joints)
         folder = root / "ssp" / scene.name

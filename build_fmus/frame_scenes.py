@@ -3,9 +3,9 @@ frame_nested, frame_nested_flat; seed section 2.2).
 
 Every part is the generic ``ElasticBody`` FMU given a mesh file and parameters: the rails
 and cross members are rectangles meshed at 0.025 m (cross members at 0.0125 m in
-frame_nonmatching), written to fmus/elastic/meshes/ (the FMU's resources) by
-:func:`write_frame_meshes`; clamps, ports, the load and its probe are node-set strings
-and numbers in each part's .ssv. The geometry is :mod:`fmus.elastic.frame`'s, so the
+frame_nonmatching), files of the scene itself (resources/meshes/, named by the
+``mesh_file`` values: dsim hands the FMU their paths); clamps, ports, the load and its
+probe are node-set strings and numbers in each part's .ssv. The geometry is :mod:`fmus.elastic.frame`'s, so the
 glued scenes and the monolithic frame describe the same body.
 
 Port slots: a rail's ``port1``, ``port2``, ``port3`` are its front, mid and rear edges
@@ -14,7 +14,9 @@ rail_left and rail_right, ``port3`` its mid point (frame_nested).
 """
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -37,10 +39,10 @@ FIDELITY = {"coarse": {"element_size": COARSE_SIZE},
             "cb40": {"fidelity": "craig_bampton", "modes": 40}}
 #: The plate of frame_nested: a steel strip x in [0.05, 3.95], y in [0.55, 0.65] (m),
 #: meshed at 0.05 m, pinned at the cross members' mid points.
-PLATE = {"mesh_file": "meshes/deck_plate.vtk", "bounds": (0.05, 3.95, 0.55, 0.65),
+PLATE = {"mesh_file": "resources/meshes/deck_plate.vtk",
+         "bounds": (0.05, 3.95, 0.55, 0.65),
          "element_size": 0.05, "points": {"front": (0.05, 0.6), "mid": (2.0, 0.6),
                                           "rear": (3.95, 0.6)}}
-MESHES = Path("fmus") / "elastic" / "meshes"
 RAIL_PORTS = {"front": "port1", "mid": "port2", "rear": "port3"}
 CROSS_PORTS = {"left": "port1", "right": "port2", "center": "port3"}
 PLATE_PORTS = {"front": "port1", "mid": "port2", "rear": "port3"}
@@ -49,8 +51,8 @@ CENTER_Y = 0.5 * (frame.RAIL_Y["left"][1] + frame.RAIL_Y["right"][0])
 
 
 def mesh_file(part: str, element_size: float) -> str:
-    """The mesh file of a frame part, relative to the FMU's resources folder."""
-    return f"meshes/frame_{part}_{element_size:g}.vtk"
+    """The mesh file of a frame part: its path in the scene."""
+    return f"resources/meshes/frame_{part}_{element_size:g}.vtk"
 
 
 def _rectangle(part: str) -> tuple[float, float, float, float]:
@@ -61,56 +63,44 @@ def _rectangle(part: str) -> tuple[float, float, float, float]:
     return frame.CROSS_X[side] + (frame.RAIL_Y["left"][1], frame.RAIL_Y["right"][0])
 
 
-def write_frame_meshes(root: Path = ROOT) -> list[Path]:
-    """The parts' mesh files (and the frame_nested plate's) in fmus/elastic/meshes/."""
+def _rectangle_mesh(bounds, element_size: float) -> Callable[[Path], None]:
+    """What writes a rectangle x0, x1, y0, y1 (m) meshed at ``element_size`` (m)."""
     from fmus.elastic.geometry import rectangle
 
-    sizes = {part: (FRAME["element_size"], COARSE_SIZE) if part.startswith("rail")
-             else (FRAME["element_size"], NONMATCHING_CROSS_SIZE, COARSE_SIZE)
-             for part in frame.COMPONENTS}
-    written = []
-    (root / MESHES).mkdir(parents=True, exist_ok=True)
-    for part, part_sizes in sizes.items():
-        for size in part_sizes:
-            target = root / MESHES / Path(mesh_file(part, size)).name
-            rectangle(*_rectangle(part), size).save(str(target))
-            written.append(target)
-    target = root / MESHES / Path(PLATE["mesh_file"]).name
-    rectangle(*PLATE["bounds"], PLATE["element_size"]).save(str(target))
-    return written + [target]
+    return lambda target: rectangle(*bounds, element_size).save(str(target))
+
+
+def part_mesh(part: str, element_size: float) -> Callable[[Path], None]:
+    """What writes the mesh file of a frame part meshed at ``element_size`` (m)."""
+    return _rectangle_mesh(_rectangle(part), element_size)
 
 
 def _edge(x0: float, x1: float, y: float) -> str:
     return f"box {x0!r} {y!r} {x1!r} {y!r}"
 
 
-def _with_node_counts(values: dict, root: Path) -> dict:
-    """``values`` plus ``S.nodes`` of every node-set port, counted on the mesh."""
+def _with_node_counts(values: dict, save: Callable[[Path], None]) -> dict:
+    """``values`` plus ``S.nodes`` of every node-set port, counted on the mesh that
+    ``save`` writes."""
     from fmus.elastic.body_spec import BodySpec, port_node_counts
 
-    spec = BodySpec(mesh_file=values["mesh_file"])
-    spec.sets.update({key[:-len(".set")]: value for key, value in values.items()
-                      if key.endswith(".set")})
-    counts = port_node_counts(spec, root / MESHES.parent)  # the FMU's resources
+    with tempfile.TemporaryDirectory() as folder:
+        mesh = Path(folder) / Path(values["mesh_file"]).name
+        save(mesh)
+        spec = BodySpec(mesh_file=str(mesh))
+        spec.sets.update({key[:-len(".set")]: value for key, value in values.items()
+                          if key.endswith(".set")})
+        counts = port_node_counts(spec)
     return {**values, **{f"{port}.nodes": count for port, count in counts.items()}}
 
 
 def part_parameters(part: str, element_size: float = FRAME["element_size"],
-                    center: bool = False, root: Path = ROOT, meshes: Path | None = None) -> dict:
+                    center: bool = False) -> dict:
     """ElasticBody parameters of one ladder-frame part (SCENES.md): mesh file, steel,
     clamps, port node sets (``center``: the cross member's mid point as port3), and on
-    cross_front the load F_x = 1000 sin(50 pi t) N at (0.05, 0.6) with its probe.
-    ``meshes``: write the part's mesh there and name it by its absolute path (a mesh
-    size the FMU does not ship, as the Ray benchmark's fine frame)."""
+    cross_front the load F_x = 1000 sin(50 pi t) N at (0.05, 0.6) with its probe."""
     x0, x1, y0, y1 = _rectangle(part)
-    path = mesh_file(part, element_size)
-    if meshes is not None:
-        from fmus.elastic.geometry import rectangle
-
-        meshes.mkdir(parents=True, exist_ok=True)
-        path = str((meshes / Path(path).name).resolve())
-        rectangle(x0, x1, y0, y1, element_size).save(path)
-    values = {"mesh_file": path, "thickness": frame.THICKNESS,
+    values = {"mesh_file": mesh_file(part, element_size), "thickness": frame.THICKNESS,
               "youngs_modulus": 210e9, "poisson_ratio": 0.3, "density": 7850.0,
               "mass": "consistent", "fidelity": "full"}
     kind, side = part.split("_")
@@ -129,19 +119,20 @@ def part_parameters(part: str, element_size: float = FRAME["element_size"],
         assert load.omega == 2.0 * np.pi * 25.0
         values.update({"load.point": f"{lx!r} {ly!r}", "load.F_x": load.amplitude,
                        "load_frequency": 25.0, "load.probe": 1})  # 50 pi rad/s
-    return _with_node_counts(values, root)
+    return _with_node_counts(values, part_mesh(part, element_size))
 
 
 def _frame(scene: SceneWriter, system: str = "", center: bool = False,
            cross_element_size: float = FRAME["element_size"],
-           element_size: float = FRAME["element_size"], meshes: Path | None = None) -> None:
+           element_size: float = FRAME["element_size"]) -> None:
     """The five parts and six edge joints of frame_split, in system ``system`` (rails
-    meshed at ``element_size``, cross members at ``cross_element_size``, m)."""
+    meshed at ``element_size``, cross members at ``cross_element_size``, m), with the
+    parts' meshes."""
     for part in frame.COMPONENTS:
         outputs = ["load.u_x"] if part == "cross_front" else []
         size = cross_element_size if part.startswith("cross") else element_size
-        scene.component(part, "ElasticBody",
-                        part_parameters(part, size, center=center, meshes=meshes),
+        scene.file(mesh_file(part, size), part_mesh(part, size))
+        scene.component(part, "ElasticBody", part_parameters(part, size, center=center),
                         outputs=outputs, system=system)
     for a, b in frame.JOINTS:  # a = rail_<side>.<cross>, b = cross_<cross>.<side>
         rail, cross_edge = a.split(".")
@@ -150,14 +141,16 @@ def _frame(scene: SceneWriter, system: str = "", center: bool = False,
                     f"{member}.{CROSS_PORTS[side]}", dofs="x y", system=system)
 
 
-def frame_split(element_size: float = FRAME["element_size"], name: str = "frame_split",
-                meshes: Path | None = None) -> SceneWriter:
+def frame_split(element_size: float = FRAME["element_size"],
+                name: str = "frame_split") -> SceneWriter:
     """SCENES.md frame_split: the ladder frame as five FE FMUs glued node to node (every
-    part meshed at ``element_size``, m: finer makes heavier subsystems; a size the FMU
-    does not ship needs ``meshes``, a folder for the mesh files)."""
+    part meshed at ``element_size``, m: finer makes heavier subsystems), with the
+    coarse meshes of its fidelity set ``coarse``."""
     scene = SceneWriter(name, "Seed section 2.2.1: a ladder frame split into two "
                         "rails and three cross members, glued node to node on six edges")
-    _frame(scene, cross_element_size=element_size, element_size=element_size, meshes=meshes)
+    _frame(scene, cross_element_size=element_size, element_size=element_size)
+    for part in frame.COMPONENTS:
+        scene.file(mesh_file(part, COARSE_SIZE), part_mesh(part, COARSE_SIZE))
     return scene
 
 
@@ -170,14 +163,19 @@ def frame_nonmatching() -> SceneWriter:
     return scene
 
 
-def plate_parameters(root: Path = ROOT) -> dict:
+def plate_mesh() -> Callable[[Path], None]:
+    """What writes the frame_nested plate's mesh file."""
+    return _rectangle_mesh(PLATE["bounds"], PLATE["element_size"])
+
+
+def plate_parameters() -> dict:
     """The frame_nested plate: a user mesh file, three one-node ports, a probe."""
     mid = PLATE["points"]["mid"]
     values = {"mesh_file": PLATE["mesh_file"], "thickness": frame.THICKNESS,
               "mass": "consistent", "load.probe": 1, "load.point": f"{mid[0]!r} {mid[1]!r}"}
     for port, (x, y) in PLATE["points"].items():
         values[f"{PLATE_PORTS[port]}.set"] = f"point {x!r} {y!r}"
-    return _with_node_counts(values, root)
+    return _with_node_counts(values, plate_mesh())
 
 
 def frame_nested(flat: bool = False) -> SceneWriter:
@@ -190,6 +188,7 @@ def frame_nested(flat: bool = False) -> SceneWriter:
     system = "" if flat else scene.nested_system("frame")
     prefix = "" if flat else "frame."
     _frame(scene, system, center=True)
+    scene.file(PLATE["mesh_file"], plate_mesh())
     scene.component("plate", "ElasticBody", plate_parameters(), outputs=["load.u_x"])
     for cross in ("front", "mid", "rear"):
         scene.joint(f"plate_{cross}", f"{prefix}cross_{cross}.{CROSS_PORTS['center']}",
@@ -197,14 +196,14 @@ def frame_nested(flat: bool = False) -> SceneWriter:
     return scene
 
 
-def fidelity_values(name: str, root: Path = ROOT) -> dict:
+def fidelity_values(name: str) -> dict:
     """frame_split's parameter set ``name``: the parameters it changes, per part."""
     change = FIDELITY[name]
     values = {}
     for part in frame.COMPONENTS:
         if "element_size" in change:
-            default = part_parameters(part, root=root)
-            coarse = part_parameters(part, change["element_size"], root=root)
+            default = part_parameters(part)
+            coarse = part_parameters(part, change["element_size"])
             values.update({f"{part}.{k}": v for k, v in coarse.items() if default[k] != v})
         else:
             values.update({f"{part}.{k}": v for k, v in change.items()})
@@ -213,15 +212,14 @@ def fidelity_values(name: str, root: Path = ROOT) -> dict:
 
 def write_frame_scenes(root: Path = ROOT) -> None:
     """frame_split (with its fidelity sets), frame_nonmatching, frame_nested,
-    frame_nested_flat, and the meshes."""
-    write_frame_meshes(root)
+    frame_nested_flat, each with its meshes."""
     for scene in (frame_split(), frame_nonmatching(), frame_nested(),
                   frame_nested(flat=True)):
         scene.write(root / "ssp" / scene.name, 0.0, FRAME["stop"], step=FRAME["step"],
                     tolerance=FRAME["tolerance"], maxIterations=20, predictor="linear",
                     refreshAfter=10, perturbation=FRAME["perturbation"])
     write_parameter_sets(root / "ssp" / "frame_split",
-                         {name: fidelity_values(name, root) for name in FIDELITY})
+                         {name: fidelity_values(name) for name in FIDELITY})
 
 
 if __name__ == "__main__":

@@ -7,7 +7,9 @@ family (chain_<n>) is regenerated at another size:
 from __future__ import annotations
 
 import math
+import shutil
 from pathlib import Path
+from typing import Callable
 
 from lxml import etree
 
@@ -60,6 +62,9 @@ class SceneWriter:
         self.system = etree.SubElement(self.root, _q(SSD, "System"), name="root")
         self.elements = etree.SubElement(self.system, _q(SSD, "Elements"))
         self.parameter_sets: dict[str, etree._Element] = {}
+        #: files of the scene (a path in it, like resources/meshes/plate.vtk) -> a
+        #: function that writes the file at the path it is given
+        self.files: dict[str, Callable[[Path], None]] = {}
         self.joints: list[etree._Element] = []
         #: dotted path ("" for the root) -> (ssd:System, its ssd:Elements, its joints)
         self.systems = {"": (self.system, self.elements, self.joints)}
@@ -96,6 +101,13 @@ class SceneWriter:
                          source=f"resources/{path}.ssv")
         self.parameter_sets[path] = parameter_set(path, parameters)
 
+    def file(self, path: str, save: Callable[[Path], None]) -> str:
+        """Ship a file in the scene at ``path`` (under ``resources/``; ``save`` writes
+        it); returns ``path``, the String parameter value that names it."""
+        assert path.startswith("resources/"), path  # how dsim tells a file (ssp.py)
+        self.files[path] = save
+        return path
+
     def joint(self, name, a, b, dofs="x", kind="fixed", measure="displacement",
               spring=None, damper=None, penalty=None, system: str = "") -> None:
         """A glue joint declared in system ``system``; ``a`` and ``b`` are relative to it."""
@@ -117,8 +129,9 @@ class SceneWriter:
         self.systems[system][2].append(etree.Element(_q(GLUE, "Port"), attributes))
 
     def write(self, folder: Path, start_time: float, stop_time: float, **master) -> None:
-        """Write SystemStructure.ssd and the .ssv files into ``folder``; ``master``
-        are the glue:Master attributes."""
+        """Write SystemStructure.ssd, the .ssv files and the scene's files into
+        ``folder`` (its resources/ folder rewritten whole); ``master`` are the
+        glue:Master attributes."""
         for system, _, joints in self.systems.values():
             if not joints:
                 continue
@@ -134,13 +147,15 @@ class SceneWriter:
         etree.SubElement(annotation, _q(GLUE, "Master"), {k: str(v) for k, v in master.items()},
                          nsmap={"glue": GLUE})
         folder.mkdir(parents=True, exist_ok=True)
-        for old in (folder / "resources").glob("*.ssv"):
-            old.unlink()
+        shutil.rmtree(folder / "resources", ignore_errors=True)  # nothing left over
         if self.parameter_sets:
             (folder / "resources").mkdir(exist_ok=True)
         etree.ElementTree(self.root).write(str(folder / "SystemStructure.ssd"),
                                            pretty_print=True, xml_declaration=True,
                                            encoding="UTF-8")
+        for path, save in self.files.items():
+            (folder / path).parent.mkdir(parents=True, exist_ok=True)
+            save(folder / path)
         for name, element in self.parameter_sets.items():
             etree.ElementTree(element).write(str(folder / "resources" / f"{name}.ssv"),
                                              pretty_print=True, xml_declaration=True,

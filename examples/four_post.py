@@ -31,7 +31,8 @@ from fmus.elastic.body_spec import build_body, spec_from_parameters
 from fmus.spring_mass.core import ChainParameters, SpringMassChain
 
 ROOT = Path(__file__).resolve().parent.parent
-RESOURCES = ROOT / "fmus" / "elastic"  # the ElasticBody FMU's resources (mesh files)
+#: the scene folder, where its mesh_file values ("resources/meshes/...") are
+SCENE = ROOT / "ssp" / "four_post_flexible"
 CORNER_COLUMNS = [f"body.{port}.u_z" for port, _, _ in CORNERS.values()]
 FORCE_COLUMNS = [f"mount_{corner}.f_z" for corner in CORNERS]
 
@@ -40,7 +41,7 @@ def plate_body(fidelity: str = "fine", **overrides):
     """The plate core exactly as the scene's FMU builds it under fidelity set ``fidelity``
     (``overrides``: more ElasticBody parameters, e.g. another ``mesh_file``)."""
     values = {**body_parameters(), **fidelity_values(fidelity), **overrides}
-    return build_body(spec_from_parameters(values), RESOURCES)
+    return build_body(spec_from_parameters(values), SCENE)
 
 
 def kirchhoff_frequencies(count: int = 6, element_size: float = 0.1) -> np.ndarray:

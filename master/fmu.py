@@ -105,6 +105,9 @@ class SubsystemSpec:
     text_writes: tuple[str, ...] = ()
     #: the Ray resource whose node runs the instance (``glue:Placement``; '' anywhere)
     placement: str = ""
+    #: the String parameters whose value is the absolute path of a scene file (a
+    #: remote backend ships the file and rewrites the value)
+    files: tuple[str, ...] = ()
 
 
 class _Call:

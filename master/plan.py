@@ -163,6 +163,13 @@ def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list
                     problems.append(f"{where}: its unit and the FMU variable's: {error}")
 
 
+def _with_files(component) -> dict:
+    """The component's parameter values with each scene file it names (a String
+    ``resources/...``) given as the file's absolute path."""
+    return {**component.parameters,
+            **{name: ("String", str(file)) for name, file in component.files.items()}}
+
+
 def _check_parameters(scene: Scene, usable: dict, problems: list) -> None:
     """Every parameter value must reach a variable that FMI 2.0 lets a master set
     before initialization: variability not constant, and an input, a parameter or a
@@ -327,11 +334,11 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None) -
         offset += len(reads[path])
     kinds = _kinds(scene)
     specs = tuple(SubsystemSpec(
-        c.path, c.source, tuple(interfaces[c.path]), dict(c.parameters), tuple(reads[c.path]),
+        c.path, c.source, tuple(interfaces[c.path]), _with_files(c), tuple(reads[c.path]),
         tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
         kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
         tuple(text_reads[c.path]), tuple(text_writes[c.path]),
-        scene.placements.get(c.path, "")) for c in scene.components)
+        scene.placements.get(c.path, ""), tuple(c.files)) for c in scene.components)
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
     text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
                   text_reads[p].index(n) for p, n in text_recorded]

@@ -64,7 +64,7 @@ class Connector:
 class Component:
     """An FMU instance: dotted path, FMU file, parameter values (name -> (type, value),
     after every binding that reaches it, with ``origins`` saying where each came from),
-    declared connectors."""
+    declared connectors, and the scene files its String parameters name."""
 
     path: str
     source: Path
@@ -72,6 +72,8 @@ class Component:
     connectors: tuple[Connector, ...] = ()
     location: str = ""
     origins: dict = field(default_factory=dict)
+    #: String parameters naming a file of the scene (``resources/...``) -> that file
+    files: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -255,11 +255,37 @@ class _Reader:
         components = []
         for c in self.components:
             parameters = {**starts[c["path"]], **values[c["path"]]}
+            files = self.scene_files(parameters, origins[c["path"]], c["location"])
             components.append(Component(c["path"], c["source"], parameters,
                                         tuple(c["connectors"].values()), c["location"],
-                                        origins[c["path"]]))
+                                        origins[c["path"]], files))
         return components, connections
 
+    def scene_files(self, parameters: dict, origins: dict, location: str) -> dict[str, Path]:
+        """name -> the file, of the String parameters that name a file of the scene
+        (a value starting with ``resources/``, the folder SSP gives a package's
+        resources): an FMU only knows its own resources, so the master hands it the
+        file's absolute path (see docs/ssp_support.md)."""
+        files = {}
+        for name, (kind, value) in parameters.items():
+            if kind != "String" or not value.startswith(SCENE_RESOURCES):
+                continue
+            file = (self.base / value).resolve()
+            where = origins.get(name, location)
+            if not file.is_relative_to(self.base.resolve() / SCENE_RESOURCES):
+                self.problems.append(f"{where}: parameter '{name}' = '{value}' leaves the "
+                                     "scene's resources folder")
+            elif not file.is_file():
+                self.problems.append(f"{where}: parameter '{name}' = '{value}': the scene has "
+                                     "no such file")
+            else:
+                files[name] = file
+                self.files.append(file)
+        return files
+
+
+#: the prefix of a String parameter value that names a file of the scene
+SCENE_RESOURCES = "resources/"
 
 #: start and stop time (s) of a scene without a DefaultExperiment (dsim info says so)
 DEFAULT_START, DEFAULT_STOP = 0.0, 1.0

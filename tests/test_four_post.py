@@ -138,7 +138,7 @@ def test_scene_settings_are_the_seeds(built):
     ('value="box 0.0 0.0 0.0 0.1 0.1 0.02"', 'value="box 0.0 0.0 0.1 0.1"',
      "a 3-D box needs 6 numbers"),
     ('value="full"', 'value="modal"', "fidelity = 'modal' must be one of"),
-    ('value="meshes/four_post_plate_0.1.vtk"', 'value="elastic_body_fmu.py"',
+    ('value="resources/meshes/four_post_plate_0.1.vtk"', 'value="elastic_body_fmu.py"',
      "mesh file 'elastic_body_fmu.py': cannot be read as a mesh"),
 ], ids=["2-D box on a 3-D mesh", "unknown fidelity", "not a mesh"])
 def test_a_plate_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,

@@ -21,6 +21,14 @@ from master.ssp import load_scene
 from tests.scene_files import edited_archive
 
 ROOT = Path(__file__).resolve().parent.parent
+#: the scene folder: the parts' mesh_file values are paths in it
+FRAME_SPLIT = ROOT / "ssp" / "frame_split"
+
+
+def alone(parameters: dict) -> dict:
+    """A part's parameters for the FMU run without dsim: the mesh by its absolute path
+    (dsim hands the FMU that path when it runs the scene)."""
+    return {**parameters, "mesh_file": str(FRAME_SPLIT / parameters["mesh_file"])}
 
 
 def test_fmu_validates_and_runs_alone(built):
@@ -29,7 +37,7 @@ def test_fmu_validates_and_runs_alone(built):
 
     fmu = built["fmus"] / "ElasticBody.fmu"
     assert validate_fmu(str(fmu)) == []
-    start = {key: value for key, value in part_parameters("cross_front").items()
+    start = {key: value for key, value in alone(part_parameters("cross_front")).items()
              if not key.startswith("port2")}
     result = simulate_fmu(str(fmu), stop_time=2e-3, output_interval=1e-4,
                           start_values=start, output=["load.u_x", "port1[5].u_x"])
@@ -98,7 +106,7 @@ def _instance(built, parameters):
 
 
 def test_rollback_is_bit_for_bit_through_the_fmu(built):
-    fmu, variables = _instance(built, part_parameters("cross_front"))
+    fmu, variables = _instance(built, alone(part_parameters("cross_front")))
     forces = [variables[f"{p}[{k}].f_{d}"].valueReference
               for p in ("port1", "port2") for k in range(1, 6) for d in "xy"]
     watched = [variables[n].valueReference for n in ("load.u_x", "port2[3].u_y",
@@ -128,7 +136,7 @@ def test_rollback_is_bit_for_bit_through_the_fmu(built):
 
 
 def test_parts_are_data_and_checked():
-    resources = ROOT / "fmus" / "elastic"
+    resources = FRAME_SPLIT
     spec = spec_from_parameters(part_parameters("rail_left"))
     assert port_node_counts(spec, resources) == {"port1": 5, "port2": 5, "port3": 5}
     spec = spec_from_parameters({**part_parameters("cross_mid"), "port1.nodes": 4})
@@ -149,13 +157,15 @@ def _edited(built, tmp_path, before, after):
 
 
 @pytest.mark.parametrize("before, after, message", [
-    ("meshes/deck_plate.vtk", "elastic_body_fmu.py",
+    ("resources/meshes/deck_plate.vtk", "elastic_body_fmu.py",
      "mesh file 'elastic_body_fmu.py': cannot be read as a mesh"),
-    ("meshes/deck_plate.vtk", "meshes/missing.msh", "mesh file 'meshes/missing.msh': no such"),
+    ("resources/meshes/deck_plate.vtk", "meshes/missing.msh",
+     "mesh file 'meshes/missing.msh': no such"),
     ("point 0.05 0.6", "box 10 10 11 11", "node set 'port1' is empty"),
 ], ids=["garbage-mesh", "missing-mesh", "empty-node-set"])
 def test_a_body_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,
                                                         before, after, message):
+    """Relative to the FMU's own resources: what the FMU says of the file."""
     bad = _edited(built, tmp_path, before, after)
     code = main(["run", str(bad), "--out", str(tmp_path / "o.csv"), "--quiet"])
     lines = capsys.readouterr().err.strip().splitlines()
@@ -164,8 +174,38 @@ def test_a_body_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,
     assert message in lines[0]
 
 
+@pytest.mark.parametrize("after, message", [
+    ("resources/meshes/missing.vtk",
+     "parameter 'mesh_file' = 'resources/meshes/missing.vtk': the scene has no such file"),
+    ("resources/../SystemStructure.ssd",
+     "parameter 'mesh_file' = 'resources/../SystemStructure.ssd' leaves the scene's "
+     "resources folder"),
+], ids=["missing", "outside"])
+def test_a_scene_file_that_is_not_there_is_bad_input(built, tmp_path, capsys, after, message):
+    """A String parameter naming a file of the scene (resources/...) is checked before
+    any FMU starts: one line naming the parameter set and the value."""
+    bad = _edited(built, tmp_path, "resources/meshes/deck_plate.vtk", after)
+    code = main(["validate", str(bad)])
+    lines = capsys.readouterr().err.strip().splitlines() + [""]
+    assert code == 2 and message in lines[0] and "'plate'" in lines[0], lines
+
+
+def test_the_scene_hands_its_mesh_files_to_the_fmus(built):
+    """frame_nested_flat carries its meshes (resources/meshes/); the FMUs get their
+    extracted paths, and the scene lists them among its input files."""
+    scene = load_scene(built["ssp"] / "frame_nested_flat.ssp")
+    plate = next(c for c in scene.components if c.path == "plate")
+    assert plate.parameters["mesh_file"] == ("String", "resources/meshes/deck_plate.vtk")
+    mesh = plate.files["mesh_file"]
+    assert mesh.is_file() and mesh.name == "deck_plate.vtk" and mesh in scene.inputs
+    spec = next(s for s in prepare(built["ssp"] / "frame_nested_flat.ssp").specs
+                if s.name == "plate")
+    assert spec.parameters["mesh_file"][1].endswith("/resources/meshes/deck_plate.vtk")
+    assert spec.files == ("mesh_file",)
+
+
 def test_bad_mesh_through_the_console_is_one_line(built, tmp_path):
-    bad = _edited(built, tmp_path, "meshes/deck_plate.vtk", "elastic_body_fmu.py")
+    bad = _edited(built, tmp_path, "resources/meshes/deck_plate.vtk", "elastic_body_fmu.py")
     process = subprocess.run([sys.executable, "-m", "master.cli", "run", str(bad), "--out",
                               str(tmp_path / "o.csv")], capture_output=True, text=True)
     assert process.returncode == 2

@@ -195,15 +195,30 @@ def test_an_fmu_that_refuses_its_parameters_is_the_same_line_on_the_ray_backend(
     with zipfile.ZipFile(built["ssp"] / "frame_split.ssp") as archive:
         archive.extractall(folder)
     ssv = folder / "resources" / "rail_left.ssv"
-    ssv.write_text(ssv.read_text().replace('frame_rail_left_0.025.vtk',
-                                           'frame_rail_middle_0.025.vtk'))
+    ssv.write_text(ssv.read_text().replace('resources/meshes/frame_rail_left_0.025.vtk',
+                                           'resources/cross_mid.ssv'))  # not a mesh
     said = {}
     for backend in ("in-process", "ray"):
         code, said[backend] = run_cli(capsys, folder, "--backend", backend, "--out",
                                       tmp_path / "r.csv")
         assert code == 2 and len(said[backend]) == 1
     assert said["ray"] == said["in-process"]
-    assert "Component 'rail_left'" in said["ray"][0] and "rail_middle" in said["ray"][0]
+    assert "Component 'rail_left'" in said["ray"][0] and "cross_mid.ssv" in said["ray"][0]
+    assert "cannot be read as a mesh" in said["ray"][0]
+
+
+def test_a_scene_file_reaches_a_worker_that_cannot_see_the_drivers_path(ray_local, tmp_path):
+    """A mesh file of the scene goes through Ray's object store as the FMUs do: a
+    worker on a node without the driver's file lands a copy of the same name."""
+    from master.ray_cluster import Shipment, landed
+
+    mesh = tmp_path / "plate.vtk"
+    mesh.write_bytes(b"a mesh")
+    shipped = Shipment(ray_local).add(mesh)
+    assert landed(shipped) == mesh  # the same content at the same path: used as it is
+    mesh.write_bytes(b"another mesh")  # as on another node, or changed since
+    copy = landed(shipped)
+    assert copy != mesh and copy.name == "plate.vtk" and copy.read_bytes() == b"a mesh"
 
 
 def test_a_worker_that_dies_while_its_fmu_is_instantiated_is_bad_input(

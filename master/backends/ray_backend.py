@@ -105,7 +105,7 @@ class RayBackend(Backend):
                 hosts.append(remote.options(**options).remote())
                 assigned.append(chosen)
         opened = [host.open.remote([specs[i] for i in chosen],
-                                   [shipment.add(specs[i].path) for i in chosen])
+                                   [_shipped_files(shipment, specs[i]) for i in chosen])
                   for host, chosen in zip(hosts, assigned)]
         owners = [[specs[i].name for i in chosen] for chosen in assigned]
         backend = cls(_Cluster(connection, hosts, owners), members, [s.name for s in specs])
@@ -369,6 +369,13 @@ class IsolatedBackend(RayBackend):
     @classmethod
     def from_specs(cls, specs, address=None, **options) -> "IsolatedBackend":
         return super().from_specs(specs, None, **options)
+
+
+def _shipped_files(shipment, spec) -> tuple:
+    """What a worker needs to find a subsystem's files: its FMU, and the scene files
+    its String parameters name (parameter -> shipped file)."""
+    return (shipment.add(spec.path),
+            {name: shipment.add(spec.parameters[name][1]) for name in spec.files})
 
 
 def _who(names) -> str:

@@ -15,16 +15,20 @@ class Host:
         self.subsystems = []
 
     def open(self, specs, files) -> dict:
-        """Instantiate the FMUs of ``specs`` from the shipped ``files``
-        (:class:`~master.ray_cluster.Shipment`); where this worker runs."""
+        """Instantiate the FMUs of ``specs`` from the shipped ``files`` (for each, its
+        FMU and its scene files by parameter, :class:`~master.ray_cluster.Shipment`);
+        where this worker runs."""
         from dataclasses import replace
 
         import ray
 
         from master.fmu import FmuSubsystem
 
-        for spec, shipped in zip(specs, files):
-            self.subsystems.append(FmuSubsystem(replace(spec, path=landed(shipped))))
+        for spec, (fmu, scene_files) in zip(specs, files):
+            parameters = {**spec.parameters, **{name: ("String", str(landed(shipped)))
+                                                for name, shipped in scene_files.items()}}
+            self.subsystems.append(FmuSubsystem(replace(spec, path=landed(fmu),
+                                                        parameters=parameters)))
         return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid()}
 
     def run(self, calls) -> list:
