@@ -167,6 +167,43 @@ def glue(bodies, joints, step_size, steps, output):
     return np.array(history)
 
 
+def test_a_repeated_step_takes_the_linear_response_and_equals_the_full_step():
+    """A Newton iteration's repeats of a step (restore, other forces, step) are answered
+    by q1 + Z dF once the step size has seen as many repeats as the body has interface
+    dofs; the state equals a fresh body's full step to round-off, and a repeat with the
+    first forces is the first end state bit for bit."""
+    from fmus.elastic.retry import RepeatedStep
+
+    h, rng = 1e-4, np.random.default_rng(7)
+    body, fresh = frame.cross_front(), frame.cross_front()
+    for b in (body, fresh):
+        b.initialize(0.0)
+    m = len(body.interface)
+    for n in range(m + 3):  # step n: a first trial, then a repeat with other forces
+        start = body.get_state()
+        first = rng.normal(size=m)
+        body.set_interface_forces(first)
+        body.step(n * h, h)
+        end_first = body.get_state()
+        body.set_state(start)
+        second = rng.normal(size=m)
+        body.set_interface_forces(second)
+        body.step(n * h, h)
+        fresh.set_state(start)
+        fresh._repeat = RepeatedStep(fresh.integrator, fresh._interface_map)  # forget
+        fresh.set_interface_forces(second)
+        fresh.step(n * h, h)
+        for x, y in zip(body.interface_kinematics(), fresh.interface_kinematics()):
+            assert np.max(np.abs(x - y)) <= 1e-12 * max(np.max(np.abs(y)), 1e-300)
+        body.set_state(start)
+        body.set_interface_forces(first)
+        body.step(n * h, h)
+        for key in ("q", "v", "a"):
+            assert np.array_equal(body.get_state()[key], end_first[key])
+    assert body._repeat._response is not None and body._repeat._response[0] == h
+    assert fresh._repeat._response is None
+
+
 def test_glued_halves_equal_one_piece_bar():
     size, length, depth = 0.025, 1.0, 0.1
     load = PointLoad((length, depth / 2), "y", amplitude=1e3, omega=2 * np.pi * 50)

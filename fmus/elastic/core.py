@@ -31,6 +31,7 @@ from .constraints import ROTATIONS, TRANSLATIONS, build_transformation
 from .geometry import NodeSetSpec, check_mesh, nearest_node, resolve_node_set
 from .maps import InterfaceMap
 from .newmark import NewmarkAverageAcceleration
+from .retry import RepeatedStep
 from .reduction import craig_bampton_basis, generalized_eigen, rigid_body_basis
 
 
@@ -155,6 +156,7 @@ class ElasticBody(InterfaceCore):
         self._interface_map = InterfaceMap(interface_map)
         self._loads, self._probe_map = loads_q, probe_map
         self.integrator = NewmarkAverageAcceleration(stiffness, mass_q, damping)
+        self._repeat = RepeatedStep(self.integrator, self._interface_map)
 
         n = stiffness.shape[0]
         self.time = 0.0
@@ -250,10 +252,18 @@ class ElasticBody(InterfaceCore):
         self._forces = forces.copy()
 
     def step(self, time: float, step_size: float) -> None:
-        """Newmark step t -> t + h with loads evaluated at t + h and the forces held."""
+        """Newmark step t -> t + h with loads evaluated at t + h and the forces held (a
+        repeat of the last step from the same state with other forces, as a master's
+        Newton iteration makes it, by the body's linear response: fmus/elastic/retry.py)."""
         end = time + step_size
-        self._q, self._v, self._a = self.integrator.step(
-            self._q, self._v, self._a, self._force(end), step_size)
+        start = (self._q, self._v, self._a)
+        repeated = self._repeat.end_state(time, step_size, start, self._forces)
+        if repeated is None:
+            self._q, self._v, self._a = self.integrator.step(
+                self._q, self._v, self._a, self._force(end), step_size)
+            self._repeat.remember(time, start, self._forces, (self._q, self._v, self._a))
+        else:
+            self._q, self._v, self._a = repeated
         self.time = end
 
     def interface_kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -65,6 +65,11 @@ class NewmarkAverageAcceleration:
         a_next -= a
         return u_next, v_next, a_next
 
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """K_eff^-1 rhs with the factor of the last :meth:`factor` (rhs: a vector, or
+        one column per vector)."""
+        return self._effective.solve(np.asarray(rhs, dtype=float))
+
     def acceleration(self, u: np.ndarray, v: np.ndarray, force: np.ndarray) -> np.ndarray:
         """Acceleration consistent with equilibrium: M a = f - K u - C v."""
         if self._mass_lu is None:  # factored on first use only (initialization)

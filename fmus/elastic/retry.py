@@ -1,0 +1,83 @@
+"""A repeated step of a linear body, as a master's Newton iteration makes it.
+
+A gluing master restores a body to the state at the start of a macro step and steps it
+again with other interface forces F (the correction, the flexibility perturbations).
+Newmark's step is linear in the forces, so from the same start state and step size the
+new end state is the last one plus the response to the force change:
+
+    q2 = q1 + Z (F2 - F1),   v2 = v1 + (2/h) Z dF,   a2 = a1 + (4/h^2) Z dF,
+
+with Z = K_eff^-1 B^T (generalized coordinates x interface dofs), one dense product
+instead of a sparse solve and the right-hand side.  Z costs one solve per interface dof,
+so it is built only once a step size has seen as many repeated steps as it has columns
+(a run with a steady step; never for a step size met once), and only while it is small
+(:data:`MAX_ENTRIES`).  The result equals the full step to round-off; a repeat with the
+same forces gives the remembered end state bit for bit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: the largest Z kept (entries; 8 bytes each): larger bodies always take the full solve
+MAX_ENTRIES = 4_000_000
+
+
+class RepeatedStep:
+    """Remembers a body's last Newmark step (start state, step size, interface forces,
+    end state) and answers a repeat of it from the same start with other forces."""
+
+    def __init__(self, integrator, interface_map):
+        self.integrator = integrator
+        self.interface_map = interface_map
+        self._last = None
+        self._repeating = False  # whether the step being taken repeats the last one
+        self._response = None  # (step size, Z)
+        self._counted, self._repeats = None, 0  # repeats seen at a step size without Z
+
+    def remember(self, time: float, start: tuple, forces: np.ndarray, end: tuple) -> None:
+        """The step from ``start`` (q, v, a at ``time``) under ``forces`` (N, interface
+        dofs) that ended in ``end`` (q, v, a), at the integrator's factored step size.
+        A repeat solved in full is not remembered: every repeat answers from the first
+        step from a start, so a repeat with its forces gives its end state bit for bit."""
+        if self._repeating:
+            return
+        self._last = (time, self.integrator.step_size, start, forces.copy(), end)
+
+    def end_state(self, time: float, step_size: float, start: tuple,
+                  forces: np.ndarray) -> tuple | None:
+        """(q, v, a) at time + step_size from ``start`` under ``forces`` by the remembered
+        step's response, or None when the step is not a repeat of it (or Z is not built)."""
+        self._repeating = self._last is not None and self._same_start(time, step_size, start)
+        if not self._repeating:
+            return None
+        h = self._last[1]
+        response = self._response_for(h)
+        if response is None:
+            return None
+        q1, v1, a1 = self._last[4]
+        change = forces - self._last[3]
+        dq = response @ change
+        return q1 + dq, v1 + (2.0 / h) * dq, a1 + (4.0 / h ** 2) * dq
+
+    def _same_start(self, time: float, step_size: float, start: tuple) -> bool:
+        last_time, h, last_start, _, _ = self._last
+        return (time == last_time
+                and abs(step_size - h) <= self.integrator.SAME_STEP * h
+                and all(np.array_equal(x, y) for x, y in zip(start, last_start)))
+
+    def _response_for(self, h: float):
+        """Z for step size ``h``, built on the repeat that makes its cost worth it."""
+        if self._response is not None and self._response[0] == h:
+            return self._response[1]
+        n, m = self.integrator.stiffness.shape[0], self.interface_map.rows
+        if m == 0 or n * m > MAX_ENTRIES:
+            return None
+        if self._counted != h:
+            self._counted, self._repeats = h, 0
+        self._repeats += 1
+        if self._repeats < m:
+            return None
+        self.integrator.factor(h)
+        z = self.integrator.solve(self.interface_map.transpose.toarray())
+        self._response = (h, z)
+        return z
