@@ -13,7 +13,7 @@ from master.observers import CsvRecorder, MatWriter, PlotWriter, ProgressBar, St
 from master.plan import make_plan
 from master.results import RunResult
 from master.scene import Scene
-from master.settings import resolve
+from master.settings import BACKEND_OPTIONS, resolve
 from master.ssp import load_scene
 
 
@@ -23,7 +23,7 @@ def prepare(scene, **settings):
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
     options: stop, step, tolerance, relative_tolerance, max_iterations,
     refresh_after, perturbation, predictor, refresh, coupling, start, backend,
-    address, parameter_set).
+    address, call_timeout, parameter_set).
     Raises :class:`~master.errors.InputError` listing every problem."""
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
@@ -37,7 +37,7 @@ def prepare(scene, **settings):
     if "stop" in options:  # the user said when to stop: no default assumed
         scene = replace(scene, stop_time=options["stop"], experiment=True)
     return make_plan(replace(scene, master=master), options.get("backend", "in-process"),
-                     {"address": options.get("address")})
+                     {key: options.get(key) for key in BACKEND_OPTIONS})
 
 
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,

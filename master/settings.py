@@ -83,10 +83,20 @@ SETTINGS = {s.keyword: s for s in (
     Setting("address", None, str, "text",
             "the Ray cluster of --backend ray: HOST:PORT of its head (`ray start --head` "
             "prints it) or auto; without it dsim starts a local Ray instance for the run"),
+    Setting("call_timeout", None, float, "positive",
+            "seconds a worker of the ray or isolated backend may take to answer one call "
+            "(a step of its FMUs); past it the worker is stopped and the run ends (exit 1) "
+            "naming its components; default: no limit"),
     Setting("parameter_set", None, str, "text",
             "a parameter set of the scene applied on top of its bindings: an .ssv file's "
             "path in the scene or a ParameterSet's name"),
 )}
+
+#: the settings a backend takes (not the master's), with the backends that take each
+BACKEND_OPTIONS = {"address": "only the ray backend takes it (--backend ray)",
+                   "call_timeout": "only the ray and isolated backends take it (--backend "
+                                   "ray, --isolate): an FMU in dsim's own process cannot be "
+                                   "stopped"}
 
 #: glue:Master attribute -> setting
 BY_ATTRIBUTE = {s.attribute: s for s in SETTINGS.values() if s.attribute}

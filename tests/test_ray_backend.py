@@ -221,6 +221,35 @@ def test_a_scene_file_reaches_a_worker_that_cannot_see_the_drivers_path(ray_loca
     assert copy != mesh and copy.name == "plate.vtk" and copy.read_bytes() == b"a mesh"
 
 
+def test_a_hung_fmu_is_stopped_after_the_call_timeout_with_the_converged_steps(
+        built, ray_local, tmp_path, capsys):
+    """The oscillator never returns from its step to t = 0.25 s: with --call-timeout the
+    worker is stopped, the run fails naming the component and time, the rows stay."""
+    fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES,
+                defines=("HANG_TIME=0.2475",))
+    folder = oscillator_scene(tmp_path / "scene", built, fmu)
+    target = tmp_path / "run.csv"
+    started = time.monotonic()
+    code, lines = run_cli(capsys, folder, "--isolate", "--call-timeout", "2", "--out", target)
+    assert code == 1 and time.monotonic() - started < 60
+    assert re.fullmatch(r"dsim: simulation failed: step 50 \(t = 0\.25 s\): component "
+                        r"'third': no answer from the worker in 2 s \(--call-timeout\): the "
+                        "FMU hangs or is too slow; the worker was stopped", lines[0]), lines
+    header, data = read_csv(target)
+    assert data.shape[0] == 50 and abs(data[-1, 0] - 0.245) < 1e-12
+
+
+def test_a_call_timeout_needs_a_backend_that_can_stop_an_fmu(built, capsys):
+    code, lines = run_cli(capsys, built["ssp"] / "spring_mass_linear.ssp", "--call-timeout",
+                          "5")
+    assert code == 2 and lines == ["dsim: error: setting call_timeout: only the ray and "
+                                   "isolated backends take it (--backend ray, --isolate): an "
+                                   "FMU in dsim's own process cannot be stopped"]
+    code, lines = run_cli(capsys, built["ssp"] / "spring_mass_linear.ssp", "--isolate",
+                          "--call-timeout", "-1")
+    assert code == 2 and "call_timeout must be a finite number greater than 0" in lines[0]
+
+
 def test_a_worker_that_dies_while_its_fmu_is_instantiated_is_bad_input(
         built, ray_local, tmp_path, capsys):
     fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES,

@@ -20,7 +20,9 @@ class Backend(ABC):
     def problems(cls, **options) -> list[str]:
         """What is wrong with running on this backend with ``options`` (the run
         options that are not master settings, such as ``address``), one line each."""
-        return [f"setting {key}: only the ray backend takes it (--backend ray)"
+        from master.settings import BACKEND_OPTIONS
+
+        return [f"setting {key}: {BACKEND_OPTIONS[key]}"
                 for key, value in options.items() if value is not None]
 
     @classmethod

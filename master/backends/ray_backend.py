@@ -41,6 +41,8 @@ class _Cluster:
         #: per worker: {"node": Ray node id, "pid": process id}, once started
         self.places = [None] * len(hosts)
         self.time = None
+        #: seconds a worker may take to answer one call (None: no limit)
+        self.call_timeout: float | None = None
         self.dead: set[int] = set()
         self.closed = False
         #: subsystem name -> its counters, taken before the workers end
@@ -69,7 +71,8 @@ class RayBackend(Backend):
     # --- set-up ------------------------------------------------------------------
     @classmethod
     def problems(cls, **options) -> list[str]:
-        found = super().problems(**{k: v for k, v in options.items() if k != "address"})
+        found = super().problems(**{k: v for k, v in options.items()
+                                    if k not in ("address", "call_timeout")})
         if not available():
             found.append(f"backend '{cls.name}' needs the ray package: {INSTALL}")
         address = options.get("address")
@@ -78,10 +81,13 @@ class RayBackend(Backend):
         return found
 
     @classmethod
-    def from_specs(cls, specs, address=None, **options) -> "RayBackend":
+    def from_specs(cls, specs, address=None, call_timeout=None,
+                   **options) -> "RayBackend":
         connection = connect(address)
         try:
-            return cls._start(connection, list(specs))
+            backend = cls._start(connection, list(specs))
+            backend._cluster.call_timeout = call_timeout
+            return backend
         except BaseException:
             connection.close()
             raise
@@ -198,7 +204,14 @@ class RayBackend(Backend):
         ray = self._cluster.connection.ray
         who = _who(self._cluster.owners[host])
         try:
-            return ray.get(ref)
+            return ray.get(ref, timeout=self._cluster.call_timeout)
+        except ray.exceptions.GetTimeoutError:
+            self._cluster.dead.add(host)
+            ray.kill(self._cluster.hosts[host])  # a hung FMU: its process must go
+            raise SimulationError(f"{who}: no answer from the worker in "
+                                  f"{self._cluster.call_timeout:g} s (--call-timeout): the "
+                                  "FMU hangs or is too slow; the worker was stopped",
+                                  time=self._cluster.time) from None
         except ray.exceptions.RayTaskError as error:
             raise _cause(error) from None
         except ray.exceptions.RayActorError:
@@ -368,7 +381,7 @@ class IsolatedBackend(RayBackend):
 
     @classmethod
     def from_specs(cls, specs, address=None, **options) -> "IsolatedBackend":
-        return super().from_specs(specs, None, **options)
+        return super().from_specs(specs, None, **options)  # this machine's own instance
 
 
 def _shipped_files(shipment, spec) -> tuple:

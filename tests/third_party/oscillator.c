@@ -9,7 +9,8 @@
  * discarded (fmi2Discard, state unchanged), as an FMU whose own solver cannot take
  * it would.  With -DCRASH_TIME=t its process ends abruptly (_exit) in the first
  * step that reaches t (t < 0: when it is instantiated), as a crashing FMU takes down
- * whatever process loads it. */
+ * whatever process loads it.  With -DHANG_TIME=t the first step that reaches t never
+ * returns, as an FMU stuck in its own solver. */
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -156,6 +157,9 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
     double *x = m->x;
 #ifdef CRASH_TIME
     if (t + h >= CRASH_TIME) _exit(70);
+#endif
+#ifdef HANG_TIME
+    while (t + h >= HANG_TIME) pause();
 #endif
     if (x[VR_HMAX] > 0.0 && h > x[VR_HMAX] * (1.0 + 1e-12)) {
         m->cb.logger(m->cb.componentEnvironment, m->name, fmi2Discard, "logStatusDiscard",
