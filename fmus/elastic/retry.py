@@ -31,7 +31,7 @@ class RepeatedStep:
         self.interface_map = interface_map
         self._last = None
         self._repeating = False  # whether the step being taken repeats the last one
-        self._response = None  # (step size, Z)
+        self._response = None  # (step size, Z^T: one row per interface dof)
         self._counted, self._repeats = None, 0  # repeats seen at a step size without Z
 
     def remember(self, time: float, start: tuple, forces: np.ndarray, end: tuple) -> None:
@@ -56,7 +56,9 @@ class RepeatedStep:
             return None
         q1, v1, a1 = self._last[4]
         change = forces - self._last[3]
-        dq = response @ change
+        # einsum's own loop, not BLAS: a threaded BLAS may sum in another order in
+        # another process, and a run must give the same bits wherever its FMUs live
+        dq = np.einsum("ji,j->i", response, change)
         return q1 + dq, v1 + (2.0 / h) * dq, a1 + (4.0 / h ** 2) * dq
 
     def _same_start(self, time: float, step_size: float, start: tuple) -> bool:
@@ -66,7 +68,8 @@ class RepeatedStep:
                 and all(np.array_equal(x, y) for x, y in zip(start, last_start)))
 
     def _response_for(self, h: float):
-        """Z for step size ``h``, built on the repeat that makes its cost worth it."""
+        """Z^T for step size ``h`` (single-vector solves, as a step's: the same bits in
+        any process), built on the repeat that makes its cost worth it."""
         if self._response is not None and self._response[0] == h:
             return self._response[1]
         n, m = self.integrator.stiffness.shape[0], self.interface_map.rows
@@ -78,6 +81,7 @@ class RepeatedStep:
         if self._repeats < m:
             return None
         self.integrator.factor(h)
-        z = self.integrator.solve(self.interface_map.transpose.toarray())
+        columns = self.interface_map.transpose.toarray().T  # one per interface dof
+        z = np.array([self.integrator.solve(column) for column in columns])  # Z^T, m x n
         self._response = (h, z)
         return z
