@@ -82,13 +82,16 @@ class ComponentSpec:
 @dataclass
 class SceneSpec:
     """A scene to assemble: components, causal connections ((component, variable)
-    pairs), joints (dicts of glue:Joint attributes and law), the experiment."""
+    pairs), joints (dicts of glue:Joint attributes and law), port maps of FMUs whose
+    variables are not named as dsim's ports are, the experiment."""
 
     name: str
     description: str = ""
     components: list = field(default_factory=list)
     connections: list = field(default_factory=list)
     joints: list = field(default_factory=list)
+    #: glue:Port maps (dicts of its attributes: component, name, dofs, force, ...)
+    ports: list = field(default_factory=list)
     start: float = 0.0
     stop: float = 1.0
     master: dict = field(default_factory=dict)
@@ -135,12 +138,14 @@ def system_structure(spec: SceneSpec) -> bytes:
         for (start, output), (end, input_) in spec.connections:
             etree.SubElement(connections, _q(SSD, "Connection"), startElement=start,
                              startConnector=output, endElement=end, endConnector=input_)
-    if spec.joints:
+    if spec.joints or spec.ports:
         annotation = etree.SubElement(etree.SubElement(system, _q(SSD, "Annotations")),
                                       _q(SSC, "Annotation"), type="org.dsim.gluing")
         gluing = etree.SubElement(annotation, _q(GLUE, "Gluing"), nsmap={"glue": GLUE})
         for joint in spec.joints:
             _joint(gluing, joint)
+        for port in spec.ports:
+            etree.SubElement(gluing, _q(GLUE, "Port"), {k: v for k, v in port.items() if v})
     experiment = etree.SubElement(root, _q(SSD, "DefaultExperiment"),
                                   startTime=repr(float(spec.start)),
                                   stopTime=repr(float(spec.stop)))

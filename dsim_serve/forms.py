@@ -95,7 +95,7 @@ def _joint(fields: dict, k: int, problems: list) -> dict | None:
             problems.append(f"{where}: give its {label}")
     joint = {"name": name, "a": a, "b": b, "dofs": value("dofs") or "x",
              "kind": value("kind") or "fixed", "measure": value("measure") or "displacement"}
-    for key in ("k0", "k1", "c0", "c1"):
+    for key in ("k0", "k1", "c0", "c1", "xi", "omega"):
         text = value(key)
         if text:
             try:
@@ -107,7 +107,50 @@ def _joint(fields: dict, k: int, problems: list) -> dict | None:
                 problems.append(f"{where}: {key} '{text}' is not a number")
     if joint["kind"] == "flexible" and "k0" not in joint:
         problems.append(f"{where}: a flexible joint needs its stiffness k0")
+    if joint["measure"] == "penalized" and "omega" not in joint:
+        problems.append(f"{where}: the penalized measure needs omega (and xi, default 1)")
     return joint
+
+
+#: the variable attributes of a port map, and whether each is required
+PORT_VARIABLES = {"force": ("input", True), "position": ("output", True),
+                  "velocity": ("output", False), "acceleration": ("output", False)}
+
+
+def _port(fields: dict, k: int, variables_of: dict, problems: list) -> dict | None:
+    """A glue:Port map from row ``k`` of the form: a component's variables (one per
+    dof) named as a port's force, position, velocity and acceleration."""
+    def value(name):
+        values = fields.get(f"port_{name}", [])
+        return " ".join(str(values[k]).split()) if k < len(values) else ""
+
+    port = {"component": value("component"), "name": value("name"),
+            "dofs": value("dofs") or "x", **{key: value(key) for key in PORT_VARIABLES}}
+    if not any(port[key] for key in ("component", "name", "force", "position")):
+        return None
+    where = f"port {k + 1}" + (f" '{port['component']}.{port['name']}'"
+                               if port["component"] else "")
+    variables = variables_of.get(port["component"])
+    if variables is None:
+        problems.append(f"{where}: '{port['component']}' is not a component of the scene")
+        return port
+    if not port["name"] or "." in port["name"]:
+        problems.append(f"{where}: give the port a name without dots")
+    dofs = port["dofs"].split()
+    for key, (causality, required) in PORT_VARIABLES.items():
+        names = port[key].split()
+        if not names:
+            if required:
+                problems.append(f"{where}: give its {key} variable(s), one per dof")
+            continue
+        if len(names) != len(dofs):
+            problems.append(f"{where}: {key} names {len(names)} variables for "
+                            f"{len(dofs)} dofs ({' '.join(dofs)})")
+        for name in names:
+            variable = variables.get(name)
+            if variable is None or variable["causality"] != causality:
+                problems.append(f"{where}: {key} '{name}' is not an {causality} of the FMU")
+    return port
 
 
 def scene_spec(fields: dict, store: Store) -> tuple[SceneSpec, dict]:
@@ -167,6 +210,10 @@ def scene_spec(fields: dict, store: Store) -> tuple[SceneSpec, dict]:
         joint = _joint(fields, k, problems)
         if joint:
             spec.joints.append(joint)
+    for k in range(len(fields.get("port_component", []))):
+        port = _port(fields, k, variables_of, problems)
+        if port:
+            spec.ports.append(port)
     experiment = {key: str((fields.get(key) or [""])[0]).strip()
                   for key in ("start", "stop", "step", "tolerance", "max_iterations")}
     for key in ("start", "stop"):

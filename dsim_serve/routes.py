@@ -253,9 +253,10 @@ def _assemble_page(request: Request, status: int = 200, problems=(), fields=None
 
 def _form_rows(fields: dict) -> dict:
     """How many rows of each kind the assembly form shows (what was sent, or the
-    defaults: two components, one joint, one connection)."""
+    defaults: two components, one joint, no port map, one connection)."""
     return {"component": max(2, len(fields.get("component_name", []))),
             "joint": max(1, len(fields.get("joint_name", []))),
+            "port": len(fields.get("port_component", [])),
             "connection": max(1, len(fields.get("connection_start", [])))}
 
 
@@ -267,7 +268,7 @@ def assemble_form(request: Request):
 @router.get("/scenes/new/row/{kind}", response_class=HTMLResponse)
 def assemble_row(request: Request, kind: str):
     """One more empty row of the assembly form (htmx appends it)."""
-    if kind not in ("component", "joint", "connection"):
+    if kind not in ("component", "joint", "port", "connection"):
         raise HTTPException(404, "no such row")
     models = _store(request).all("SELECT id, name, filename FROM models ORDER BY name, id")
     return _render(request, "_row.html", kind=kind, models=models, fields={}, k=None)

@@ -229,6 +229,63 @@ def test_an_assembled_scene_is_a_standard_ssp_that_dsim_runs(server, built, tmp_
     assert client.get(f"/models/{model['id']}").text.count("two_masses") >= 1
 
 
+#: tests/test_third_party_fmu.py's scene (the C oscillator glued through a port map of
+#: its own variable names to a SpringMass) as the assembly form describes it
+THIRD_PARTY_FORM = {
+    "name": "third_party", "component_name": ["third", "mass"],
+    "component_parameters": ["m = 2\nk = 300\ns0 = 0.01",
+                             "m[1] = 3\nk_ground[1] = 200\nx0[1] = 0.01\nFa[1] = 5\n"
+                             "omega[1] = 7"],
+    "component_record": ["s", "x[1]"],
+    "port_component": ["third"], "port_name": ["P"], "port_dofs": ["x"],
+    "port_force": ["F_in"], "port_position": ["s"], "port_velocity": ["v"],
+    "port_acceleration": ["a"],
+    "joint_name": ["j"], "joint_a": ["third.P"], "joint_b": ["mass.P"], "joint_dofs": ["x"],
+    "joint_kind": ["fixed"], "joint_measure": ["displacement"],
+    "connection_start": [""], "connection_end": [""],
+    "start": ["0"], "stop": ["2"], "step": ["0.005"], "tolerance": ["1e-13"],
+}
+
+
+def test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form(server, built,
+                                                                       tmp_path):
+    """The saved scene runs as the hand-written one does, to the last bit; the same
+    joint on the penalized measure runs too."""
+    from tests.test_third_party_fmu import scene as hand_written
+    from tests.third_party.build import OSCILLATOR_VARIABLES, c_fmu
+
+    client, store, _ = server
+    oscillator = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES)
+    ids = []
+    for fmu in (oscillator, built["fmus"] / "SpringMass.fmu"):
+        answer = upload(client, fmu)
+        assert answer.status_code == 200, answer.text
+        ids.append(answer.json()["id"])
+    found = {}
+    for measure, penalty in (("displacement", {}),
+                             ("penalized", {"joint_xi": ["1"], "joint_omega": ["200"]})):
+        form = {**THIRD_PARTY_FORM, "name": f"third_party_{measure}",
+                "component_model": [str(i) for i in ids], "joint_measure": [measure],
+                **penalty}
+        answer = client.post("/scenes/new", data=form, follow_redirects=False)
+        assert answer.status_code == 303, answer.text
+        archive = tmp_path / f"{measure}.ssp"
+        archive.write_bytes(client.get(f"{answer.headers['location']}/download").content)
+        with zipfile.ZipFile(archive) as packed:
+            ssd = packed.read("SystemStructure.ssd").decode()
+        assert '<glue:Port component="third" name="P" dofs="x" force="F_in"' in ssd
+        found[measure] = dsim.simulate(archive)
+        assert found[measure].ok, found[measure].message
+    expected = dsim.simulate(hand_written(tmp_path / "scene", built, oscillator))
+    for column in ("third.s", "mass.x[1]", "j.f_x"):
+        assert np.array_equal(found["displacement"][column], expected[column]), column
+    # the penalized measure keeps the displacement only near compatibility (measured
+    # 1.5e-4 of the peak, from the first steps): another measure, the same motion
+    peak = np.max(np.abs(expected["third.s"]))
+    difference = np.max(np.abs(found["penalized"]["third.s"] - expected["third.s"]))
+    assert 0.0 < difference < 1e-3 * peak
+
+
 @pytest.mark.parametrize("change, expected", [
     ({"component_parameters": ["mass = 3", ""]}, "component 1 'left': the FMU has no "
                                                  "variable 'mass'"),
@@ -238,6 +295,11 @@ def test_an_assembled_scene_is_a_standard_ssp_that_dsim_runs(server, built, tmp_
     ({"joint_b": ["right.R"]}, "port 'R'"),
     ({"component_name": ["left", "left"]}, "the name is used twice"),
     ({"step": ["-1"]}, "setting step must be a finite number greater than 0"),
+    ({"joint_measure": ["penalized"]}, "joint 1 'j1': the penalized measure needs omega"),
+    ({"port_component": ["right"], "port_name": ["R"], "port_force": ["x[1]"],
+      "port_position": ["P.u_x"]}, "port 1 'right.R': force 'x[1]' is not an input of the FMU"),
+    ({"port_component": ["nobody"], "port_name": ["R"], "port_force": ["a"],
+      "port_position": ["b"]}, "port 1 'nobody.R': 'nobody' is not a component of the scene"),
 ])
 def test_assembly_mistakes_are_listed_and_the_form_kept(server, built, change, expected):
     client, _, _ = server
