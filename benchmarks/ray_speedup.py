@@ -155,13 +155,14 @@ def _worker_groups(statistics) -> list[list[str]]:
 
 def report(args, startup: float, heavy, light, sweep, ceilings, workers: int) -> str:
     """docs/ray_benchmark.md from the measurements."""
-    from fmus.elastic.parts import frame_port_nodes
+    from build_fmus.frame_scenes import part_parameters
 
     here0, there0 = heavy[0]
     do_step = {name: 1e3 * c["functions"]["fmi2DoStep"]["seconds"]
                / c["functions"]["fmi2DoStep"]["calls"]
                for name, c in here0["statistics"]["components"].items()}
-    rail_dofs = 2 * sum(frame_port_nodes("rail_left", args.element_size).values())
+    rail = part_parameters("rail_left", args.element_size)
+    rail_dofs = 2 * sum(count for key, count in rail.items() if key.endswith(".nodes"))
     groups = _worker_groups(there0["statistics"])
     # what one trial of all parts costs per worker (in-process doStep times): the most a
     # deal of the parts onto the workers lets the Newton iterations gain
