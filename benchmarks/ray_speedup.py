@@ -6,7 +6,7 @@ repeating them, so that every ratio compares runs made under the same load of a
 shared machine (the table gives each repetition's ratio and the median):
 
 1. heavy subsystems: frame_split meshed at a fine element size (``--element-size``,
-   0.005 m: each rail's step takes tens of milliseconds), five ElasticBody2D FMUs,
+   0.005 m: each rail's step takes tens of milliseconds), five ElasticBody FMUs,
    in-process against a local Ray instance with one worker per core;
 2. the latency Ray adds per Newton iteration on a light scene (spring_mass_linear:
    two FMUs whose step takes microseconds);
@@ -217,7 +217,7 @@ def report(args, startup: float, heavy, light, sweep, ceilings, workers: int) ->
         *rows,
         "",
         f"**Heavy subsystems.** frame_fine is frame_split with every part meshed at "
-        f"{args.element_size:g} m: five ElasticBody2D FMUs glued node to node on six edges, "
+        f"{args.element_size:g} m: five ElasticBody FMUs glued node to node on six edges, "
         f"{here0['steps_count']} steps of 1e-4 s. In-process one fmi2DoStep took "
         + ", ".join(f"{v:.1f} ms ({k})" for k, v in do_step.items())
         + f": the two rails carry most of the work. On {workers} workers the parts are dealt "
