@@ -75,6 +75,25 @@ def _cmd_run(args) -> int:
     return result.exit_code
 
 
+def port_summary(ports: dict) -> str:
+    """The ports a joint can glue (a force input on every dof), a node set's slots
+    S[1] .. S[n] as one entry: ``P(x), port1[1..5](x y)``."""
+    slots: dict[str, list[int]] = {}
+    dofs_of: dict[str, str] = {}
+    for port, dofs in ports.items():
+        if not dofs or not all("f" in kinds for kinds in dofs.values()):
+            continue  # outputs only (a probe): nothing to glue
+        base, bracket, index = port.partition("[")
+        key = base if bracket and index[:-1].isdigit() else port
+        slots.setdefault(key, [])
+        if key != port:
+            slots[key].append(int(index[:-1]))
+        dofs_of[key] = " ".join(sorted(dofs))
+    return ", ".join(
+        (f"{key}[{min(numbers)}..{max(numbers)}]" if numbers else key) + f"({dofs_of[key]})"
+        for key, numbers in sorted(slots.items()))
+
+
 def _cmd_info(args) -> int:
     from master.api import prepare
     from master.fmu import can_save_state
@@ -98,8 +117,7 @@ def _cmd_info(args) -> int:
                  f"variable step {'yes' if cs.canHandleVariableCommunicationStepSize else 'no'}"]
         role = ("glued: iterated with rollback" if index in checked.glued
                 else "free: one doStep per macro step, never rolled back")
-        port_text = ", ".join(f"{p}({' '.join(sorted(d))})" for p, d in sorted(
-            checked.ports[component.path].items()))
+        port_text = port_summary(checked.ports[component.path])
         print(f"  {component.path}: {component.source.name} "
               f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
         print(f"      {role}")
@@ -107,6 +125,9 @@ def _cmd_info(args) -> int:
             print(f"      placed on Ray resource {scene.placements[component.path]} "
                   "(--backend ray)")
         print(f"      ports: {port_text or 'none'}")
+        for name, file in component.files.items():
+            print(f"      scene file: {name} = {component.parameters[name][1]} "
+                  f"({file.stat().st_size} bytes)")
         records = [name for path, name in checked.recorded if path == component.path]
         print(f"      records: {', '.join(records) or 'nothing'}")
     print(f"joints ({len(scene.joints)}):")

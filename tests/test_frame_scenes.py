@@ -204,6 +204,16 @@ def test_the_scene_hands_its_mesh_files_to_the_fmus(built):
     assert spec.files == ("mesh_file",)
 
 
+def test_info_shows_the_gluable_ports_and_the_scene_files(built, capsys):
+    assert main(["info", str(built["ssp"] / "frame_nested_flat.ssp")]) == 0
+    text = capsys.readouterr().out
+    rail = text[text.index("  rail_left:"):text.index("  rail_right:")]
+    assert ("ports: port1[1..5](x y z), port2[1..5](x y z), port3[1..5](x y z), "
+            "rigid1(rx ry rz x y z)") in rail
+    assert "probe1" not in rail and "load(" not in rail  # outputs only: not ports
+    assert "scene file: mesh_file = resources/meshes/frame_rail_left_0.025.vtk (" in rail
+
+
 def test_bad_mesh_through_the_console_is_one_line(built, tmp_path):
     bad = _edited(built, tmp_path, "resources/meshes/deck_plate.vtk", "elastic_body_fmu.py")
     process = subprocess.run([sys.executable, "-m", "master.cli", "run", str(bad), "--out",
