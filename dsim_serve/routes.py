@@ -474,6 +474,16 @@ def _sse(event: str, data: str) -> str:
     return f"event: {event}\n" + "".join(f"data: {line}\n" for line in data.split("\n")) + "\n"
 
 
+def _thinned_history(lines: list) -> list:
+    """The live lines a page receives when it opens: every line that is not a sample,
+    and at most about :data:`results.MAX_POINTS` samples evenly spread, the last one
+    kept (a long run writes 20 samples a second)."""
+    samples = [k for k, line in enumerate(lines) if line.get("type") == "sample"]
+    kept = set(samples[results.thin(len(samples))]) | set(samples[-1:])
+    return [line for k, line in enumerate(lines)
+            if line.get("type") != "sample" or k in kept]
+
+
 def _new_lines(path: Path, offset: int) -> tuple[list, int]:
     """Whole JSON lines of ``live.jsonl`` after ``offset``, and the new offset."""
     try:
@@ -500,7 +510,10 @@ async def run_events(request: Request, run_id: int):
         yield "retry: 2000\n\n"
         while True:
             context = await run_in_threadpool(_run_context, request, run_id)
+            first = offset == 0
             lines, offset = await run_in_threadpool(_new_lines, path, offset)
+            if first:  # a page opened on a long run: its history, thinned
+                lines = _thinned_history(lines)
             if lines:
                 yield _sse("samples", json.dumps(lines))
             state = (context["run"]["status"], context["run"]["cancel_requested"])

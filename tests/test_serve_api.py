@@ -141,6 +141,29 @@ def test_a_run_on_the_isolated_backend_gives_the_in_process_numbers(server):
     assert csv[0] == csv[1] and csv[0].count(b"\n") == 32  # header + 31 steps
 
 
+def test_a_page_opened_on_a_long_run_gets_its_history_thinned(server):
+    """A long run writes 20 samples a second: a page that opens gets every line that
+    is not a sample and at most about 4000 samples, the first and the last among them."""
+    import json
+
+    client, store, scene_id = server
+    run_id = launch(client, scene_id, stop="0.2")
+    assert wait_run(client, run_id)["status"] == "completed"
+    live = store.run_folder(run_id) / "live.jsonl"
+    start = [line for line in live.read_text().splitlines() if '"start"' in line]
+    samples = [json.dumps({"type": "sample", "i": i, "t": i * 0.01, "wall": i * 1e-3,
+                           "it_mean": 2.0, "it_max": 2, "refreshes": 1, "res": 0.0,
+                           "v": [0.0], "fmu": [0.0, 0.0]}) for i in range(100001)]
+    live.write_text("\n".join(start + samples) + "\n")
+    events = client.get(f"/runs/{run_id}/events").text
+    data = "".join(line[len("data: "):] for line in events.split("event: samples\n", 1)[1]
+                   .split("\n\n", 1)[0].splitlines())
+    sent = json.loads(data)
+    numbers = [line["i"] for line in sent if line["type"] == "sample"]
+    assert sent[0]["type"] == "start" and 3000 < len(numbers) <= 4002
+    assert numbers[0] == 0 and numbers[-1] == 100000 and numbers == sorted(numbers)
+
+
 def test_a_rerun_uses_the_same_files_and_settings_and_gives_the_same_numbers(server):
     client, store, scene_id = server
     first = wait_run(client, launch(client, scene_id, stop="0.5", predictor="constant"))

@@ -55,9 +55,19 @@
       }
     }
 
+    // a long watch: past this many points a chart keeps every other one (and the last)
+    var MOST = 8000;
+    function halve(p) {
+      if (!p || p.data[0].length <= MOST) { return; }
+      p.data = p.data.map(function (values) {
+        return values.filter(function (v, k) { return k % 2 === 0 || k === values.length - 1; });
+      });
+    }
+
     live.addEventListener("htmx:sseMessage", function (event) {
       if (event.detail.type !== "samples") { return; }
       JSON.parse(event.detail.data).forEach(handle);
+      [state.signals, state.health, state.fmu].forEach(halve);
       [state.signals, state.health, state.fmu].forEach(redraw);
       live.dataset.samples = state.samples;
     });
