@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-#: the largest Z kept (entries; 8 bytes each): larger bodies always take the full solve
-MAX_ENTRIES = 4_000_000
+#: the largest Z kept (entries, 8 bytes each: 8 MB): larger bodies always take the full solve
+MAX_ENTRIES = 1_000_000
 
 
 class RepeatedStep:
