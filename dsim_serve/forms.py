@@ -231,6 +231,62 @@ def scene_spec(fields: dict, store: Store) -> tuple[SceneSpec, dict]:
     return spec, files
 
 
+def _text(value) -> str:
+    """A stored value as the form shows it (SSV text: full precision, true/false)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _numbers(values) -> str:
+    return " ".join(repr(float(v)) for v in values) if any(values) else ""
+
+
+def scene_form(scene: dict) -> dict:
+    """The assembly form's fields for a stored scene (``scene``: its row, with the
+    description :func:`dsim_serve.inspect.describe_scene` made), named "<name>_edited";
+    FormError when the form cannot hold it (nested systems, files of the scene)."""
+    d = scene["description"]
+    problems = []
+    nested = [c["path"] for c in d["components"] if "." in c["path"]]
+    if nested:
+        problems.append(f"scene '{d['name']}' has nested systems ({', '.join(nested[:3])}"
+                        f"{' ...' if len(nested) > 3 else ''}): the form makes flat scenes only")
+    if d.get("scene_files"):
+        problems.append(f"scene '{d['name']}' has parameters naming its own files "
+                        f"({', '.join(d['scene_files'][:3])}): the form cannot carry them")
+    if problems:
+        raise FormError(problems)
+    master = d["master"]
+    fields = {"name": [f"{d['name']}_edited"], "description": [d.get("description", "")],
+              "start": [_text(d["start_time"])], "stop": [_text(d["stop_time"])],
+              "step": [_text(master["step"])], "tolerance": [_text(master["tolerance"])],
+              "max_iterations": [_text(master["max_iterations"])]}
+    for c in d["components"]:
+        fields.setdefault("component_name", []).append(c["path"])
+        fields.setdefault("component_model", []).append(str(c.get("model_id", "")))
+        fields.setdefault("component_parameters", []).append("\n".join(
+            f"{name} = {_text(value)}" for name, (_, value) in c["parameters"].items()))
+        fields.setdefault("component_record", []).append(" ".join(c["outputs"]))
+    for j in d["joints"]:
+        row = {"name": j["name"], "a": j["a"], "b": j["b"], "dofs": " ".join(j["dofs"]),
+               "kind": j["kind"], "measure": j["measure"],
+               **{key: _numbers(j[key]) for key in ("k0", "c0", "k1", "c1")},
+               "xi": _text(j.get("xi", 1.0)) if j["measure"] == "penalized" else "",
+               "omega": _text(j.get("omega", 0.0)) if j["measure"] == "penalized" else ""}
+        for key, value in row.items():
+            fields.setdefault(f"joint_{key}", []).append(value)
+    for p in d.get("port_maps", []):
+        row = {"component": p["component"], "name": p["name"], "dofs": " ".join(p["dofs"]),
+               **{key: " ".join(p[key]) for key in PORT_VARIABLES}}
+        for key, value in row.items():
+            fields.setdefault(f"port_{key}", []).append(value)
+    for c in d["connections"]:
+        fields.setdefault("connection_start", []).append(c["start"])
+        fields.setdefault("connection_end", []).append(c["end"])
+    return fields
+
+
 def parameter_edits(fields: dict, rows: list[dict]) -> list:
     """(root-relative name, type, SSV text) of every parameter whose field differs
     from the value shown (``rows``: the editable parameters in page order)."""

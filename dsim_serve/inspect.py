@@ -106,7 +106,14 @@ def _joint(joint) -> dict:
     return {"name": joint.name, "a": ".".join(joint.a), "b": ".".join(joint.b),
             "dofs": list(joint.dofs), "kind": joint.kind, "measure": joint.measure,
             "k0": list(joint.k0), "k1": list(joint.k1), "c0": list(joint.c0),
-            "c1": list(joint.c1)}
+            "c1": list(joint.c1), "xi": joint.xi, "omega": joint.omega}
+
+
+def _port_map(port_map) -> dict:
+    return {"component": port_map.component, "name": port_map.name,
+            "dofs": list(port_map.dofs),
+            **{key: list(getattr(port_map, key) or ()) for key in
+               ("force", "position", "velocity", "acceleration")}}
 
 
 def _parameter_sets(folder: Path) -> list[dict]:
@@ -175,6 +182,9 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
             "connections": [{"start": ".".join(c.start), "end": ".".join(c.end)}
                             for c in scene.connections],
             "joints": [_joint(j) for j in scene.joints],
+            "port_maps": [_port_map(p) for p in scene.port_maps],
+            "scene_files": sorted({f"{c.path}.{name}" for c in scene.components
+                                   for name in c.files}),
             "columns": list(plan.columns) + list(layout.labels) + list(plan.text_columns),
             "parameter_sets": _parameter_sets(folder),
             "fmus": fmus,

@@ -23,8 +23,8 @@ from fastapi.responses import (FileResponse, HTMLResponse, JSONResponse, Redirec
                                Response, StreamingResponse)
 
 from dsim_serve import diagram, results
-from dsim_serve.forms import (FormError, parameter_edits, run_settings, scene_spec,
-                              sweep_spec)
+from dsim_serve.forms import (FormError, parameter_edits, run_settings, scene_form,
+                              scene_spec, sweep_spec)
 from dsim_serve.store import ACTIVE, Store
 from dsim_serve.uploads import UploadError, store_scene, store_upload
 from master.sweep import TIGHTEST
@@ -261,8 +261,16 @@ def _form_rows(fields: dict) -> dict:
 
 
 @router.get("/scenes/new", response_class=HTMLResponse)
-def assemble_form(request: Request):
-    return _assemble_page(request)
+def assemble_form(request: Request, start: int | None = None):
+    """The assembly form, empty or (``start``: a stored scene's id) filled with that
+    scene, to save as a new one."""
+    if start is None:
+        return _assemble_page(request)
+    scene = _get(_store(request), "scenes", start)
+    try:
+        return _assemble_page(request, fields=scene_form(scene))
+    except FormError as error:
+        return _assemble_page(request, 400, error.problems)
 
 
 @router.get("/scenes/new/row/{kind}", response_class=HTMLResponse)

@@ -274,6 +274,7 @@ def test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form(server, 
                                                                        tmp_path):
     """The saved scene runs as the hand-written one does, to the last bit; the same
     joint on the penalized measure runs too."""
+    from dsim_serve.forms import scene_form
     from tests.test_third_party_fmu import scene as hand_written
     from tests.third_party.build import OSCILLATOR_VARIABLES, c_fmu
 
@@ -299,6 +300,14 @@ def test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form(server, 
         assert '<glue:Port component="third" name="P" dofs="x" force="F_in"' in ssd
         found[measure] = dsim.simulate(archive)
         assert found[measure].ok, found[measure].message
+        # and the form filled from the saved scene saves it again, port map and penalty
+        scene_id = int(answer.headers["location"].rsplit("/", 1)[1])
+        again = client.post("/scenes/new", data=scene_form(store.one(
+            "SELECT * FROM scenes WHERE id = ?", scene_id)), follow_redirects=False)
+        assert again.status_code == 303, again.text
+        copy = tmp_path / f"{measure}_again.ssp"
+        copy.write_bytes(client.get(f"{again.headers['location']}/download").content)
+        assert np.array_equal(dsim.simulate(copy)["j.f_x"], found[measure]["j.f_x"])
     expected = dsim.simulate(hand_written(tmp_path / "scene", built, oscillator))
     for column in ("third.s", "mass.x[1]", "j.f_x"):
         assert np.array_equal(found["displacement"][column], expected[column]), column
@@ -307,6 +316,32 @@ def test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form(server, 
     peak = np.max(np.abs(expected["third.s"]))
     difference = np.max(np.abs(found["penalized"]["third.s"] - expected["third.s"]))
     assert 0.0 < difference < 1e-3 * peak
+
+
+def test_a_stored_scene_fills_the_form_and_saves_as_a_new_one_with_its_numbers(server,
+                                                                              built):
+    """"Edit as a new scene": the form holds every component, parameter, joint and
+    setting of the shipped spring_mass_linear; saved unchanged, it runs to the same bits.
+    A scene the form cannot hold (files of its own) is said so."""
+    from dsim_serve.forms import scene_form
+
+    client, store, scene_id = server
+    page = client.get(f"/scenes/new?start={scene_id}").text.replace("&#39;", "'")
+    assert 'value="spring_mass_linear_edited"' in page and "k_ground[1] = 100.0" in page
+    assert 'value="14.139999999999999"' in page  # the damper, in full precision
+    fields = scene_form(store.one("SELECT * FROM scenes WHERE id = ?", scene_id))
+    answer = client.post("/scenes/new", data=fields, follow_redirects=False)
+    assert answer.status_code == 303, answer.text
+    new_id = int(answer.headers["location"].rsplit("/", 1)[1])
+    runs = [wait_run(client, launch(client, i, ["right.x[2]", "j1.f_x"], stop="1"))
+            for i in (scene_id, new_id)]
+    csv = [(store.run_folder(r["id"]) / "results.csv").read_bytes() for r in runs]
+    assert csv[0] == csv[1] and csv[0].count(b"\n") == 102
+    assert f'href="/scenes/new?start={new_id}"' in client.get(f"/scenes/{new_id}").text
+    other = upload(client, built["ssp"] / "frame_nested_flat.ssp").json()["id"]
+    refused = client.get(f"/scenes/new?start={other}")
+    assert refused.status_code == 400
+    assert "parameters naming its own files (cross_front.mesh_file" in refused.text
 
 
 @pytest.mark.parametrize("change, expected", [
