@@ -13,6 +13,8 @@ from typing import Callable
 
 from lxml import etree
 
+from master.ssp import SCENE_RESOURCES
+
 ROOT = Path(__file__).resolve().parent.parent
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -104,7 +106,7 @@ class SceneWriter:
     def file(self, path: str, save: Callable[[Path], None]) -> str:
         """Ship a file in the scene at ``path`` (under ``resources/``; ``save`` writes
         it); returns ``path``, the String parameter value that names it."""
-        assert path.startswith("resources/"), path  # how dsim tells a file (ssp.py)
+        assert path.startswith(SCENE_RESOURCES), path  # how dsim tells a scene file
         self.files[path] = save
         return path
 

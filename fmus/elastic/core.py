@@ -256,14 +256,10 @@ class ElasticBody(InterfaceCore):
         repeat of the last step from the same state with other forces, as a master's
         Newton iteration makes it, by the body's linear response: fmus/elastic/retry.py)."""
         end = time + step_size
-        start = (self._q, self._v, self._a)
-        repeated = self._repeat.end_state(time, step_size, start, self._forces)
-        if repeated is None:
-            self._q, self._v, self._a = self.integrator.step(
-                self._q, self._v, self._a, self._force(end), step_size)
-            self._repeat.remember(time, start, self._forces, (self._q, self._v, self._a))
-        else:
-            self._q, self._v, self._a = repeated
+        q, v, a = self._q, self._v, self._a
+        self._q, self._v, self._a = self._repeat.step(
+            time, step_size, (q, v, a), self._forces,
+            lambda: self.integrator.step(q, v, a, self._force(end), step_size))
         self.time = end
 
     def interface_kinematics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -29,10 +29,14 @@ class NewmarkAverageAcceleration:
     #: replaced by it: a master's communication steps t_{n+1} - t_n differ in the last bits.
     SAME_STEP = 1e-9
 
+    def same_step(self, step_size: float, reference: float | None) -> bool:
+        """Whether ``step_size`` is ``reference`` up to :data:`SAME_STEP` (s)."""
+        return reference is not None and abs(step_size - reference) <= (
+            self.SAME_STEP * reference)
+
     def factor(self, step_size: float) -> None:
         """Factor K + 2/h C + 4/h^2 M, unless already factored for this ``step_size``."""
-        if self.step_size is not None and abs(step_size - self.step_size) <= (
-                self.SAME_STEP * self.step_size):
+        if self.same_step(step_size, self.step_size):
             return
         if not step_size > 0:
             raise ValueError(f"step size must be positive, got {step_size}")

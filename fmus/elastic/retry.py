@@ -23,48 +23,42 @@ MAX_ENTRIES = 1_000_000
 
 
 class RepeatedStep:
-    """Remembers a body's last Newmark step (start state, step size, interface forces,
-    end state) and answers a repeat of it from the same start with other forces."""
+    """Remembers a body's first Newmark step from a start state (start, step size,
+    interface forces, end state) and answers a repeat of it with other forces."""
 
     def __init__(self, integrator, interface_map):
         self.integrator = integrator
         self.interface_map = interface_map
         self._last = None
-        self._repeating = False  # whether the step being taken repeats the last one
         self._response = None  # (step size, Z^T: one row per interface dof)
         self._counted, self._repeats = None, 0  # repeats seen at a step size without Z
 
-    def remember(self, time: float, start: tuple, forces: np.ndarray, end: tuple) -> None:
-        """The step from ``start`` (q, v, a at ``time``) under ``forces`` (N, interface
-        dofs) that ended in ``end`` (q, v, a), at the integrator's factored step size.
-        A repeat solved in full is not remembered: every repeat answers from the first
-        step from a start, so a repeat with its forces gives its end state bit for bit."""
-        if self._repeating:
-            return
-        self._last = (time, self.integrator.step_size, start, forces.copy(), end)
-
-    def end_state(self, time: float, step_size: float, start: tuple,
-                  forces: np.ndarray) -> tuple | None:
-        """(q, v, a) at time + step_size from ``start`` under ``forces`` by the remembered
-        step's response, or None when the step is not a repeat of it (or Z is not built)."""
-        self._repeating = self._last is not None and self._same_start(time, step_size, start)
-        if not self._repeating:
-            return None
-        h = self._last[1]
-        response = self._response_for(h)
-        if response is None:
-            return None
-        q1, v1, a1 = self._last[4]
-        change = forces - self._last[3]
-        # einsum's own loop, not BLAS: a threaded BLAS may sum in another order in
-        # another process, and a run must give the same bits wherever its FMUs live
-        dq = np.einsum("ji,j->i", response, change)
-        return q1 + dq, v1 + (2.0 / h) * dq, a1 + (4.0 / h ** 2) * dq
+    def step(self, time: float, step_size: float, start: tuple, forces: np.ndarray,
+             full_step) -> tuple:
+        """(q, v, a) at time + step_size from ``start`` (q, v, a at ``time``) under
+        interface ``forces`` (N): by the remembered step's response when this repeats
+        it and Z is built, else ``full_step()``.  Only a first step from a start is
+        remembered, so a repeat with its forces gives its end state bit for bit."""
+        repeating = self._last is not None and self._same_start(time, step_size, start)
+        if repeating:
+            h = self._last[1]
+            response = self._response_for(h)
+            if response is not None:
+                q1, v1, a1 = self._last[4]
+                change = forces - self._last[3]
+                # einsum's own loop, not BLAS: a threaded BLAS may sum in another order
+                # in another process, and a run must give the same bits wherever its
+                # FMUs live
+                dq = np.einsum("ji,j->i", response, change)
+                return q1 + dq, v1 + (2.0 / h) * dq, a1 + (4.0 / h ** 2) * dq
+        end = full_step()
+        if not repeating:
+            self._last = (time, self.integrator.step_size, start, forces.copy(), end)
+        return end
 
     def _same_start(self, time: float, step_size: float, start: tuple) -> bool:
         last_time, h, last_start, _, _ = self._last
-        return (time == last_time
-                and abs(step_size - h) <= self.integrator.SAME_STEP * h
+        return (time == last_time and self.integrator.same_step(step_size, h)
                 and all(np.array_equal(x, y) for x, y in zip(start, last_start)))
 
     def _response_for(self, h: float):
