@@ -28,6 +28,10 @@ import numpy as np
 
 from master.errors import SimulationError
 
+EPS = float(np.finfo(float).eps)
+#: a law residual within this many ulps of its terms is round-off (fmus/newton.py)
+ROUNDOFF_ULPS = 64.0
+
 
 def measure_weights(measure: str, xi: float = 1.0, omega: float = 0.0):
     """(w_u, w_v, w_a) of a kinematic measure."""
@@ -133,13 +137,20 @@ class JointStates:
             residual = np.where(mask, force + forces, 0.0)
             with np.errstate(divide="ignore", invalid="ignore"):
                 delta = np.where(mask, residual / stiffness, 0.0)
-            q = q - delta
-            scale = np.maximum(np.abs(q), 1e-12)
-            if not np.all(np.isfinite(q)):
+            scale = np.maximum(np.abs(q - delta), 1e-12)
+            if not np.all(np.isfinite(q - delta)):
+                q = q - delta
                 break
             if not self.nonlinear or np.all(np.abs(delta) <= self.newton_tolerance * scale
                                             + 1e-300):
+                q = q - delta
                 break
+            # the law's residual at the round-off of its terms: no better q exists
+            terms = np.abs(force - (self.c0 + self.c1 * np.abs(qd)) * qd) + np.abs(
+                (self.c0 + self.c1 * np.abs(qd)) * qd) + np.abs(forces)
+            if np.all(np.abs(residual) <= ROUNDOFF_ULPS * EPS * terms):
+                break
+            q = q - delta
         else:
             raise SimulationError("a flexible joint law has no solution for the "
                                   "current force (Newton on the law did not converge)")

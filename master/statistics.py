@@ -76,6 +76,7 @@ def run_statistics(execution, wall_seconds: float) -> dict:
         "step_cuts": getattr(coupling, "cuts", 0),
         "least_squares_factorizations": getattr(coupling, "regularized", 0),
         "least_squares_steps": getattr(coupling, "least_squares_steps", 0),
+        "roundoff_steps": getattr(coupling, "roundoff_steps", 0),
         "do_steps_per_step": do_steps / steps if steps else 0.0,
         "components": components,
         "warnings": list(execution.warnings),

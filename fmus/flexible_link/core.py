@@ -33,6 +33,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from fmus.interface import InterfaceCore
+from fmus.newton import NewtonCount, at_roundoff, failure_message
 
 from .beam import assemble
 
@@ -102,6 +103,8 @@ class FlexibleLink(InterfaceCore):
         self.qf, self.qfd, self.qfdd = np.zeros(n), np.zeros(n), np.zeros(n)
         self.port_forces = np.zeros((2, 2))
         self.iterations = 0
+        #: converged steps, and those that ended at the round-off floor (fmus.newton)
+        self.newton = NewtonCount()
 
     # --- pieces ---------------------------------------------------------------
     def natural_frequencies(self, count: int = 6) -> np.ndarray:
@@ -201,13 +204,17 @@ class FlexibleLink(InterfaceCore):
             qfdd1 = qfdd_new
             qf1, qfd1 = qf_pred + 0.25 * h * h * qfdd1, qfd_pred + 0.5 * h * qfdd1
             scale = 1.0 + np.max(np.abs(qfdd1))
-            if (change <= self.tolerance * scale
-                    and abs(alpha1 - alpha_prev) <= self.tolerance * (1.0 + abs(alpha1))):
+            turn = abs(alpha1 - alpha_prev)
+            if change <= self.tolerance * scale and turn <= self.tolerance * (1.0 + abs(alpha1)):
+                self.newton.ended("increment")
+                break
+            if at_roundoff(change, scale) and at_roundoff(turn, 1.0 + abs(alpha1)):
+                # both partitions move by round-off only: the iteration can do no better
+                self.newton.ended("round-off")
                 break
         else:
-            raise PIMConvergenceError(
-                f"flexible link PIM did not converge at t = {t1:.9g} s "
-                f"after {self.max_iterations} iterations")
+            raise PIMConvergenceError(failure_message(
+                "flexible link PIM", t1, self.max_iterations, [change, turn]))
         self.iterations = iteration
         self.R, self.Rd, self.Rdd = R1, Rd1, Rdd1
         self.theta, self.omega, self.alpha = th1, om1, alpha1

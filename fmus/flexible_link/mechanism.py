@@ -58,6 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmus.linkage.core import Linkage, LinkageConvergenceError
+from fmus.newton import NewtonCount, at_roundoff, failure_message, roundoff_floor
 from fmus.linkage.elements import AngleDriver, Body, Mechanism, Port, Prismatic, Revolute
 from fmus.linkage.laws import CosineRampSpeed
 from fmus.linkage.scenes import CrankSliderParameters
@@ -129,6 +130,8 @@ class FlexibleMechanism:
         self.forces = np.zeros((len(self.joints), 2))
         self.time = 0.0
         self.newton_iterations = 0
+        #: converged steps, and those that ended at the residual's round-off floor
+        self.newton = NewtonCount()
         self._h = 0.0
 
     # --- state helpers ---------------------------------------------------------
@@ -228,8 +231,9 @@ class FlexibleMechanism:
     # --- flexible link equations ---------------------------------------------------
     @staticmethod
     def _link_equations(link, state, forces, h):
-        """Residual (3 + n) of a link's equations at t1 and its derivatives with respect
-        to the link's unknowns (3 + n, 3 + n) and to its two port forces (3 + n, 4)."""
+        """Residual (3 + n) of a link's equations at t1, its derivatives with respect
+        to the link's unknowns (3 + n, 3 + n) and to its two port forces (3 + n, 4), and
+        the size of the terms each residual row sums (3 + n: its round-off scale)."""
         b = link.beam
         bh2, gh = 0.25 * h * h, 0.5 * h
         beta_k = link.stiffness_damping
@@ -270,6 +274,12 @@ class FlexibleMechanism:
         load = (node_force - Mt @ (At @ acc_frame) - al * (Mr + G @ qf) - 2.0 * om * (G @ qfd)
                 + om * om * (Mp + M @ qf))
         res[3:] = M @ qfdd + K @ (qf + beta_k * qfd) - P @ load
+        terms = np.concatenate((
+            m * (np.abs(Rdd) + np.abs(link.gravity)) + np.abs(forces).sum(axis=0),
+            [abs(inertia * al) + 2.0 * abs(om * gyro) + om * om * abs(centri)
+             + sum(float(np.abs(w) @ np.abs(f[::-1])) for w, f in zip(arms, forces))],
+            np.abs(M) @ np.abs(qfdd) + np.abs(K) @ np.abs(qf + beta_k * qfd)
+            + np.abs(P) @ np.abs(load)))
         dload_th = d_node_force_th - Mt @ (dAt @ acc_frame)
         dload_om = -2.0 * (G @ qfd) + 2.0 * om * (Mp + M @ qf)
         dload_al = -(Mr + G @ qf)
@@ -281,7 +291,7 @@ class FlexibleMechanism:
             E = np.zeros((n, 2))
             E[[iu, iv], :] = At
             jf[3:, 2 * k:2 * k + 2] = -P @ E
-        return res, jac, jf
+        return res, jac, jf, terms
 
     # --- the monolithic system ------------------------------------------------------
     def _system(self, x, preds, t1, h):
@@ -300,8 +310,10 @@ class FlexibleMechanism:
         q1 = preds["rigid"]["q"] + 0.25 * h * h * a1
         v1 = preds["rigid"]["v"] + 0.5 * h * a1
         rig.port_forces = rigid_forces
-        r, jr = rig._residual(q1, v1, a1, lam, t1, h)
+        r, jr, rigid_terms = rig._residual(q1, v1, a1, lam, t1, h)
         res[:nr + mr] = r
+        terms = np.zeros(self.size)
+        terms[:nr] = rigid_terms[:nr]
         jac[:nr + mr, :nr + mr] = jr
         # dQ/dF: a port force f on body b enters Q as (f, (J w) . f)
         port_d = {}
@@ -319,7 +331,7 @@ class FlexibleMechanism:
             nl = 3 + link.beam.mass.shape[0]
             state = self._link_state(preds[name], x[o:o + nl], h)
             states[name] = state
-            r, jl, jf = self._link_equations(link, state, link_forces[name], h)
+            r, jl, jf, terms[o:o + nl] = self._link_equations(link, state, link_forces[name], h)
             res[o:o + nl] = r
             jac[o:o + nl, o:o + nl] = jl
             link_jf[name] = jf
@@ -341,7 +353,7 @@ class FlexibleMechanism:
                     jac[row:row + 2, o:o + nl] += sign * d / scale
                 value += sign * v
             res[row:row + 2] = value / scale
-        return res, jac, q1, v1, states
+        return res, jac, q1, v1, states, terms
 
     def _predictors(self, h):
         rig = self.rigid
@@ -379,11 +391,9 @@ class FlexibleMechanism:
         acc[self.force_offset:] = False
         ca, cv, cd = self.row_coefficients
         scale = ca + cv * 0.5 * h + cd * 0.25 * h * h
-        eps = np.finfo(float).eps
         for iteration in range(1, self.max_newton + 1):
-            res, jac, q1, v1, states = self._system(x, preds, t1, h)
+            res, jac, q1, v1, states, terms = self._system(x, preds, t1, h)
             delta = np.linalg.solve(jac, res)
-            x = x - delta
             # Stopping sizes: relative tolerance plus the round-off floor of the
             # joint and constraint rows (w^2 and 2 xi w amplify the positions' and
             # velocities' last bits; see Linkage._tolerances).
@@ -393,18 +403,28 @@ class FlexibleMechanism:
             big_v = max([1.0 + np.max(np.abs(v1))]
                         + [1.0 + np.max(np.abs(s[1])) + abs(s[4]) * (1.0 + np.max(np.abs(s[0])))
                            for s in states.values()])
-            floor = 64.0 * eps * (cd * big_q + cv * big_v
-                                  + ca * (1.0 + np.max(np.abs(x[acc])))) / scale
-            tol_a = self.newton_tolerance * (1.0 + np.max(np.abs(x[acc]))) + floor
-            lam = x[~acc]
+            x_new = x - delta
+            constraint_scale = (cd * big_q + cv * big_v
+                                + ca * (1.0 + np.max(np.abs(x_new[acc])))) / scale
+            floor = float(roundoff_floor(constraint_scale))
+            tol_a = self.newton_tolerance * (1.0 + np.max(np.abs(x_new[acc]))) + floor
+            lam = x_new[~acc]
             big_m = max(np.max(self.rigid.mass), *(l.mass_total for l in self.links.values()))
             tol_l = self.newton_tolerance * (1.0 + np.max(np.abs(lam))) + floor * big_m
             if np.max(np.abs(delta[acc])) <= tol_a and np.max(np.abs(delta[~acc])) <= tol_l:
+                x, how = x_new, "increment"
                 break
+            # the constraint and joint rows (positions, velocities and accelerations
+            # weighted as the rows weigh them) at their round-off floor too
+            terms[~acc] = np.maximum(terms[~acc], constraint_scale)
+            if at_roundoff(res, terms):
+                how = "round-off"  # the increment is amplified round-off (Linkage.step)
+                break
+            x = x_new
         else:
-            raise LinkageConvergenceError(
-                f"flexible mechanism Newton did not converge at t = {t1:.9g} s after "
-                f"{self.max_newton} iterations (last increment {np.max(np.abs(delta)):.3g})")
+            raise LinkageConvergenceError(failure_message(
+                "flexible mechanism Newton", t1, self.max_newton, delta, jac, res, terms))
+        self.newton.ended(how)
         self.newton_iterations = iteration
         # store
         rig = self.rigid

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from fmus.interface import InterfaceCore
+from fmus.newton import NewtonCount, at_roundoff, failure_message, roundoff_floor
 
 from .constraints import ConstraintSet
 from .elements import Mechanism
@@ -95,6 +96,8 @@ class Linkage(InterfaceCore):
         self.lam = np.zeros(self.constraints.m)
         self.port_forces = np.zeros((len(ports), 3))
         self.newton_iterations = 0
+        #: converged steps, and those that ended at the residual's round-off floor
+        self.newton = NewtonCount()
 
     # --- equations ------------------------------------------------------------
     def _load(self, q, v, t, tangents=True):
@@ -109,7 +112,8 @@ class Linkage(InterfaceCore):
         return Q, Kq, Kv
 
     def _residual(self, q1, v1, a1, lam, t1, h):
-        """Newton residual and matrix for unknowns (a1, lambda) at t1 = t + h."""
+        """Newton residual and matrix for unknowns (a1, lambda) at t1 = t + h, and the
+        size of the terms each residual row sums (its round-off scale)."""
         ca, cv, cd = self.row_coefficients
         beta_h2, gamma_h = 0.25 * h * h, 0.5 * h
         scale = ca + cv * gamma_h + cd * beta_h2
@@ -127,18 +131,24 @@ class Linkage(InterfaceCore):
                                         + gamma_h * c["phi_dd_v"])
                                   + cv * (gamma_h * c["phi_q"] + beta_h2 * c["phi_d_q"])
                                   + cd * beta_h2 * c["phi_q"]) / scale
-        return np.concatenate((r_dyn, r_con)), jac
+        terms = np.concatenate((np.abs(self.mass * af) + np.abs(c["phi_q"].T) @ np.abs(lam)
+                                + np.abs(Q), np.full(m, self._constraint_scale(q1, v1, a1, h))))
+        return np.concatenate((r_dyn, r_con)), jac, terms
+
+    def _constraint_scale(self, q1, v1, a1, h) -> float:
+        """Size of the terms of a scaled constraint row (m/s^2): positions, velocities
+        and accelerations weighted as the row weighs them."""
+        ca, cv, cd = self.row_coefficients
+        scale = ca + cv * 0.5 * h + cd * 0.25 * h * h
+        return (cd * (1.0 + np.max(np.abs(q1))) + cv * (1.0 + np.max(np.abs(v1)))
+                + ca * (1.0 + np.max(np.abs(a1)))) / scale
 
     def _tolerances(self, q1, v1, a1, lam):
         """Newton stopping sizes for the increments of a1 and lambda: the relative
         tolerance plus the round-off floor of the constraint rows (their position and
         velocity terms carry factors w^2 and 2 xi w, which amplify the last bit of
         q and v; without the floor Newton would stall just above the tolerance)."""
-        ca, cv, cd = self.row_coefficients
-        scale = ca + cv * 0.5 * self._h + cd * 0.25 * self._h ** 2
-        eps = np.finfo(float).eps
-        floor = 64.0 * eps * (cd * (1.0 + np.max(np.abs(q1))) + cv * (1.0 + np.max(np.abs(v1)))
-                              + ca * (1.0 + np.max(np.abs(a1)))) / scale
+        floor = float(roundoff_floor(self._constraint_scale(q1, v1, a1, self._h)))
         tol_a = self.newton_tolerance * (1.0 + np.max(np.abs(a1))) + floor
         tol_l = (self.newton_tolerance * (1.0 + (np.max(np.abs(lam)) if lam.size else 0.0))
                  + floor * np.max(self.mass))
@@ -192,19 +202,25 @@ class Linkage(InterfaceCore):
         for iteration in range(1, self.max_newton + 1):
             q1 = q_pred + 0.25 * h * h * a1
             v1 = v_pred + 0.5 * h * a1
-            r, jac = self._residual(q1, v1, a1, lam, t1, h)
+            r, jac, terms = self._residual(q1, v1, a1, lam, t1, h)
             delta = np.linalg.solve(jac, r)
             da, dl = delta[: self.n].reshape(self.nb, 3), delta[self.n:]
-            a1 = a1 - da
-            lam = lam - dl
-            tol_a, tol_l = self._tolerances(q1, v1, a1, lam)
+            tol_a, tol_l = self._tolerances(q1, v1, a1 - da, lam - dl)
             if (np.max(np.abs(da)) <= tol_a
                     and (dl.size == 0 or np.max(np.abs(dl)) <= tol_l)):
+                a1, lam = a1 - da, lam - dl
+                how = "increment"
                 break
+            if at_roundoff(r, terms):
+                # the residual can get no smaller: the increment is round-off amplified
+                # by the Newton matrix (a singular configuration), not a correction
+                how = "round-off"
+                break
+            a1, lam = a1 - da, lam - dl
         else:
-            raise LinkageConvergenceError(
-                f"linkage Newton did not converge at t = {t1:.9g} s after "
-                f"{self.max_newton} iterations (last increment {np.max(np.abs(delta)):.3g})")
+            raise LinkageConvergenceError(failure_message(
+                "linkage Newton", t1, self.max_newton, delta, jac, r, terms))
+        self.newton.ended(how)
         self.newton_iterations = iteration
         self.q = q_pred + 0.25 * h * h * a1
         self.v = v_pred + 0.5 * h * a1
@@ -228,7 +244,8 @@ class Linkage(InterfaceCore):
     def get_state(self) -> dict:
         return {"time": self.time, "q": self.q.copy(), "v": self.v.copy(), "a": self.a.copy(),
                 "lam": self.lam.copy(), "port_forces": self.port_forces.copy(),
-                "newton_iterations": self.newton_iterations}
+                "newton_iterations": self.newton_iterations,
+                "newton_roundoff_steps": self.newton.roundoff_steps}
 
     def set_state(self, state: dict) -> None:
         self.time = float(state["time"])
@@ -238,6 +255,8 @@ class Linkage(InterfaceCore):
         self.lam = np.array(state["lam"], dtype=float)
         self.port_forces = np.array(state["port_forces"], dtype=float)
         self.newton_iterations = int(state["newton_iterations"])
+        # a restored step is not counted: the count is of the steps of the trajectory
+        self.newton.roundoff_steps = int(state.get("newton_roundoff_steps", 0))
 
     # --- outputs -----------------------------------------------------------------
     def constraint_violation(self) -> float:
@@ -266,7 +285,8 @@ class Linkage(InterfaceCore):
     def outputs(self) -> dict[str, float]:
         """Body poses and rates (``<body>.x y theta vx vy omega ax ay alpha``), joint
         reactions, element tensions (``<element>.force``), ``constraint_violation`` and
-        ``newton_iterations``."""
+        ``newton_iterations`` (of the last step) and ``newton_roundoff_steps`` (steps so
+        far whose Newton ended at the residual's round-off floor: fmus/newton.py)."""
         out = {}
         for i, name in enumerate(self.body_names):
             for k, key in enumerate(("x", "y", "theta")):
@@ -282,4 +302,5 @@ class Linkage(InterfaceCore):
             out.update({f"{n}.force": float(t) for n, t in zip(names, tensions)})
         out["constraint_violation"] = self.constraint_violation()
         out["newton_iterations"] = float(self.newton_iterations)
+        out["newton_roundoff_steps"] = float(self.newton.roundoff_steps)
         return out

@@ -8,7 +8,7 @@ gravity; :mod:`fmus.linkage.description`), so one FMU serves any planar linkage
 ``baumgarte_frequency`` w rad/s, ``baumgarte_damping`` xi) is a parameter too.  Ports A, B, P (dofs x y)
 follow DESIGN.md; a port the part lacks takes no force and reports zero motion.
 Outputs: the part's body ``x y theta vx vy omega ax ay alpha``, the driver
-``torque``, ``constraint_violation`` and ``newton_iterations``.
+``torque``, ``constraint_violation``, ``newton_iterations`` and ``newton_roundoff_steps``.
 """
 import os
 import sys

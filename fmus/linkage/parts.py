@@ -28,9 +28,10 @@ from .description import mechanism_from_text
 FIXED_PORTS = ("A", "B", "P")
 FIXED_INTERFACE = tuple((p, d) for p in FIXED_PORTS for d in ("x", "y"))
 #: Outputs of a part: its body's CG pose (m, rad), rates and accelerations, the
-#: driving torque on it (N.m, 0 without a driver), constraint drift and Newton count.
+#: driving torque on it (N.m, 0 without a driver), constraint drift, Newton count of the
+#: last step and the steps whose Newton ended at the residual's round-off floor so far.
 PART_OUTPUTS = ("x", "y", "theta", "vx", "vy", "omega", "ax", "ay", "alpha", "torque",
-                "constraint_violation", "newton_iterations")
+                "constraint_violation", "newton_iterations", "newton_roundoff_steps")
 
 
 #: The FMU's default mechanism, so that it runs alone: a 1 m, 1 kg bar pinned to ground
@@ -133,4 +134,5 @@ class PartCore(InterfaceCore):
         out["torque"] = inner.get("drive.torque", 0.0)
         out["constraint_violation"] = inner["constraint_violation"]
         out["newton_iterations"] = inner["newton_iterations"]
+        out["newton_roundoff_steps"] = inner["newton_roundoff_steps"]
         return out

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from fmus.interface import InterfaceCore
+from fmus.newton import NewtonCount, at_roundoff, failure_message
 
 #: Largest chain one FMU carries: FMI 2.0 fixes the variable list at build time.
 MAX_MASSES = 4
@@ -114,6 +115,8 @@ class SpringMassChain(InterfaceCore):
         self.a = np.zeros(n)
         self.port_forces = np.zeros(2)
         self.newton_iterations = 0
+        #: converged steps, and those that ended at the residual's round-off floor
+        self.newton = NewtonCount()
         self._ports = np.array([params.port_P - 1, params.port_Q - 1])
         self.moving_base = bool(np.any(params.bump[:n]) and np.any(params.bump_duration[:n]))
         if not self.nonlinear:  # the internal force is K x + C v: keep K and C
@@ -210,18 +213,22 @@ class SpringMassChain(InterfaceCore):
             residual = m * a1 + f_int - f_ext
             jacobian = np.diag(m) + 0.5 * h * C + 0.25 * h * h * K
             delta = np.linalg.solve(jacobian, residual)
-            a1 = a1 - delta
             # relative to the accelerations the force terms alone would give: a1 may cross
             # zero while a stiff spring or damper makes large terms that cancel (their
             # round-off then exceeds 1e-13 |a1|)
             terms = np.abs(K) @ np.abs(x1) + np.abs(C) @ np.abs(v1) + np.abs(f_ext)
-            scale = max(np.max(np.abs(a1)), np.max(terms / m), 1.0)
-            if not self.nonlinear or np.max(np.abs(delta)) <= self.newton_tolerance * scale:
+            scale = max(np.max(np.abs(a1 - delta)), np.max(terms / m), 1.0)
+            if np.max(np.abs(delta)) <= self.newton_tolerance * scale:
+                a1, how = a1 - delta, "increment"
                 break
+            if at_roundoff(residual, np.abs(m * a1) + terms + np.abs(f_int)):
+                how = "round-off"  # the residual can get no smaller (fmus.newton)
+                break
+            a1 = a1 - delta
         else:
-            raise ArithmeticError(
-                f"spring-mass Newton did not converge at t = {t1:.6g} s "
-                f"after {self.max_newton} iterations")
+            raise ArithmeticError(failure_message("spring-mass Newton", t1, self.max_newton,
+                                                  delta, jacobian))
+        self.newton.ended(how)
         self.newton_iterations = iteration
         self.x = x_pred + 0.25 * h * h * a1
         self.v = v_pred + 0.5 * h * a1

@@ -32,6 +32,7 @@ from master.couplings.divergence import newton_diverging
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
 from master.errors import SimulationError, StepFailure
+from master.joints import EPS, ROUNDOFF_ULPS
 
 
 #: gluing matrices of at most this many joint dofs are factored dense
@@ -45,6 +46,8 @@ RCOND_MIN = 1e-8
 #: a step whose residual left along the lost directions is at most this fraction of
 #: the residual it started with is accepted in the least-squares sense
 LOST_SLACK = 1e-3
+#: the round-off floor is looked at once Newton contracts by less than this per iteration
+STALLING = 0.5
 
 
 class DenseFactor:
@@ -107,6 +110,8 @@ class IterativeCoupling(Coupling):
         self.regularized = 0
         #: steps accepted with a residual left along directions the forces cannot change
         self.least_squares_steps = 0
+        #: steps accepted with the residual at its round-off floor, above the tolerance
+        self.roundoff_steps = 0
         self._history: deque = deque(maxlen=3)
         self._measured: dict = {}  # step size -> the flexibility measured for it
         self._predict = PREDICTORS[settings.predictor]
@@ -305,6 +310,20 @@ class IterativeCoupling(Coupling):
             return lost
         return 0.0
 
+    def _roundoff_floor(self, kinematics, forces, weights, step_size) -> np.ndarray:
+        """Per joint dof, the round-off floor of its residual (the residual's units):
+        ``ROUNDOFF_ULPS`` ulps of the terms it is the difference of, the ports'
+        kinematics weighted as the row weighs them and, in force form, the force over
+        the joint's reference stiffness.  A residual there cannot be made smaller by any
+        joint force, whatever tolerance was asked."""
+        _, magnitudes = self.layout.differences(kinematics, magnitudes=True)
+        terms = np.einsum("rk,kr->r", np.abs(weights), magnitudes)
+        law = self.joints.force_form
+        if law.any():
+            terms = terms + np.where(
+                law, np.abs(forces) / self.joints.reference_stiffness(step_size), 0.0)
+        return ROUNDOFF_ULPS * EPS * terms
+
     def _newton(self, time, step_size, step_index, save: bool = True) -> StepReport:
         """Newton on the joint forces over one step; StepFailure if it does not
         converge (iteration limit, non-finite or diverging residual)."""
@@ -323,8 +342,13 @@ class IterativeCoupling(Coupling):
             if iteration == 1:
                 first = float(np.max(np.abs(r), initial=0.0))
             lost = self._lost_residual(r, tolerance, first) if history[-1] > 1.0 else 0.0
-            if history[-1] <= 1.0 or lost:
+            floor = (iteration > 1 and history[-1] > 1.0 and not lost
+                     and history[-1] > STALLING * history[-2]
+                     and np.all(np.abs(r) <= np.maximum(tolerance, self._roundoff_floor(
+                         kinematics, forces, weights, step_size))))
+            if history[-1] <= 1.0 or lost or floor:
                 self.least_squares_steps += lost > 0
+                self.roundoff_steps += bool(floor)
                 self.joints.accept(*trial)
                 self.forces = forces
                 self._history.append(forces.copy())

@@ -1,0 +1,87 @@
+"""The singular-point scenes, their monolithic twins and the regression check under
+several OpenBLAS kernels, each in a process of its own: what an AVX-512 machine, an
+old SSE3 one or a desktop's AVX2 one computes, seen on any machine.
+
+numpy's OpenBLAS picks its kernels by CPU at run time, so the last bits of a solve
+differ between machines; ``OPENBLAS_CORETYPE`` forces one.  Near the four bar's
+singular points those bits are amplified the most (docs/reproducibility.md).
+"""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from master.results import read_columns
+from tests.conftest import ROOT
+
+#: kernel -> the /proc/cpuinfo flag it needs (SSE3 is "pni" there)
+KERNELS = {"Prescott": "pni", "Sandybridge": "avx", "Haswell": "avx2", "SkylakeX": "avx512f"}
+#: the twins of two kernels agree to this fraction of each column's peak: round-off
+#: amplified by the near-singular Newton matrix at the collinear passes (measured:
+#: 3e-9 of the peak force at most between Prescott, Sandybridge, Haswell and Zen)
+TWIN_RTOL = 1e-7
+
+
+def _openblas() -> bool:
+    try:
+        blas = np.__config__.CONFIG["Build Dependencies"]["blas"]["name"]
+    except (AttributeError, KeyError, TypeError):
+        return False
+    return "openblas" in str(blas).lower()
+
+
+def _cpu_flags() -> set:
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return set()
+    return {flag for line in text.splitlines() if line.startswith("flags")
+            for flag in line.split(":", 1)[1].split()}
+
+
+def _kernels() -> list:
+    flags = _cpu_flags()
+    return [name for name, flag in KERNELS.items() if flag in flags]
+
+
+def _run(kernels, tmp_path):
+    """Run tests.kernel_check under each kernel (None: the default), two at a time."""
+    done, running = {}, []
+    queue = list(kernels)
+    while queue or running:
+        while queue and len(running) < 2:
+            kernel = queue.pop(0)
+            env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+            env.pop("OPENBLAS_CORETYPE", None)
+            if kernel:
+                env["OPENBLAS_CORETYPE"] = kernel
+            out = tmp_path / (kernel or "default")
+            running.append((kernel, out, subprocess.Popen(
+                [sys.executable, "-m", "tests.kernel_check", str(out)], cwd=ROOT, env=env,
+                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)))
+        kernel, out, process = running.pop(0)
+        text, _ = process.communicate(timeout=300)
+        done[kernel] = (process.returncode, text, out)
+    return done
+
+
+@pytest.mark.skipif(not _openblas(), reason="numpy is not built on OpenBLAS here")
+def test_singular_scenes_pass_and_agree_under_every_kernel(built, tmp_path):
+    kernels = _kernels()
+    assert len(kernels) >= 2, "a CPU with SSE3 and AVX at least"
+    done = _run([None] + kernels, tmp_path)
+    for kernel, (code, text, _) in done.items():
+        assert code == 0, f"OPENBLAS_CORETYPE={kernel}:\n{text}"
+        assert "Traceback" not in text
+    _, _, default = done[None]
+    for kernel in kernels:
+        for joints in ("fixed", "flexible"):
+            ours = read_columns(done[kernel][2] / f"twin_{joints}.csv")
+            theirs = read_columns(default / f"twin_{joints}.csv")
+            for column in list(theirs)[1:]:
+                gap = np.max(np.abs(ours[column] - theirs[column]))
+                peak = np.max(np.abs(theirs[column]))
+                assert gap <= TWIN_RTOL * peak, (kernel, joints, column, gap, peak)
