@@ -156,17 +156,18 @@ def _cmd_validate(args) -> int:
 
 
 def comparison_lines(comparison) -> list[str]:
-    """The table of a comparison: per column the largest difference, the band, the
-    reference's peak, and the first and worst time outside the band."""
+    """The table of a comparison: per column the largest difference, the band and
+    what set it (rtol, or a floor: ulps, kernel noise), the reference's peak, and the
+    first and worst time outside the band."""
     width = max(len(d.column) for d in comparison.differences)
-    lines = [f"{'column':<{width}}  {'max |diff|':>11}  {'allowed':>11}  {'ref peak':>11}  "
-             "verdict"]
+    lines = [f"{'column':<{width}}  {'max |diff|':>11}  {'allowed':>11}  {'band':>5}  "
+             f"{'ref peak':>11}  verdict"]
     for d in comparison.differences:
         verdict = "ok" if d.passed else (
             f"DIFFERS from t = {d.first[0]:.6g} s (worst at t = {d.worst[0]:.6g} s: "
             f"{d.worst[1]:.6g} against {d.worst[2]:.6g})")
         lines.append(f"{d.column:<{width}}  {d.max_difference:>11.3e}  {d.allowed:>11.3e}  "
-                     f"{d.reference_peak:>11.3e}  {verdict}")
+                     f"{d.source:>5}  {d.reference_peak:>11.3e}  {verdict}")
     return lines
 
 
@@ -206,11 +207,18 @@ def _cmd_plot(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from master.compare import compare_files
+    from master.compare import band_origin, compare_files
+    from master.regress import read_noise
 
     columns = args.columns.split(",") if args.columns else None
-    comparison = compare_files(args.result, args.reference, columns, args.rtol, args.atol)
+    noise = read_noise(args.noise) if args.noise else None
+    comparison = compare_files(args.result, args.reference, columns, args.rtol, args.atol,
+                               noise)
     print("\n".join(comparison_lines(comparison)))
+    floors = [f"{d.column}: {band_origin(d)}" for d in comparison.differences
+              if d.source != "rtol"]
+    if floors:
+        print("bands set by a floor (round-off, not rtol): " + "; ".join(floors))
     if comparison.short:
         print(f"dsim: {args.result} ends at t = {comparison.result_end:g} s, before the "
               f"reference ({comparison.reference_end:g} s)", file=sys.stderr)
@@ -268,8 +276,16 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_regress(args) -> int:
-    from master.regress import find_cases, junit_xml, run_cases, summary_lines
+    from master.kernel_study import choose_kernels
+    from master.regress import KernelChoice, find_cases, junit_xml, run_cases, summary_lines
 
+    if (args.kernels or args.no_kernel_study) and not args.update:
+        raise InputError("--kernels and --no-kernel-study choose the kernel study of "
+                         "--update: give --update too")
+    if args.kernels and args.no_kernel_study:
+        raise InputError("--kernels and --no-kernel-study contradict each other: give one")
+    kernels = KernelChoice(not args.no_kernel_study, choose_kernels(
+        [k.strip() for k in args.kernels.split(",") if k.strip()]) if args.kernels else None)
     cases, without = find_cases(args.folder, args.baselines, args.scene or (), args.update)
     if not cases:
         raise InputError(f"{args.folder}: no scene has a baseline in "
@@ -280,7 +296,8 @@ def _cmd_regress(args) -> int:
         verdict = outcome.status + (f": {outcome.message}" if outcome.message else "")
         print(f"{outcome.case.name}: {verdict}", file=sys.stderr)
 
-    outcomes = run_cases(cases, args.results, args.update, args.rtol, args.atol, progress)
+    outcomes = run_cases(cases, args.results, args.update, args.rtol, args.atol, progress,
+                         kernels)
     print("\n".join(summary_lines(outcomes)))
     if without:
         print(f"without a baseline (not run): {', '.join(without)}")
@@ -365,7 +382,16 @@ def parser() -> argparse.ArgumentParser:
     regress_parser.add_argument("--junit", help="write a JUnit XML report")
     regress_parser.add_argument("--update", action="store_true",
                                 help="store each run as the new baseline instead of comparing "
-                                "(scenes without one get one)")
+                                "(scenes without one get one), and measure in each JSON how "
+                                "far every column moves between OpenBLAS kernels (the "
+                                "bands' floor)")
+    regress_parser.add_argument("--no-kernel-study", action="store_true",
+                                help="with --update: do not run the scenes under other "
+                                "OpenBLAS kernels (the stored noise is kept)")
+    regress_parser.add_argument("--kernels", metavar="K1,K2", help="with --update: the "
+                                "OpenBLAS kernels of the study (default: every one this CPU "
+                                "runs; Prescott, Nehalem, Sandybridge, Haswell, Zen, "
+                                "SkylakeX)")
     regress_parser.add_argument("--scene", action="append", help="only this scene (again "
                                 "for more)")
     regress_parser.add_argument("--rtol", type=float, help="override every case's rtol")
@@ -383,6 +409,9 @@ def parser() -> argparse.ArgumentParser:
     compare_parser.add_argument("--rtol", type=float, default=1e-6,
                                 help="allowed difference relative to the reference's peak")
     compare_parser.add_argument("--atol", type=float, default=0.0, help="absolute allowance")
+    compare_parser.add_argument("--noise", metavar="BASELINE.json", help="a baseline JSON of "
+                                "dsim regress: its measured kernel noise is the floor of "
+                                "the bands")
     compare_parser.set_defaults(handler=_cmd_compare)
     # commands of other packages (build_fmus: `dsim build-fmus`), so that the master
     # imports none of them
