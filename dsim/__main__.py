@@ -1,6 +1,4 @@
 """``python -m dsim``: the command line."""
-import sys
+from master.cli import console
 
-from master.cli import main
-
-sys.exit(main())
+console()

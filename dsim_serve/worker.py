@@ -215,4 +215,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from master.process_exit import end_process
+
+    end_process(main())  # outcome.json is written: a fatal FMU's exit handlers never run

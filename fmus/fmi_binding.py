@@ -12,6 +12,16 @@ In initialization mode the port outputs follow the force inputs (FMI 2.0 lets a
 master read calculated outputs there): the core is built at the first read, and
 every force written recomputes the initial accelerations.  A master can so find
 start forces that make the initial accelerations compatible before the first step.
+
+Parameters the core refuses (a ``ValueError`` from ``build_core``) must leave an
+instance the master can still free.  pythonfmu 0.7 answers every Python exception,
+in any callback, with fmi2Fatal, and has already released the instance's Python
+objects when it does (its fmi2FreeInstance would release them a second time), so
+the refusal is never raised: it is logged with status fmi2Error, the callback
+returns normally, and a step asked of the refused instance is discarded.  (pythonfmu
+has no way for Python code to return fmi2Error: a return value of
+``exit_initialization_mode`` or of a setter is ignored, ``False`` from ``do_step``
+gives fmi2Discard.)
 """
 from __future__ import annotations
 
@@ -20,6 +30,7 @@ import pickle
 
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu.enums import Fmi2Status
 
 from fmus.interface import InterfaceCore
 
@@ -41,6 +52,8 @@ class CoreBinding:
         self.slave = slave
         self.interface = tuple(interface)
         self.core: InterfaceCore | None = None
+        #: why the parameters make no core (logged at fmi2Error), None until then
+        self.refusal: str | None = None
         self.initializing = False
         self.start_time = 0.0
         n = len(self.interface)
@@ -125,7 +138,7 @@ class CoreBinding:
         """The readable values, with ``sections`` (0 positions, 1 velocities,
         2 accelerations, 3 named outputs) brought up to date."""
         if self.core is None and self.initializing:
-            self.attach(self.slave.build_core(), self.start_time)
+            self.build()
         if self.core is None:
             return self._values
         n = len(self.interface)
@@ -143,6 +156,17 @@ class CoreBinding:
             self._stale[3] = False
         return self._values
 
+    def build(self) -> bool:
+        """Build the core from the parameters set so far, once; False when they make
+        none (the reason is then logged at fmi2Error and kept in :attr:`refusal`)."""
+        if self.core is None and self.refusal is None:
+            try:
+                self.attach(self.slave.build_core(), self.start_time)
+            except ValueError as error:
+                self.core, self.refusal = None, str(error)
+                self.slave.log(f"{self.slave.instance_name}: {error}", Fmi2Status.error)
+        return self.core is not None
+
     def attach(self, core: InterfaceCore, start_time: float) -> None:
         """Take over a freshly built core and initialise it at ``start_time``."""
         self.core = core
@@ -151,6 +175,10 @@ class CoreBinding:
         self._stale = [True] * 4
 
     def step(self, time: float, step_size: float) -> bool:
+        if self.core is None:  # refused parameters, and a master that went on regardless
+            self.slave.log(f"{self.slave.instance_name}: no step without a model "
+                           f"({self.refusal or 'not initialised'})", Fmi2Status.error)
+            return False
         self.core.step(time, step_size)
         self._stale = [True] * 4
         return True
@@ -187,31 +215,21 @@ def glued_slave(cls):
     slave defines ``build_core(self)``, which makes the core from the parameters set
     so far; this decorator adds the FMI callbacks every such wrapper shares (start
     time, initialisation, step, complete state and its serialisation).  A
-    ``ValueError`` from ``build_core`` is logged as an fmi2Error, so a master can tell
-    the user which parameter the model refused; an ``ArithmeticError`` from a step
-    (the core's own iteration failed) discards the step.  (A decorator and not a base class:
+    ``ValueError`` from ``build_core`` is logged as an fmi2Error and not raised (see
+    the module's docstring), so a master can tell the user which parameter the model
+    refused and still free the instance; an ``ArithmeticError`` from a step (the
+    core's own iteration failed) discards the step.  (A decorator and not a base class:
     pythonfmu finds the model class by the literal line ``class Name(Fmi2Slave):``.)
     """
-    from pythonfmu.enums import Fmi2Status
-
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
         self.binding.start_time = start_time
 
     def enter_initialization_mode(self):
         self.binding.initializing = True
 
-    def build_core_logged(self):
-        try:
-            return build_core(self)
-        except ValueError as error:
-            self.log(f"{self.instance_name}: {error}", Fmi2Status.error)
-            raise
-
     def exit_initialization_mode(self):
-        binding = self.binding
-        if binding.core is None:
-            binding.attach(self.build_core(), binding.start_time)
-        binding.initializing = False
+        self.binding.build()
+        self.binding.initializing = False
 
     def do_step(self, current_time, step_size):
         # a core whose own iteration fails on this step (a linkage's Newton, a flexible
@@ -241,12 +259,10 @@ def glued_slave(cls):
             return Fmi2Slave.set_real(self, vrs, values)
         self.binding.set_reals(places, values)
 
-    build_core = cls.build_core
     for method in (setup_experiment, enter_initialization_mode, exit_initialization_mode,
                    do_step, _get_fmu_state, _set_fmu_state, get_real, set_real):
         if method.__name__ not in cls.__dict__:
             setattr(cls, method.__name__, method)
-    cls.build_core = build_core_logged
     cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
     cls._fmu_state_from_bytes = staticmethod(state_from_bytes)
     abc.update_abstractmethods(cls)

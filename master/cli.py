@@ -441,5 +441,14 @@ def main(argv=None) -> int:
         return 0
 
 
+def console() -> None:
+    """The ``dsim`` console script and ``python -m master.cli``: :func:`main`, then the
+    process ends as :mod:`master.process_exit` decides (main itself returns, for the
+    callers in this process)."""
+    from master.process_exit import end_process
+
+    end_process(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

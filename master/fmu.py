@@ -8,7 +8,11 @@ checkpoint that counts and times it per FMI function and turns a status above
 fmi2Warning into a :class:`~master.errors.SimulationError` naming the component,
 the function, the status and what the FMU logged.  An FMU that fails while it is
 instantiated and initialised with the scene's parameters is bad input (an
-:class:`~master.errors.InputError`, exit 2).
+:class:`~master.errors.InputError`, exit 2); so is one that logs an error there
+while its call returns fmi2OK (what a pythonfmu FMU can do instead of returning
+fmi2Error: :mod:`fmus.fmi_binding`).  An instance that failed there is freed at
+once, unless it returned fmi2Fatal; the libraries stay loaded either way
+(:mod:`master.process_exit` says how a command then ends).
 """
 from __future__ import annotations
 
@@ -19,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 from fmpy import calloc, free
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2FMUstate,
                        fmi2ValueReference)
@@ -45,12 +50,16 @@ def can_save_state(path: Path) -> bool:
 
 #: instance name -> the last (fmi2Status, one-line message) pairs it logged
 _MESSAGES: dict[str, list[tuple[int, str]]] = {}
+#: instance name -> how many messages of status fmi2Error or worse it logged
+_ERRORS: dict[str, int] = {}
 
 
 def _log(environment, instance, status, category, message):
     name = (instance or b"").decode("utf-8", "replace")
     text = " ".join((message or b"").decode("utf-8", "replace").split())
     _MESSAGES[name] = (_MESSAGES.get(name, []) + [(int(status), text)])[-20:]
+    if status >= 3:
+        _ERRORS[name] = _ERRORS.get(name, 0) + 1
 
 
 # One callbacks structure for the whole process, alive as long as it is: fmpy's proxy
@@ -132,9 +141,12 @@ class _Call:
         self.seconds += clock.perf_counter() - start
         self.calls += 1
         if status > 1:
-            if status == 4:  # fmi2Fatal: FMI 2.0 allows no further call, not even a free
-                self.owner.fatal = True
-            self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}")
+            self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}", status)
+        # a pythonfmu FMU cannot return fmi2Error: it refuses its parameters by logging
+        # one while the call returns fmi2OK (after initialization a log is only a log)
+        if self.owner._initializing and _ERRORS.get(self.owner.name):
+            self.owner._fail(self.name, f"it logged an error and returned "
+                                        f"{STATUS.get(status, status)}", 3)
 
 
 class _Batch:
@@ -239,6 +251,7 @@ class FmuSubsystem(Subsystem):
         self._calls: dict[str, _Call] = {}
         self.handle = None
         _MESSAGES.pop(spec.name, None)
+        _ERRORS.pop(spec.name, None)
         # until finish_initialization() the instance is in initialization mode, where a
         # failing call means the model refused the scene's parameters: bad input
         self._initializing = True
@@ -278,14 +291,17 @@ class FmuSubsystem(Subsystem):
         self._set_parameters(spec.parameters, variables)
 
     # --- the checkpoint every FMI call passes ----------------------------------------
-    def _fail(self, label: str, detail: str):
-        """Raise the error of a failed call: InputError while initialising."""
+    def _fail(self, label: str, detail: str, status: int = 3):
+        """Raise the error of a call that returned ``status`` (fmi2Discard or worse):
+        InputError while initialising, when the instance is freed at once."""
         reason = logged_error(self.name)
+        if status == 4:
+            # FMI 2.0 allows no further call after fmi2Fatal, not even a free (and
+            # pythonfmu 0.7 has released the instance's Python objects when it returns
+            # it: its fmi2FreeInstance would release them twice)
+            self.fatal = True
         if self._initializing:
-            # No fmi2FreeInstance: after fmi2Fatal the standard allows no further call,
-            # and pythonfmu (0.7) has already released its Python objects when it
-            # reports one: freeing the instance would release them twice.
-            self.fmu.component = None
+            self._release()
             raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
                              f"initialised with these parameters: "
                              f"{reason or f'{label} failed: {detail}'}")
@@ -299,11 +315,31 @@ class FmuSubsystem(Subsystem):
     def _call(self, label: str, function, *args):
         """Call through fmpy's convenience layer (set-up, rare calls)."""
         try:
-            return self._timed(label, function, *args)
+            result = self._timed(label, function, *args)
         except (InputError, SimulationError):
             raise
-        except Exception as error:  # fmpy raises FMICallException, ctypes errors
+        except FMICallException as error:
+            self._fail(label, str(error), error.status)
+        except Exception as error:  # fmpy's "Failed to instantiate", ctypes errors
             self._fail(label, str(error))
+        if self._initializing and _ERRORS.get(self.name):
+            self._fail(label, "it logged an error and returned fmi2OK")
+        return result
+
+    def _release(self) -> None:
+        """Free the instance that failed in initialization (fmi2FreeInstance; fmpy then
+        closes the library), or only close the library when fmi2Instantiate made none;
+        nothing after fmi2Fatal.  This object may live on (a traceback holds it): the
+        instance is marked gone so that no call can reach it."""
+        if not self.fatal:
+            try:
+                if self.fmu.component is not None:
+                    self.fmu.freeInstance()
+                else:
+                    self.fmu.freeLibrary()
+            except Exception:  # the refusal being reported matters more than a leak
+                pass
+        self.fmu.component = None
 
     def call(self, name: str) -> _Call:
         """The time loop's binding of FMI function ``name`` (one per name)."""

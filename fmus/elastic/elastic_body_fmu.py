@@ -9,7 +9,8 @@ glued), rigid ports ``rigid1`` .. ``rigid4`` (dofs x y z rx ry rz), a sine point
 probes (outputs ``load.u_*``, ``probeK.u_*``).
 
 A body the parameters cannot make (a mesh file that is no mesh, an empty or miscounted
-node set, an unknown fidelity) fails fmi2ExitInitializationMode with the reason logged.
+node set, an unknown fidelity) is refused with the reason logged at fmi2Error, never with
+fmi2Fatal, so that the master can free the instance (:mod:`fmus.fmi_binding`).
 """
 import os
 import sys

@@ -8,9 +8,12 @@
  * when false the block holds y.  String parameter label, String input note, String
  * output status = "label:note:count" (written after every step).  It can be told to fail at t >= fail_time
  * (Integer parameter failure): 1 y becomes NaN, 2 fmi2DoStep returns fmi2Error,
- * 3 fmi2DoStep returns fmi2Discard, 4 the process aborts (a crashing FMU); after 2
- * or 3, fmi2Terminate fails too (a cleanup that must not hide the first error).
- * Compiled with -DNO_STATE it implements no state saving. */
+ * 3 fmi2DoStep returns fmi2Discard, 4 the process aborts (a crashing FMU), 5 fmi2DoStep
+ * returns fmi2Fatal; after 2 or 3, fmi2Terminate fails too (a cleanup that must not
+ * hide the first error).  failure 6 and 7 make fmi2ExitInitializationMode return
+ * fmi2Error and fmi2Fatal.  Compiled with -DINSTANTIATE_FAILS=3 (or 4) fmi2Instantiate
+ * logs an error (a fatal error) and returns NULL; with -DNO_STATE it implements no
+ * state saving. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,9 +38,9 @@ typedef struct {
     fmi2CallbackFunctions cb;
 } Model;
 
-static void log_error(Model *m, fmi2Status status, const char *text) {
-    if (m->cb.logger) m->cb.logger(m->cb.componentEnvironment, m->name, status, "error",
-                                   "%s", text);
+static void log_message(Model *m, fmi2Status status, const char *text) {
+    if (m->cb.logger) m->cb.logger(m->cb.componentEnvironment, m->name, status,
+                                   status == fmi2OK ? "info" : "error", "%s", text);
 }
 
 FMI2_Export const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -49,6 +52,12 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
                                           fmi2String resources,
                                           const fmi2CallbackFunctions *functions,
                                           fmi2Boolean visible, fmi2Boolean logging) {
+#ifdef INSTANTIATE_FAILS
+    if (functions->logger)
+        functions->logger(functions->componentEnvironment, name, INSTANTIATE_FAILS, "error",
+                          "block: simulated failure to instantiate");
+    return NULL;
+#endif
     Model *m = calloc(1, sizeof(Model));
     if (!m) return NULL;
     m->cb = *functions;
@@ -58,7 +67,10 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     snprintf(m->s[S_LABEL], TEXT, "block");
     return m;
 }
-FMI2_Export void fmi2FreeInstance(fmi2Component c) { free(c); }
+FMI2_Export void fmi2FreeInstance(fmi2Component c) {
+    log_message(c, fmi2OK, "block: instance freed");  /* tests see that the master frees it */
+    free(c);
+}
 FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined,
                                            fmi2Real tol, fmi2Real start,
                                            fmi2Boolean stopDefined, fmi2Real stop) {
@@ -67,6 +79,11 @@ FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefin
 FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return fmi2OK; }
 FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Model *m = c;
+    if (m->i[I_FAILURE] == 6 || m->i[I_FAILURE] == 7) {
+        fmi2Status status = m->i[I_FAILURE] == 6 ? fmi2Error : fmi2Fatal;
+        log_message(m, status, "block: simulated failure to initialise");
+        return status;
+    }
     m->r[R_Y] = m->r[R_Y0];
     m->b[B_POSITIVE] = m->r[R_Y] > 0.0;
     snprintf(m->s[S_STATUS], TEXT, "%.60s:%.120s:%d", m->s[S_LABEL], m->s[S_NOTE], 0);
@@ -75,7 +92,7 @@ FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 FMI2_Export fmi2Status fmi2Terminate(fmi2Component c) {
     Model *m = c;
     if (m->failed) {
-        log_error(m, fmi2Error, "block: cannot terminate cleanly after the failure");
+        log_message(m, fmi2Error, "block: cannot terminate cleanly after the failure");
         return fmi2Error;
     }
     return fmi2OK;
@@ -169,13 +186,17 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
         case 1: r[R_Y] = NAN; m->time = t + h; return fmi2OK;
         case 2:
             snprintf(text, sizeof text, "block: simulated solver failure at t = %g", t + h);
-            log_error(m, fmi2Error, text);
+            log_message(m, fmi2Error, text);
             return fmi2Error;
         case 3:
             snprintf(text, sizeof text, "block: step to t = %g rejected", t + h);
-            log_error(m, fmi2Discard, text);
+            log_message(m, fmi2Discard, text);
             return fmi2Discard;
         case 4: abort();
+        case 5:
+            snprintf(text, sizeof text, "block: simulated fatal failure at t = %g", t + h);
+            log_message(m, fmi2Fatal, text);
+            return fmi2Fatal;
         default: break;
         }
     }
