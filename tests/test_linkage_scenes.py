@@ -131,6 +131,7 @@ def test_four_bar_fixed_fails_cleanly_at_the_singular_point(built, tmp_path, cap
     message = capsys.readouterr().err
     assert code == 1
     assert "step 38" in message and "joint '" in message and "t = 0.38" in message
+    assert "singular configuration" in message and "ill-posed" in message
     header, data = read_csv(out)
     assert data.shape[0] == 38 and data[-1, 0] == pytest.approx(0.37)
     assert np.all(np.isfinite(data))

@@ -370,5 +370,14 @@ class IterativeCoupling(Coupling):
         raise StepFailure(
             f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}) did not "
             f"converge in {settings.max_iterations} iterations: residual "
-            f"{abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}",
+            f"{abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}{self._ill_posed()}",
             time=end, step=step_index, iterations=settings.max_iterations)
+
+    def _ill_posed(self) -> str:
+        """What to add to a failure's message when the gluing matrix was near-singular:
+        the step is ill-posed there (a singular configuration), not merely slow."""
+        factor = self._factor
+        if getattr(factor, "regularized", False) or getattr(factor, "rcond", 1.0) < RCOND_MIN:
+            return ("; the gluing matrix is near-singular: a singular configuration of the "
+                    "mechanism makes this step ill-posed")
+        return ""
