@@ -61,7 +61,7 @@ def _cmd_run(args) -> int:
         settings["backend"] = "isolated"
     progress = ProgressBar(Path(args.scene).stem)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
-                      **settings)
+                      force=args.force, **settings)
     if result.status != "completed":
         label = "simulation failed" if result.status == "failed" else "interrupted"
         print(f"dsim: {label}: {result.message}", file=sys.stderr)
@@ -335,6 +335,8 @@ def parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
     run_parser.add_argument("--mat", help="write the results as a MATLAB .mat file too")
     run_parser.add_argument("--quiet", action="store_true", help="no summary")
+    run_parser.add_argument("--force", action="store_true", help="run even when the "
+                            "results CSV would not fit the free disk space")
     run_parser.add_argument("--isolate", action="store_true",
                             help="run every FMU in its own worker process on this machine "
                             "(--backend isolated; needs dsim[ray]): an FMU that crashes ends "
