@@ -422,11 +422,28 @@ def parser() -> argparse.ArgumentParser:
     return main_parser
 
 
+class _Terminated(BaseException):
+    """SIGTERM outside a run (while a scene is read): unwinds like Ctrl-C, so that the
+    folders unpacked so far are removed (a run installs its own handler meanwhile)."""
+
+
+def _on_sigterm(number, frame) -> None:
+    raise _Terminated
+
+
 def main(argv=None) -> int:
     """Entry point of the ``dsim`` console script."""
+    import signal
+    import threading
+
     args = parser().parse_args(argv)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
     try:
         return args.handler(args)
+    except _Terminated:
+        print("dsim: interrupted by SIGTERM", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except InputError as error:
         for problem in error.problems:
             print(f"dsim: error: {problem}", file=sys.stderr)
@@ -441,6 +458,9 @@ def main(argv=None) -> int:
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def console() -> None:

@@ -84,6 +84,8 @@ class _Reader:
     def __init__(self, ssd: Path, shown: str):
         self.ssd = ssd
         self.base = ssd.parent
+        #: the scene's folder with links resolved: every file it names must be inside
+        self.root = self.base.resolve()
         self.shown = shown
         self.problems: list[str] = []
         self.components: list[dict] = []
@@ -111,7 +113,7 @@ class _Reader:
                                  "names only files inside itself")
             return None
         file = self.base / source
-        if not file.resolve().is_relative_to(self.base.resolve()):
+        if not file.resolve().is_relative_to(self.root):
             self.problems.append(f"{where}: {what} '{source}' is outside the scene")
             return None
         return file
@@ -234,7 +236,7 @@ class _Reader:
         if not file.is_file():
             named = {}
             for candidate in sorted(self.base.rglob("*.ssv")):
-                if not candidate.resolve().is_relative_to(self.base.resolve()):
+                if not candidate.resolve().is_relative_to(self.root):
                     continue  # a link out of the scene: not one of its files
                 try:
                     named[etree.parse(str(candidate)).getroot().get("name")] = candidate
