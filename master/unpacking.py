@@ -6,7 +6,8 @@ archive (an .ssp scene, an FMU), shared by the command line, the Python API and
   :data:`MAX_MEMBERS` members, unpacks to more than :data:`MAX_UNPACKED` bytes, has
   members that overlap (their compressed data adds up to more than the file: the
   trick of the smallest zip bombs), unpacks to more than :data:`MAX_RATIO` times its
-  own size (past :data:`RATIO_FLOOR`), names a member outside itself, or has a member
+  own size (past :data:`RATIO_FLOOR`) or has a member that does (past
+  :data:`MEMBER_RATIO_FLOOR`), names a member outside itself, or has a member
   name that is not valid UTF-8.  The sizes an archive declares can lie, so unpacking
   counts the bytes it really writes and stops at the declared size.
 * Unpacked files go to a temporary folder named with the process id, holding a lock
@@ -37,8 +38,10 @@ MAX_MEMBERS = 20000
 #: largest ratio of unpacked size to archive size (deflate reaches ~1000 on zeros; a
 #: scene of FMUs, which are compressed already, and XML stays far below 100)
 MAX_RATIO = 200
-#: unpacked size below which the ratio is not checked (a small XML file compresses well)
+#: unpacked size below which the ratio of an archive, and of one member, is not checked
+#: (a small XML file compresses well)
 RATIO_FLOOR = 16 << 20
+MEMBER_RATIO_FLOOR = 1 << 20
 
 #: prefix of every temporary folder dsim unpacks into
 PREFIX = "dsim-"
@@ -84,6 +87,13 @@ def check_archive(path, what: str, max_unpacked: int | None = None) -> list[str]
     if total > RATIO_FLOOR and total > MAX_RATIO * size:
         raise InputError(f"{what} archive unpacks to {total / 2**20:.0f} MiB, "
                          f"{total / size:.0f} times its size (at most {MAX_RATIO}: a zip bomb)")
+    for member in members:  # one bomb among real members: its own ratio gives it away
+        if member.file_size > MEMBER_RATIO_FLOOR and \
+                member.file_size > MAX_RATIO * max(member.compress_size, 1):
+            raise InputError(f"{what} archive member '{member.filename}' unpacks to "
+                             f"{member.file_size / 2**20:.0f} MiB, "
+                             f"{member.file_size / max(member.compress_size, 1):.0f} times its "
+                             f"compressed size (at most {MAX_RATIO}: a zip bomb)")
     for member in members:
         name = PurePosixPath(member.filename)
         if name.is_absolute() or ".." in name.parts or "\\" in member.filename:
