@@ -23,6 +23,7 @@ from __future__ import annotations
 import atexit
 import fcntl
 import os
+import re
 import shutil
 import stat
 import tempfile
@@ -113,7 +114,7 @@ def _remove_held() -> None:
         remove_folder(folder)
 
 
-def temporary_folder(kind: str) -> Path:
+def temporary_folder(kind: str) -> Path:  # kind: "ssp" or "fmu" (see _OURS)
     """A new private folder ``dsim-KIND-PID-XXXX`` in the temporary folder, locked for
     this process's life (removed at its exit, or by the next run if it is killed)."""
     sweep_dead_folders()
@@ -150,8 +151,8 @@ def _dead(folder: Path) -> bool:
     try:
         fd = os.open(folder / _LOCK, os.O_RDONLY | os.O_NOFOLLOW)
     except FileNotFoundError:
-        pid = folder.name[len(PREFIX):].split("-")[1:2]
-        return bool(pid) and pid[0].isdigit() and not _pid_alive(int(pid[0]))
+        pid = int(_OURS.match(folder.name).group(1))
+        return not _pid_alive(pid)
     except OSError:
         return False
     try:
@@ -163,12 +164,15 @@ def _dead(folder: Path) -> bool:
         os.close(fd)
 
 
+#: the name of a folder of :func:`temporary_folder`: kind, then the process id
+_OURS = re.compile(rf"{PREFIX}(?:ssp|fmu)-([0-9]+)-")
+
 _SWEPT = False
 
 
 def sweep_dead_folders(root=None) -> list[Path]:
-    """Remove this user's ``dsim-*`` unpacking folders left by killed runs (once per
-    process unless ``root`` is given); the folders removed."""
+    """Remove this user's ``dsim-ssp-PID-*`` and ``dsim-fmu-PID-*`` unpacking folders left
+    by killed runs (once per process unless ``root`` is given); the folders removed."""
     global _SWEPT
     if root is None:
         if _SWEPT:
@@ -181,8 +185,8 @@ def sweep_dead_folders(root=None) -> list[Path]:
     except OSError:
         return removed
     for entry in entries:
-        if not entry.name.startswith(PREFIX) or str(root / entry.name) in _HELD:
-            continue
+        if not _OURS.match(entry.name) or str(root / entry.name) in _HELD:
+            continue  # only the folders temporary_folder makes (others have no lock)
         try:
             info = entry.stat(follow_symlinks=False)
         except OSError:

@@ -296,6 +296,7 @@ def test_temporary_folders_of_killed_runs_are_removed_by_the_next_run(scene, tmp
     gone = subprocess.Popen(["true"])
     gone.wait()
     (temp / f"dsim-fmu-{gone.pid}-abc").mkdir()  # no lock file, its process is gone
+    (temp / "dsim-point-99999999").mkdir()  # another command's folder: not ours to judge
     (temp / f"dsim-ssp-{os.getpid()}-def").mkdir()  # a lock file nobody holds
     (temp / f"dsim-ssp-{os.getpid()}-def" / ".dsim-lock").write_text("")
     holder = subprocess.Popen([sys.executable, "-c", (
@@ -307,7 +308,8 @@ def test_temporary_folders_of_killed_runs_are_removed_by_the_next_run(scene, tmp
         assert holder.stdout.readline() == "held\n"
         code, lines = dsim_cli("validate", scene, tmpdir=temp)
         assert code == 0, lines
-        assert [p.name for p in temp.iterdir()] == ["dsim-ssp-1-live"]  # alive: kept
+        assert sorted(p.name for p in temp.iterdir()) == ["dsim-point-99999999",
+                                                          "dsim-ssp-1-live"]  # alive: kept
     finally:
         holder.kill()
         holder.wait()
