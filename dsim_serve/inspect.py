@@ -16,11 +16,9 @@ import shutil
 import sys
 import tempfile
 import zipfile
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
-#: largest unpacked size of an archive (its members added up), bytes
-MAX_UNPACKED = 2 << 30
-MAX_MEMBERS = 20000
+from master.unpacking import MAX_MEMBERS, MAX_UNPACKED, check_archive  # noqa: F401 (shared)
 
 #: capability flags of <CoSimulation> shown on a model's page
 CAPABILITIES = ("canGetAndSetFMUstate", "canSerializeFMUstate",
@@ -32,28 +30,6 @@ CAPABILITIES = ("canGetAndSetFMUstate", "canSerializeFMUstate",
 
 class Refused(Exception):
     """The file is not acceptable: the message says why, in one line."""
-
-
-def check_archive(path: Path, what: str, max_unpacked: int = MAX_UNPACKED) -> list[str]:
-    """Member names of a zip archive, refused when it is not one, unpacks to more than
-    ``max_unpacked`` bytes (a zip bomb) or names a member outside itself."""
-    try:
-        with zipfile.ZipFile(path) as archive:
-            members = archive.infolist()
-    except (zipfile.BadZipFile, OSError, EOFError) as error:
-        raise Refused(f"not a readable {what} (not a zip archive: {error})") from None
-    if len(members) > MAX_MEMBERS:
-        raise Refused(f"{what} archive has {len(members)} members (at most {MAX_MEMBERS})")
-    total = sum(m.file_size for m in members)
-    if total > max_unpacked:
-        raise Refused(f"{what} archive unpacks to {total / 2**20:.0f} MiB "
-                      f"(at most {max_unpacked / 2**20:.0f} MiB)")
-    for member in members:
-        name = PurePosixPath(member.filename)
-        if name.is_absolute() or ".." in name.parts or "\\" in member.filename:
-            raise Refused(f"{what} archive member '{member.filename}' points outside the "
-                          "archive")
-    return [m.filename for m in members]
 
 
 def _start(variable):

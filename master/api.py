@@ -41,7 +41,8 @@ def prepare(scene, **settings):
 
 
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,
-             observers=(), handle_signals: bool = True, **settings) -> RunResult:
+             observers=(), handle_signals: bool = True, force: bool = False,
+             **settings) -> RunResult:
     """Run ``scene`` to its stop time and return the :class:`~master.results.RunResult`,
     also when the run fails or is interrupted (``result.status``).
 
@@ -49,14 +50,16 @@ def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress:
     ``statistics``); without it the signals are kept in memory.  ``plot``: a PNG of
     the signals.  ``mat``: a MATLAB .mat file of them.  ``progress``: a progress bar on a terminal.  ``observers``: more
     :class:`~master.observers.Observer` objects.  ``handle_signals``: SIGINT and
-    SIGTERM end the run after the current step (main thread only).  Other keywords
+    SIGTERM end the run after the current step (main thread only).  ``force``: run
+    even when the CSV would not fit the free disk space (else refused before the
+    run, as bad input).  Other keywords
     are settings (see :func:`prepare`).  Raises InputError for bad input, before
     anything runs.
     """
     plan = prepare(scene, **settings)
     watchers = []
     if out is not None:
-        watchers.append(CsvRecorder(out))
+        watchers.append(CsvRecorder(out, force=force))
         watchers.append(StatisticsWriter(statistics or Path(out).with_suffix(".stats.json")))
     elif statistics is not None:
         watchers.append(StatisticsWriter(statistics))

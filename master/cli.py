@@ -61,7 +61,7 @@ def _cmd_run(args) -> int:
         settings["backend"] = "isolated"
     progress = ProgressBar(Path(args.scene).stem)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
-                      **settings)
+                      force=args.force, **settings)
     if result.status != "completed":
         label = "simulation failed" if result.status == "failed" else "interrupted"
         print(f"dsim: {label}: {result.message}", file=sys.stderr)
@@ -335,6 +335,8 @@ def parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
     run_parser.add_argument("--mat", help="write the results as a MATLAB .mat file too")
     run_parser.add_argument("--quiet", action="store_true", help="no summary")
+    run_parser.add_argument("--force", action="store_true", help="run even when the "
+                            "results CSV would not fit the free disk space")
     run_parser.add_argument("--isolate", action="store_true",
                             help="run every FMU in its own worker process on this machine "
                             "(--backend isolated; needs dsim[ray]): an FMU that crashes ends "
@@ -420,11 +422,28 @@ def parser() -> argparse.ArgumentParser:
     return main_parser
 
 
+class _Terminated(BaseException):
+    """SIGTERM outside a run (while a scene is read): unwinds like Ctrl-C, so that the
+    folders unpacked so far are removed (a run installs its own handler meanwhile)."""
+
+
+def _on_sigterm(number, frame) -> None:
+    raise _Terminated
+
+
 def main(argv=None) -> int:
     """Entry point of the ``dsim`` console script."""
+    import signal
+    import threading
+
     args = parser().parse_args(argv)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
     try:
         return args.handler(args)
+    except _Terminated:
+        print("dsim: interrupted by SIGTERM", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except InputError as error:
         for problem in error.problems:
             print(f"dsim: error: {problem}", file=sys.stderr)
@@ -439,6 +458,9 @@ def main(argv=None) -> int:
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def console() -> None:

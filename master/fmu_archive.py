@@ -9,15 +9,16 @@ child process, where a crash is only a message.
 """
 from __future__ import annotations
 
-import atexit
 import hashlib
-import shutil
 import subprocess
 import sys
 import zipfile
 from pathlib import Path
 
-from fmpy import extract, platform, sharedLibraryExtension
+from fmpy import platform, sharedLibraryExtension
+
+from master.errors import InputError
+from master.unpacking import check_archive, extract
 
 _UNZIPPED: dict[Path, str] = {}
 
@@ -25,21 +26,21 @@ _UNZIPPED: dict[Path, str] = {}
 _PROBE = "import ctypes, sys; ctypes.CDLL(sys.argv[1])"
 
 
-@atexit.register
-def _remove_unzipped() -> None:
-    for folder in _UNZIPPED.values():
-        shutil.rmtree(folder, ignore_errors=True)
-
-
 def unzipped(path: Path) -> str:
-    """Folder holding the extracted FMU (shared by every instance of the file)."""
+    """Folder holding the extracted FMU (shared by every instance of the file): unpacked
+    within the limits of :mod:`master.unpacking`, into a folder removed at exit (or by
+    the next run, when this one is killed)."""
     path = Path(path)
     if path not in _UNZIPPED:
-        _UNZIPPED[path] = extract(str(path))
+        _UNZIPPED[path] = str(extract(path, "FMU", "fmu"))
     return _UNZIPPED[path]
 
 
 def _archive_problem(path: Path) -> str | None:
+    try:
+        check_archive(path, "FMU")  # before testzip, which inflates every member
+    except InputError as error:
+        return error.problems[0]
     try:
         with zipfile.ZipFile(path) as archive:
             broken = archive.testzip()
@@ -82,8 +83,8 @@ def _library_problem(path: Path) -> str | None:
                     f"{', '.join(found) or 'no binaries'})")
     try:
         library = Path(unzipped(path)) / member
-    except (OSError, zipfile.BadZipFile, EOFError) as error:
-        return f"cannot be extracted: {getattr(error, 'strerror', None) or error}"
+    except InputError as error:
+        return error.problems[0]
     try:
         probe = subprocess.run([sys.executable, "-I", "-S", "-c", _PROBE, str(library)],
                                capture_output=True, text=True, timeout=120)

@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from master.output_files import OutputError, OutputFile, write_whole
+from master.output_files import OutputError, OutputFile, check_fits
 
 
 @dataclass(frozen=True)
@@ -92,8 +92,10 @@ class CsvRecorder(Observer):
     interrupted run keeps every converged step (a process killed outright loses at
     most the last ``flush_seconds``)."""
 
-    def __init__(self, path, flush_seconds: float = 0.05):
+    def __init__(self, path, flush_seconds: float = 0.05, force: bool = False):
         self.path = Path(path)
+        #: run even when the CSV would not fit the free disk space
+        self.force = force
         self.output: OutputFile | None = None
         self.rows = 0
         self.flush_seconds = flush_seconds
@@ -102,6 +104,9 @@ class CsvRecorder(Observer):
         self.files = {}
 
     def started(self, info: RunInfo) -> None:
+        if not self.force:
+            check_fits(self.path, info.planned_steps + 1,
+                       1 + len(info.columns) + len(info.text_columns))
         self.output = OutputFile(self.path, info.inputs)
         self.output.open()
         self.output.append((",".join(("time",) + info.columns + info.text_columns)
@@ -131,7 +136,11 @@ class CsvRecorder(Observer):
                 self.flush()
             except OutputError as error:
                 result.warnings.append(str(error))
-            self.output.commit()
+            try:
+                self.output.commit()
+            except OutputError as error:
+                result.warnings.append(str(error))
+                return
             self.files["csv"] = self.path
 
     def aborted(self) -> None:
@@ -176,37 +185,47 @@ class MemoryRecorder(Observer):
 
 class FileWriter(Observer):
     """A file written whole when the run ends, also when it failed or was
-    interrupted (``content`` makes it; None: nothing to write); refused at the start
-    when it is one of the run's inputs; a failure to write it is a warning, never a
-    replacement for how the run ended."""
+    interrupted (``content`` makes it; None: nothing to write); its temporary file
+    is made and locked when the run starts (see :mod:`master.output_files`), so that
+    a run that cannot write it, or that another run is writing, is refused before
+    anything runs; a failure to write it is a warning, never a replacement for how
+    the run ended."""
 
     #: what the file is, for ``files`` and messages ("statistics", "plot", "mat")
     kind = ""
 
     def __init__(self, path):
         self.path = Path(path)
-        self.inputs = ()
+        self.output: OutputFile | None = None
         self.files = {}
 
     def started(self, info: RunInfo) -> None:
-        from master.output_files import check_not_input
-        self.inputs = info.inputs
-        check_not_input(self.path, self.inputs)
+        self.output = OutputFile(self.path, info.inputs)
+        self.output.open()
 
     def content(self, result) -> bytes | None:
         """The file's bytes for this result."""
         raise NotImplementedError
 
     def finished(self, result) -> None:
+        if self.output is None or not self.output.is_open:
+            return
         try:
             data = self.content(result)
             if data is None:
+                self.output.discard()
                 return
-            write_whole(self.path, data, self.inputs)
+            self.output.append(data)
+            self.output.commit()
         except Exception as error:  # a full disk must not hide how the run ended
+            self.output.discard()
             result.warnings.append(f"{self.kind} not written to {self.path}: {error}")
             return
         self.files[self.kind] = self.path
+
+    def aborted(self) -> None:
+        if self.output:
+            self.output.discard()
 
 
 class StatisticsWriter(FileWriter):

@@ -118,8 +118,9 @@ def connect(address: str | None = None) -> Connection:
     try:
         ray.init(**options)
     except Exception as error:  # ConnectionError, ValueError, RuntimeError, Ray's own
-        where = f"the Ray cluster at {address}" if address else "a local Ray instance"
-        raise InputError(f"cannot connect to {where}: "
+        if address:  # the same answer whatever listens there (see _check_reachable)
+            raise InputError(_unreachable(address)) from None
+        raise InputError(f"cannot connect to a local Ray instance: "
                          f"{' '.join(str(error).split())[:300]}") from None
     finally:
         if in_main and previous is not None:
@@ -133,12 +134,34 @@ def _check_reachable(address: str) -> None:
         return
     host, port = _host_port(address)
     try:
-        with socket.create_connection((host, port), timeout=REACH_SECONDS):
-            pass
-    except OSError as error:
-        raise InputError(f"setting address '{address}': no Ray cluster answers there "
-                         f"({error.strerror or error}); start one with `ray start --head` "
-                         "and give the address it prints") from None
+        with socket.create_connection((host, port), timeout=REACH_SECONDS) as connection:
+            # a Ray head (GCS, or Ray Client) speaks gRPC: HTTP/2 answers the client's
+            # preface with a SETTINGS frame; anything else listening there is no cluster
+            # (and Ray would wait minutes on it, printing its own warnings)
+            connection.settimeout(REACH_SECONDS)
+            connection.sendall(b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + _EMPTY_SETTINGS)
+            header = b""
+            while len(header) < 9:
+                chunk = connection.recv(9 - len(header))
+                if not chunk:
+                    break
+                header += chunk
+    except OSError:
+        header = b""
+    if len(header) < 9 or header[3] != 0x4:  # frame type 4: SETTINGS
+        raise InputError(_unreachable(address))
+
+
+#: an HTTP/2 SETTINGS frame with no settings: length 0, type 4, no flags, stream 0
+_EMPTY_SETTINGS = b"\x00\x00\x00\x04\x00\x00\x00\x00\x00"
+
+
+def _unreachable(address: str) -> str:
+    """The one answer for an address where no Ray cluster answers: a closed port, a
+    silent one and one where something else listens read the same, so that the
+    setting (a run setting of ``dsim serve`` too) tells nothing about the network."""
+    return (f"setting address '{address}': no Ray cluster answers there; start one with "
+            "`ray start --head` and give the address it prints")
 
 
 _QUIETED = False

@@ -11,11 +11,9 @@ instantiated.
 """
 from __future__ import annotations
 
-import atexit
 import math
-import shutil
-import tempfile
 import zipfile
+from collections import Counter
 from functools import lru_cache
 from pathlib import Path
 
@@ -28,15 +26,7 @@ from master.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from master.ssp_hierarchy import Binding, RawConnection, resolve_bindings, resolve_connections
 from master.ssp_values import (NS, TYPES, apply_mapping, parameter_mapping, parameter_set,
                                transformation, units)
-
-
-_EXTRACTED: list[str] = []
-
-
-@atexit.register
-def _clean_extracted() -> None:
-    for folder in _EXTRACTED:
-        shutil.rmtree(folder, ignore_errors=True)
+from master.unpacking import check_archive, extract
 
 
 def _open(path: Path) -> tuple[Path, str]:
@@ -52,17 +42,14 @@ def _open(path: Path) -> tuple[Path, str]:
         return path, str(path)
     if not zipfile.is_zipfile(path):
         raise InputError(f"{path}: not an SSP archive (not a zip file)")
-    with zipfile.ZipFile(path) as archive:
-        if "SystemStructure.ssd" not in archive.namelist():
-            raise InputError(f"{path}: archive has no SystemStructure.ssd at its root")
-        folder = tempfile.mkdtemp(prefix="dsim-ssp-")
-        _EXTRACTED.append(folder)
-        try:
-            archive.extractall(folder)
-        except (OSError, zipfile.BadZipFile, EOFError) as error:
-            raise InputError(f"{path}: cannot extract the archive: "
-                             f"{getattr(error, 'strerror', None) or error}") from None
-    return Path(folder) / "SystemStructure.ssd", str(path)
+    try:
+        if "SystemStructure.ssd" not in check_archive(path, "SSP"):
+            raise InputError("archive has no SystemStructure.ssd at its root")
+        # removed at exit, or by the next run when this one is killed (master.unpacking)
+        folder = extract(path, "SSP", "ssp")
+    except InputError as error:  # one line that names the file
+        raise InputError([f"{path}: {problem}" for problem in error.problems]) from None
+    return folder / "SystemStructure.ssd", str(path)
 
 
 def _parse_xml(path: Path, shown: str):
@@ -97,6 +84,8 @@ class _Reader:
     def __init__(self, ssd: Path, shown: str):
         self.ssd = ssd
         self.base = ssd.parent
+        #: the scene's folder with links resolved: every file it names must be inside
+        self.root = self.base.resolve()
         self.shown = shown
         self.problems: list[str] = []
         self.components: list[dict] = []
@@ -115,9 +104,25 @@ class _Reader:
         return f"{self.shown} (SystemStructure.ssd line {element.sourceline}): {label}"
 
     # --- files -----------------------------------------------------------------
+    def inside(self, source: str, where: str, what: str) -> Path | None:
+        """The file of the scene that ``source`` names, or None with a problem said: a
+        scene reaches only files inside its own folder (after resolving links), so an
+        absolute path or one that leaves the folder is refused before it is opened."""
+        if source.startswith(("/", "\\")) or Path(source).is_absolute():
+            self.problems.append(f"{where}: {what} '{source}' is an absolute path: a scene "
+                                 "names only files inside itself")
+            return None
+        file = self.base / source
+        if not file.resolve().is_relative_to(self.root):
+            self.problems.append(f"{where}: {what} '{source}' is outside the scene")
+            return None
+        return file
+
     def _document(self, source: str, where: str, schema: str):
         """The root element of a file the SSD references, or None (a problem said)."""
-        file = self.base / source
+        file = self.inside(source, where, "file")
+        if file is None:
+            return None
         if not file.is_file():
             self.problems.append(f"{where}: file '{source}' not found")
             return None
@@ -212,7 +217,9 @@ class _Reader:
             self.problems.append(f"{where}: type '{kind}' is not an FMU (dsim runs FMU "
                                  "components; a referenced SSP or SSD is not supported)")
             return
-        file = self.base / source
+        file = self.inside(source, where, "FMU source")
+        if file is None:
+            return
         if not source or not file.is_file():
             self.problems.append(f"{where}: FMU '{source}' not found")
         path = prefix + element.get("name", "")
@@ -223,10 +230,14 @@ class _Reader:
     def parameter_set_on_top(self, chosen: str) -> None:
         """Bind a parameter set of the scene above every other binding."""
         where = f"{self.shown}: parameter set '{chosen}'"
-        file = self.base / chosen
+        file = self.inside(chosen, where, "file")
+        if file is None:
+            return
         if not file.is_file():
             named = {}
             for candidate in sorted(self.base.rglob("*.ssv")):
+                if not candidate.resolve().is_relative_to(self.root):
+                    continue  # a link out of the scene: not one of its files
                 try:
                     named[etree.parse(str(candidate)).getroot().get("name")] = candidate
                 except etree.XMLSyntaxError:
@@ -337,18 +348,23 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
         raise InputError(list(problems))
     name = root.get("name") or path.stem
     reference = ssd.parent / "resources" / "reference.csv"
+    if reference.is_file() and not reference.resolve().is_relative_to(ssd.parent.resolve()):
+        reference = None  # a link out of the scene is not its reference
     return Scene(name, path, start, stop, tuple(components), tuple(connections),
                  tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
                  scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
-                 reference if reference.is_file() else None,
+                 reference if reference and reference.is_file() else None,
                  {path: resource for path, resource, _ in reader.placements})
 
 
 def _check_references(reader: _Reader, components, connections) -> None:
     """Joints, port maps and connections must name components that exist."""
     paths = {c.path for c in components}
+    # every check here is linear in the scene's size: a scene of a million components
+    # is read in seconds, never hours
+    uses = Counter(c.path for c in components)
     for component in components:
-        if sum(c.path == component.path for c in components) > 1:
+        if uses[component.path] > 1:
             reader.problems.append(f"{component.location}: component name used twice")
     seen = set()
     for joint in reader.joints:

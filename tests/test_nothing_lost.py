@@ -78,7 +78,8 @@ def test_results_grow_under_a_temporary_name_and_are_renamed_at_the_end(built, t
     peek = PeekAtFiles(target)
     result = dsim.simulate(built["ssp"] / "spring_mass_linear.ssp", stop=0.1, out=target,
                            observers=[peek])
-    assert peek.seen == [".run.csv.partial", "run.csv"]  # the older result stays meanwhile
+    # the older result stays meanwhile; the statistics' temporary file is reserved too
+    assert peek.seen == [".run.csv.partial", ".run.stats.json.partial", "run.csv"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.stats.json"]
     header, data = read_csv(target)
     assert result.ok and data.shape == (11, len(header))
@@ -103,7 +104,8 @@ def _wait_for(path: Path, seconds: float = 60.0) -> None:
 def _long_run(scene, target: Path, **popen):
     """dsim run on a long span, as a user would start it."""
     return subprocess.Popen(DSIM + ["run", str(scene), "--stop", "1e6", "--out", str(target),
-                                    "--quiet"], cwd=ROOT, stderr=subprocess.PIPE, text=True,
+                                    "--quiet", "--force"], cwd=ROOT, stderr=subprocess.PIPE,
+                            text=True,
                             **popen)
 
 
@@ -111,7 +113,8 @@ def _long_run(scene, target: Path, **popen):
 def test_a_signal_ends_the_run_after_a_step_with_everything_written(
         block_fmus, tmp_path, capsys, signal_number):
     """Also: a second run on the same output is refused while the first holds it, and
-    a stop time of 1e6 s (1e9 steps) starts at once (step times come as the run goes)."""
+    a stop time of 1e6 s (1e9 steps, more than the disk takes: --force) starts at once
+    (step times come as the run goes)."""
     folder = block_scene(tmp_path / "scene", block_fmus["state"])
     target = tmp_path / "out" / "run.csv"
     process = _long_run(folder, target)

@@ -340,8 +340,8 @@ def free_port() -> int:
 
 @pytest.mark.parametrize("arguments, expected", [
     (["--backend", "ray", "--address", "127.0.0.1:{port}"],
-     "dsim: error: setting address '127.0.0.1:{port}': no Ray cluster answers there "
-     "(Connection refused); start one with `ray start --head` and give the address it prints"),
+     "dsim: error: setting address '127.0.0.1:{port}': no Ray cluster answers there; "
+     "start one with `ray start --head` and give the address it prints"),
     (["--backend", "ray", "--address", "head-node"],
      "dsim: error: setting address 'head-node' is not HOST:PORT, ray://HOST:PORT or auto (the "
      "address that `ray start --head` prints)"),
