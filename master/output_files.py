@@ -13,7 +13,7 @@
   redirect the rows into another file), and a ``.NAME.partial`` is always locked
   while its run lives: a second run on the same target is refused instead of
   interleaving its rows, and one whose lock nobody holds was left by a killed run
-  and is removed.  The final rename replaces whatever is at the target (a link
+  and is ended for it: renamed to the target, its rows kept (removed when empty).  The final rename replaces whatever is at the target (a link
   included: rename never follows it), and only after checking that the temporary
   name still holds this run's file.
 * Data goes to the file in whole records: a record that cannot be written in full
@@ -89,10 +89,22 @@ def _same(path: Path, info: os.stat_result) -> bool:
     return (now.st_dev, now.st_ino) == (info.st_dev, info.st_ino)
 
 
+def _finish_for_the_dead(path: Path, info: os.stat_result) -> None:
+    """End a killed run's temporary file as the run would have ended it: a
+    ``.NAME.partial`` with rows is renamed to NAME (its converged rows kept under the
+    final name, as for an interrupted run; rename never follows a link at NAME), an
+    empty one or a ``.tmp`` is removed."""
+    name = path.name
+    if name.endswith(".partial") and info.st_size > 0:
+        os.replace(path, path.with_name(name[1:-len(".partial")]))
+    else:
+        os.unlink(path)
+
+
 def sweep_dead_partials(folder: Path) -> list[Path]:
-    """Remove the temporary files of ``folder`` left by killed runs: a ``.*.partial``
-    or ``.*.tmp`` regular file whose lock nobody holds, untouched for
-    :data:`STALE_SECONDS`; the files removed."""
+    """End the temporary files of ``folder`` left by killed runs (a ``.*.partial`` or
+    ``.*.tmp`` regular file whose lock nobody holds, untouched for
+    :data:`STALE_SECONDS`) by :func:`_finish_for_the_dead`; the files ended."""
     removed = []
     try:
         names = [n for n in os.listdir(folder) if n.startswith(".")
@@ -104,7 +116,7 @@ def sweep_dead_partials(folder: Path) -> list[Path]:
         info = _lock_is_free(path)
         if info and time.time() - info.st_mtime > STALE_SECONDS and _same(path, info):
             try:
-                os.unlink(path)
+                _finish_for_the_dead(path, info)
                 removed.append(path)
             except OSError:
                 pass
@@ -194,7 +206,9 @@ class OutputFile:
                              f"({self.partial.name} is locked); wait for it or choose "
                              "another output")
         if _same(self.partial, dead):
-            os.unlink(self.partial)  # a killed run's rows: the new run replaces them
+            # a killed run's rows go to the final name first (nothing a run converged is
+            # lost); this run's file replaces them there when it ends
+            _finish_for_the_dead(self.partial, dead)
 
     @property
     def is_open(self) -> bool:

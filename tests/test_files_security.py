@@ -111,7 +111,10 @@ os.kill(os.getpid(), 9)
 """
 
 
-def test_a_killed_runs_temporary_files_are_removed_by_the_next_run(tmp_path):
+def test_a_killed_runs_rows_are_kept_under_its_name_by_the_next_run(tmp_path):
+    """kill -9 leaves a run's rows in its locked temporary file; the next run that
+    writes into the folder ends that file as the killed run would have: renamed to its
+    output (nothing converged is lost), and its own file then replaces that output."""
     target = tmp_path / "run.csv"
     for name in ("run.csv", "other.csv"):
         killed = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(tmp_path / name)],
@@ -123,9 +126,11 @@ def test_a_killed_runs_temporary_files_are_removed_by_the_next_run(tmp_path):
     os.utime(tmp_path / ".other.csv.partial", (old, old))
     output = OutputFile(target)
     output.open()  # the same output's lock is free: its run is dead
+    assert target.read_bytes() == b"time\n0.0\n"  # the killed run's rows, under its name
+    assert (tmp_path / "other.csv").read_bytes() == b"time\n0.0\n"
     output.append(b"time\n")
     output.commit()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other.csv", "run.csv"]
     assert target.read_bytes() == b"time\n"
 
 
