@@ -60,6 +60,9 @@ def sniff(path: Path) -> str:
             names = set(archive.namelist())
     except (zipfile.BadZipFile, OSError, EOFError):
         raise UploadError("neither an FMU nor an SSP archive (not a zip archive)") from None
+    except UnicodeDecodeError:  # flagged UTF-8 by the zip format, but it is not
+        raise UploadError("not a readable archive: a member's name is not valid UTF-8") \
+            from None
     if "modelDescription.xml" in names:
         return "fmu"
     if "SystemStructure.ssd" in names:
@@ -84,7 +87,12 @@ def store_scene(store: Store, path: Path, filename: str, max_unpacked: int,
     models = {}
     with zipfile.ZipFile(path) as archive:
         for member, fmu in description.pop("fmus").items():
-            sha, size = store.keep_bytes(archive.read(member))
+            try:
+                data = archive.read(member)
+            except KeyError:  # the checker names members as the archive does: never
+                raise UploadError(f"{filename}: no member '{member}' in the archive") \
+                    from None
+            sha, size = store.keep_bytes(data)
             model_id = store.add_model(sha, size, member.rsplit("/", 1)[-1],
                                        fmu["description"])
             for component in description["components"]:
