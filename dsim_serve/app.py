@@ -158,6 +158,8 @@ def create_app(db_path, token: str | None = None, slots: int = 2,
     Host headers it answers (:class:`Guard`, :func:`accepted_hosts`)."""
     from dsim_serve import routes
 
+    if hosts is None and not token:  # any Host and no token: open to DNS rebinding
+        raise ValueError("a server that accepts any Host header needs a token")
     # before the database is touched: one server per database (InputError naming
     # the other server's pid), held until the application shuts down
     lock = lock_database(db_path)
