@@ -74,6 +74,17 @@ def test_a_dns_rebinding_page_is_refused_by_its_host_name(process, built):
     assert forged.status_code == 403 and _blobs(server) == before
 
 
+def test_hosts_are_the_bound_names_and_any_host_needs_a_token(tmp_path):
+    from dsim_serve.app import accepted_hosts
+
+    assert accepted_hosts("127.0.0.1", 80) == ("127.0.0.1:80", "localhost:80", "[::1]:80")
+    assert accepted_hosts("::1", 80) == ("127.0.0.1:80", "localhost:80", "[::1]:80")
+    assert accepted_hosts("192.0.2.7", 80)[-1] == "192.0.2.7:80"
+    assert accepted_hosts("0.0.0.0", 80) is None and accepted_hosts("::", 80) is None
+    with pytest.raises(ValueError, match="needs a token"):
+        create_app(tmp_path / "db.sqlite", hosts=None)
+
+
 def test_an_uploaded_fmu_is_never_loaded_until_a_user_runs_it(process, tmp_path):
     from tests.third_party.build import causal_ring_ssp, c_fmu
 
@@ -223,3 +234,29 @@ def test_parallel_uploads_of_one_fmu_are_one_model(process, built):
     assert [a.status_code for a in answers] == [200] * 20, [a.text for a in answers
                                                            if a.status_code != 200]
     assert len({a.json()["id"] for a in answers}) == 1
+
+
+def test_one_content_added_at_once_by_many_threads_is_one_row(tmp_path):
+    """The race under the parallel uploads, made likely: every thread has the
+    inspection behind it and adds the same model and scene at the same moment."""
+    from dsim_serve.store import Store
+
+    store = Store(tmp_path / "db.sqlite")
+    barrier = threading.Barrier(20)
+    ids, errors = [], []
+
+    def add(i):
+        barrier.wait()
+        try:
+            model = store.add_model("a" * 64, 1, f"{i}.fmu", {"modelName": "m"})
+            ids.append((model, store.add_scene("b" * 64, 1, f"{i}.ssp", {}, {"c": model})))
+        except Exception as error:  # the IntegrityError the issue found
+            errors.append(f"{type(error).__name__}: {error}")
+
+    threads = [threading.Thread(target=add, args=(i,)) for i in range(20)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert errors == [] and len(set(ids)) == 1 and len(ids) == 20, errors[:3]
+    assert store.one("SELECT COUNT(*) AS n FROM scene_models")["n"] == 1
