@@ -8,17 +8,23 @@ was uploaded under; that name is kept only to be shown.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
+import threading
 import zipfile
 from pathlib import Path
 
 from dsim_serve.jobs import child_env
 from dsim_serve.store import Store
 
-#: seconds an inspection may take (a scene's FMUs are each loaded once)
+#: seconds an inspection may take
 INSPECT_TIMEOUT = 300
+
+#: inspections at once: each is a Python process, and uploads arrive in parallel
+#: (20 at once were seen); the others wait their turn rather than crowd the machine
+INSPECTIONS = threading.BoundedSemaphore(2 * (os.cpu_count() or 1))
 
 
 class UploadError(Exception):
@@ -34,9 +40,10 @@ def inspect_file(kind: str, path: Path, max_unpacked: int, shown: str) -> dict:
     (``kind``: fmu or ssp); UploadError with its problems, the temporary path in
     them replaced by ``shown``."""
     try:
-        child = subprocess.run([sys.executable, "-m", "dsim_serve.inspect", kind, str(path),
-                                str(max_unpacked)], capture_output=True, text=True,
-                               timeout=INSPECT_TIMEOUT, env=child_env())
+        with INSPECTIONS:
+            child = subprocess.run([sys.executable, "-m", "dsim_serve.inspect", kind,
+                                    str(path), str(max_unpacked)], capture_output=True,
+                                   text=True, timeout=INSPECT_TIMEOUT, env=child_env())
     except subprocess.TimeoutExpired:
         raise UploadError(f"{shown}: checking it took longer than {INSPECT_TIMEOUT} s") from None
     if child.returncode < 0:
