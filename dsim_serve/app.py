@@ -23,6 +23,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from dsim_serve.jobs import Jobs
 from dsim_serve.owner import lock_database, server_identity
@@ -187,8 +188,9 @@ def create_app(db_path, token: str | None = None, slots: int = 2,
     app.include_router(routes.router)
     app.include_router(routes.api)
 
-    @app.exception_handler(HTTPException)
-    async def http_error(request: Request, error: HTTPException):
+    # Starlette's own (a malformed multipart body, 400) as well as FastAPI's
+    @app.exception_handler(StarletteHTTPException)
+    async def http_error(request: Request, error: StarletteHTTPException):
         if _wants_json(request):
             return JSONResponse({"problems": [str(error.detail)]}, status_code=error.status_code)
         return app.state.templates.TemplateResponse(

@@ -597,6 +597,12 @@ async def run_api(request: Request, scene_id: int):
         raise HTTPException(400, '"settings" must be a JSON object of setting: value')
     if not isinstance(signals, list) or not all(isinstance(s, str) for s in signals):
         raise HTTPException(400, '"signals" must be a JSON list of column names')
+    from master.settings import SETTINGS
+
+    unknown = sorted(set(settings) - set(SETTINGS))
+    if unknown:  # a form has other fields; a JSON body names settings only
+        raise HTTPException(400, f"unknown setting {', '.join(map(repr, unknown))} "
+                                 f"(known: {', '.join(SETTINGS)})")
     try:
         settings = run_settings(settings)
     except FormError as error:

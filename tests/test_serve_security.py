@@ -186,7 +186,8 @@ def _ssp_through_dotdot(built) -> bytes:
 
 
 @pytest.mark.parametrize("case", ["bad utf-8 name", "fmu through ../", "huge id",
-                                  "malformed json", "json not an object", "bad signals"])
+                                  "malformed json", "json not an object", "bad signals",
+                                  "unknown setting", "malformed multipart"])
 def test_bad_requests_are_one_line_and_a_4xx(process, built, case):
     server, client = process
     fmu = (built["fmus"] / "SpringMass.fmu").read_bytes()
@@ -210,9 +211,16 @@ def test_bad_requests_are_one_line_and_a_4xx(process, built, case):
     elif case == "json not an object":
         answer = client.post(scene_runs, json=["stop", 1])
         expected = "the body must be a JSON object"
-    else:
+    elif case == "bad signals":
         answer = client.post(scene_runs, json={"signals": "right.x[2]"})
         expected = '"signals" must be a JSON list of column names'
+    elif case == "unknown setting":
+        answer = client.post(scene_runs, json={"settings": {"stpo": "1"}})
+        expected = "unknown setting 'stpo'"
+    else:
+        answer = client.post("/api/upload", content=b"garbage", headers={
+            "Content-Type": "multipart/form-data; boundary=x"})
+        expected = "Invalid multipart data"
     assert 400 <= answer.status_code < 500, answer.text
     assert expected in _one_line(answer)
 
