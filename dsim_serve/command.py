@@ -59,12 +59,17 @@ def serve(args) -> int:
         token = secrets.token_urlsafe(24)
     import uvicorn
 
-    from dsim_serve.app import create_app
+    from dsim_serve.app import accepted_hosts, create_app
 
     listening = _bind(args.host, args.port)
     port = listening.getsockname()[1]  # the one the system chose for --port 0
-    app = create_app(args.db, token=token, slots=args.jobs,
-                     max_upload=int(args.max_upload_mb * 2**20))
+    try:  # a second server on this database: one line with the first one's pid
+        app = create_app(args.db, token=token, slots=args.jobs,
+                         max_upload=int(args.max_upload_mb * 2**20),
+                         hosts=accepted_hosts(args.host, port))
+    except InputError:
+        listening.close()
+        raise
     config = uvicorn.Config(app, host=args.host, port=port, log_level="warning")
     server = uvicorn.Server(config)
     shown = f"[{args.host}]" if ":" in args.host else args.host
@@ -74,6 +79,9 @@ def serve(args) -> int:
     if token and not args.token:
         print("dsim serve: bound beyond this machine, so every request needs this token",
               flush=True)
+    hosts = accepted_hosts(args.host, port)
+    print("dsim serve: answers requests for " + (", ".join(hosts) if hosts else
+          "any host name (with the token)"), flush=True)
     server.run(sockets=[listening])
     return 0
 

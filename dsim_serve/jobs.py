@@ -17,6 +17,7 @@ import threading
 import time
 from pathlib import Path
 
+from dsim_serve.owner import owner_alive
 from dsim_serve.store import ACTIVE, Store
 
 #: seconds a worker gets to stop after SIGTERM when the server shuts down
@@ -93,9 +94,18 @@ class Jobs:
         self.thread.start()
 
     def reconcile(self) -> None:
-        """Runs that a previous server left queued or running: ended as the files say,
-        else interrupted (the worker notices its server is gone and stops)."""
-        for run in self.store.all("SELECT * FROM runs WHERE status IN ('queued', 'running')"):
+        """Runs that a dead server left queued or running: ended as the files say,
+        else interrupted (the worker notices its server is gone and stops).  A run
+        whose server may still be alive is left alone: only its owner finalises it."""
+        me = self.store.owner
+        for run in self.store.all("SELECT * FROM runs WHERE status IN ('queued', 'running') "
+                                  "AND owner IS NOT ?", me):
+            if owner_alive(run["owner"]):
+                continue
+            with self.store.connect() as db:  # taken over once, by one server
+                if not db.execute("UPDATE runs SET owner = ? WHERE id = ? AND owner IS ?",
+                                  (me, run["id"], run["owner"])).rowcount:
+                    continue
             if run["status"] == "queued":
                 self.store.update_run(run["id"], status="interrupted", ended=time.time(),
                                       message="never started: the server stopped first")
@@ -136,7 +146,8 @@ class Jobs:
                 _signal(process, signal.SIGKILL)
                 process.wait()
             self.finalize(run_id, process.returncode, server_died=True)
-        for run in self.store.all("SELECT id FROM runs WHERE status = 'queued'"):
+        for run in self.store.all("SELECT id FROM runs WHERE status = 'queued' AND owner IS ?",
+                                  self.store.owner):
             self.store.update_run(run["id"], status="interrupted", ended=time.time(),
                                   message="never started: the server stopped first")
 
@@ -168,7 +179,8 @@ class Jobs:
             with self.lock:
                 if len(self.processes) >= self.slots:
                     return
-            run = self.store.one("SELECT * FROM runs WHERE status = 'queued' ORDER BY id")
+            run = self.store.one("SELECT * FROM runs WHERE status = 'queued' AND owner IS ? "
+                                 "ORDER BY id", self.store.owner)
             if run is None:
                 return
             try:
@@ -198,8 +210,9 @@ class Jobs:
             self.processes[run["id"]] = process
         with self.store.connect() as db:  # unless it was cancelled meanwhile
             started = db.execute("UPDATE runs SET status = 'running', pid = ?, started = ? "
-                                 "WHERE id = ? AND status = 'queued'",
-                                 (process.pid, time.time(), run["id"])).rowcount
+                                 "WHERE id = ? AND status = 'queued' AND owner IS ?",
+                                 (process.pid, time.time(), run["id"],
+                                  self.store.owner)).rowcount
         if not started:
             _signal(process, signal.SIGKILL)
 
@@ -228,6 +241,9 @@ class Jobs:
         folder = self.store.run_folder(run_id)
         run = self.store.run(run_id)
         if run["status"] not in ACTIVE:  # cancelled before its process was running
+            return
+        if run["owner"] != self.store.owner:
+            # another server's run: its CSV and status are that server's to write
             return
         salvage_csv(folder)
         outcome = _read_json(folder / "outcome.json")

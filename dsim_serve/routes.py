@@ -591,12 +591,35 @@ def run_download(request: Request, run_id: int, name: str):
 async def run_api(request: Request, scene_id: int):
     """Launch a run: JSON body ``{"settings": {...}, "signals": [...]}`` (settings as
     ``dsim.simulate``'s keywords); ``{"id": N}`` or 400 with ``problems``."""
-    body = await request.json()
+    body = await _json_object(request)
+    settings, signals = body.get("settings") or {}, body.get("signals") or []
+    if not isinstance(settings, dict):
+        raise HTTPException(400, '"settings" must be a JSON object of setting: value')
+    if not isinstance(signals, list) or not all(isinstance(s, str) for s in signals):
+        raise HTTPException(400, '"signals" must be a JSON list of column names')
+    from master.settings import SETTINGS
+
+    unknown = sorted(set(settings) - set(SETTINGS))
+    if unknown:  # a form has other fields; a JSON body names settings only
+        raise HTTPException(400, f"unknown setting {', '.join(map(repr, unknown))} "
+                                 f"(known: {', '.join(SETTINGS)})")
     try:
-        settings = run_settings(body.get("settings") or {})
+        settings = run_settings(settings)
     except FormError as error:
         return JSONResponse({"problems": error.problems}, status_code=400)
-    return {"id": launch(request, scene_id, settings, list(body.get("signals") or []))}
+    return {"id": launch(request, scene_id, settings, signals)}
+
+
+async def _json_object(request: Request) -> dict:
+    """The request's body as a JSON object, else 400 with one line."""
+    try:
+        body = json.loads(await request.body())
+    except (ValueError, RecursionError) as error:  # bad JSON, bad UTF-8, nesting
+        reason = str(error).splitlines()[0][:200] if str(error) else type(error).__name__
+        raise HTTPException(400, f"the body is not JSON: {reason}") from None
+    if not isinstance(body, dict):
+        raise HTTPException(400, "the body must be a JSON object")
+    return body
 
 
 @api.get("/runs/{run_id}")

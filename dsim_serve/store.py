@@ -9,8 +9,9 @@ user called them.
 
 The database survives a killed server: every change is one committed
 transaction, and a run in flight when the server died is marked interrupted
-when the next server opens the database (:meth:`Store.reconcile`, called by the
-job manager).
+when the next server opens the database (:meth:`dsim_serve.jobs.Jobs.reconcile`).
+Each run records the server that owns it (``owner``, :mod:`dsim_serve.owner`):
+only that server starts and finalises it.
 """
 from __future__ import annotations
 
@@ -66,6 +67,7 @@ CREATE TABLE IF NOT EXISTS runs (
     steps INTEGER,
     time_reached REAL,
     pid INTEGER,
+    owner TEXT,                      -- the server that owns it (dsim_serve.owner)
     rerun_of INTEGER,
     cancel_requested INTEGER NOT NULL DEFAULT 0,
     created REAL NOT NULL,
@@ -74,6 +76,9 @@ CREATE TABLE IF NOT EXISTS runs (
 );
 CREATE INDEX IF NOT EXISTS runs_by_scene ON runs(scene_id);
 """
+
+#: the largest id SQLite stores (a signed 64-bit integer): a larger one names no row
+MAX_ID = 2**63 - 1
 
 #: statuses of a run that has not ended
 ACTIVE = ("queued", "running")
@@ -99,11 +104,19 @@ def _row(row: sqlite3.Row | None) -> dict | None:
     return data
 
 
+def _beyond_sqlite(args) -> bool:
+    """Whether an argument is an integer SQLite cannot hold (it would raise
+    OverflowError): such an id names no row."""
+    return any(isinstance(a, int) and not -MAX_ID - 1 <= a <= MAX_ID for a in args)
+
+
 class Store:
     """The database file and its folder of blobs and run folders."""
 
-    def __init__(self, path):
+    def __init__(self, path, owner: str | None = None):
         self.path = Path(path).resolve()
+        #: the server this store belongs to: the owner of the runs it adds
+        self.owner = owner
         self.files = self.path.with_name(self.path.name + ".files")
         self.blobs = self.files / "blobs"
         self.runs = self.files / "runs"
@@ -113,6 +126,9 @@ class Store:
         with self.connect() as db:
             db.execute("PRAGMA journal_mode=WAL")
             db.executescript(SCHEMA)
+            columns = {row["name"] for row in db.execute("PRAGMA table_info(runs)")}
+            if "owner" not in columns:  # a database made before runs had owners
+                db.execute("ALTER TABLE runs ADD COLUMN owner TEXT")
 
     # --- connections -------------------------------------------------------------
     @contextmanager
@@ -129,10 +145,14 @@ class Store:
             db.close()
 
     def one(self, sql: str, *args) -> dict | None:
+        if _beyond_sqlite(args):
+            return None
         with self.connect() as db:
             return _row(db.execute(sql, args).fetchone())
 
     def all(self, sql: str, *args) -> list[dict]:
+        if _beyond_sqlite(args):
+            return []
         with self.connect() as db:
             return [_row(r) for r in db.execute(sql, args).fetchall()]
 
@@ -182,27 +202,31 @@ class Store:
     # --- models and scenes ---------------------------------------------------------
     def add_model(self, sha: str, size: int, filename: str, description: dict) -> int:
         """The model with this content: stored now, or the one stored before."""
-        found = self.one("SELECT id FROM models WHERE sha256 = ?", sha)
-        if found:
-            return found["id"]
-        return self.execute(
-            "INSERT INTO models (sha256, size, filename, name, description, created) "
-            "VALUES (?, ?, ?, ?, ?, ?)", sha, size, filename,
-            description.get("modelName") or filename, json.dumps(description), time.time())
+        # one statement that may find the row there: uploads of one file at once
+        # (each checked in its own thread) all get the row the first one wrote
+        with self.connect() as db:
+            db.execute(
+                "INSERT INTO models (sha256, size, filename, name, description, created) "
+                "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (sha256) DO NOTHING", (
+                    sha, size, filename, description.get("modelName") or filename,
+                    json.dumps(description), time.time()))
+            return db.execute("SELECT id FROM models WHERE sha256 = ?", (sha,)).fetchone()[0]
 
     def add_scene(self, sha: str, size: int, filename: str, description: dict,
                   models: dict, origin: str = "uploaded", parent_id: int | None = None) -> int:
         """The scene with this content (stored now or before); ``models`` maps each
         component to the id of its FMU's model."""
-        found = self.one("SELECT id FROM scenes WHERE sha256 = ?", sha)
-        if found:
-            return found["id"]
-        with self.connect() as db:
-            scene_id = db.execute(
+        with self.connect() as db:  # as add_model: the same file at once is one row
+            inserted = db.execute(
                 "INSERT INTO scenes (sha256, size, filename, name, description, parent_id, "
-                "origin, created) VALUES (?, ?, ?, ?, ?, ?, ?, ?)", (
+                "origin, created) VALUES (?, ?, ?, ?, ?, ?, ?, ?) "
+                "ON CONFLICT (sha256) DO NOTHING", (
                     sha, size, filename, description.get("name") or filename,
-                    json.dumps(description), parent_id, origin, time.time())).lastrowid
+                    json.dumps(description), parent_id, origin, time.time())).rowcount
+            scene_id = db.execute("SELECT id FROM scenes WHERE sha256 = ?",
+                                  (sha,)).fetchone()[0]
+            if not inserted:
+                return scene_id
             db.executemany("INSERT INTO scene_models VALUES (?, ?, ?)",
                            [(scene_id, model_id, component)
                             for component, model_id in models.items()])
@@ -219,9 +243,9 @@ class Store:
                 rerun_of: int | None = None) -> int:
         """A new queued run (or sweep) of a scene."""
         return self.execute(
-            "INSERT INTO runs (kind, scene_id, settings, signals, status, rerun_of, created) "
-            "VALUES (?, ?, ?, ?, 'queued', ?, ?)", kind, scene_id, json.dumps(settings),
-            json.dumps(signals), rerun_of, time.time())
+            "INSERT INTO runs (kind, scene_id, settings, signals, status, owner, rerun_of, "
+            "created) VALUES (?, ?, ?, ?, 'queued', ?, ?, ?)", kind, scene_id,
+            json.dumps(settings), json.dumps(signals), self.owner, rerun_of, time.time())
 
     def update_run(self, run_id: int, **values) -> None:
         """Set columns of a run (dicts and lists stored as JSON)."""

@@ -8,17 +8,23 @@ was uploaded under; that name is kept only to be shown.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
+import threading
 import zipfile
 from pathlib import Path
 
 from dsim_serve.jobs import child_env
 from dsim_serve.store import Store
 
-#: seconds an inspection may take (a scene's FMUs are each loaded once)
+#: seconds an inspection may take
 INSPECT_TIMEOUT = 300
+
+#: inspections at once: each is a Python process, and uploads arrive in parallel
+#: (20 at once were seen); the others wait their turn rather than crowd the machine
+INSPECTIONS = threading.BoundedSemaphore(2 * (os.cpu_count() or 1))
 
 
 class UploadError(Exception):
@@ -34,9 +40,10 @@ def inspect_file(kind: str, path: Path, max_unpacked: int, shown: str) -> dict:
     (``kind``: fmu or ssp); UploadError with its problems, the temporary path in
     them replaced by ``shown``."""
     try:
-        child = subprocess.run([sys.executable, "-m", "dsim_serve.inspect", kind, str(path),
-                                str(max_unpacked)], capture_output=True, text=True,
-                               timeout=INSPECT_TIMEOUT, env=child_env())
+        with INSPECTIONS:
+            child = subprocess.run([sys.executable, "-m", "dsim_serve.inspect", kind,
+                                    str(path), str(max_unpacked)], capture_output=True,
+                                   text=True, timeout=INSPECT_TIMEOUT, env=child_env())
     except subprocess.TimeoutExpired:
         raise UploadError(f"{shown}: checking it took longer than {INSPECT_TIMEOUT} s") from None
     if child.returncode < 0:
@@ -60,6 +67,9 @@ def sniff(path: Path) -> str:
             names = set(archive.namelist())
     except (zipfile.BadZipFile, OSError, EOFError):
         raise UploadError("neither an FMU nor an SSP archive (not a zip archive)") from None
+    except UnicodeDecodeError:  # flagged UTF-8 by the zip format, but it is not
+        raise UploadError("not a readable archive: a member's name is not valid UTF-8") \
+            from None
     if "modelDescription.xml" in names:
         return "fmu"
     if "SystemStructure.ssd" in names:
@@ -84,7 +94,12 @@ def store_scene(store: Store, path: Path, filename: str, max_unpacked: int,
     models = {}
     with zipfile.ZipFile(path) as archive:
         for member, fmu in description.pop("fmus").items():
-            sha, size = store.keep_bytes(archive.read(member))
+            try:
+                data = archive.read(member)
+            except KeyError:  # the checker names members as the archive does: never
+                raise UploadError(f"{filename}: no member '{member}' in the archive") \
+                    from None
+            sha, size = store.keep_bytes(data)
             model_id = store.add_model(sha, size, member.rsplit("/", 1)[-1],
                                        fmu["description"])
             for component in description["components"]:

@@ -75,7 +75,7 @@ def server(built, tmp_path_factory):
     shipped spring_mass_linear scene uploaded: ``(client, store, scene_id)``."""
     folder = tmp_path_factory.mktemp("serve")
     app = create_app(folder / "db.sqlite", slots=2)
-    with TestClient(app) as client:
+    with TestClient(app, base_url="http://127.0.0.1") as client:
         answer = upload(client, built["ssp"] / "spring_mass_linear.ssp")
         assert answer.status_code == 200, answer.text
         yield client, app.state.store, answer.json()["id"]

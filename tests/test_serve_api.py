@@ -90,7 +90,7 @@ def test_bad_uploads_are_one_clear_line_each(server, built, tmp_path, content, e
 def test_an_upload_over_the_limit_is_refused(tmp_path):
     app = create_app(tmp_path / "db.sqlite", max_upload=1000)
     from fastapi.testclient import TestClient
-    with TestClient(app) as client:
+    with TestClient(app, base_url="http://127.0.0.1") as client:
         answer = client.post("/api/upload", files={"file": ("big.fmu", b"x" * 5000)})
     assert answer.status_code == 413
     assert "larger than" in answer.text
@@ -209,7 +209,8 @@ def test_a_cancelled_run_stops_after_a_step_and_keeps_its_results(server):
 
 def test_runs_wait_for_a_free_slot_and_a_queued_run_can_be_cancelled(built, tmp_path):
     from fastapi.testclient import TestClient
-    with TestClient(create_app(tmp_path / "db.sqlite", slots=1)) as client:
+    with TestClient(create_app(tmp_path / "db.sqlite", slots=1),
+                    base_url="http://127.0.0.1") as client:
         scene_id = upload(client, built["ssp"] / "spring_mass_linear.ssp").json()["id"]
         running = launch(client, scene_id, stop="100000")
         queued = launch(client, scene_id, stop="0.1")
@@ -447,7 +448,7 @@ def test_a_server_bound_beyond_this_machine_needs_its_token(tmp_path):
     assert loopback("127.0.0.1") and loopback("::1") and loopback("localhost")
     assert not loopback("0.0.0.0") and not loopback("192.0.2.7")
     app = create_app(tmp_path / "db.sqlite", token="s3cret")
-    with TestClient(app) as client:
+    with TestClient(app, base_url="http://127.0.0.1") as client:
         assert client.get("/").status_code == 401
         assert client.get("/api/models").status_code == 401
         assert client.get("/", headers={"Authorization": "Bearer wrong"}).status_code == 401
