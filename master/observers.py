@@ -7,13 +7,17 @@ input), :meth:`Observer.stepped` for the start time (index 0) and for every
 converged macro step, :meth:`Observer.warned` for every warning, and
 :meth:`Observer.finished` once with the :class:`~master.results.RunResult`,
 whatever the ending; :meth:`Observer.aborted` instead when the run never started
-(bad input found while initialising).
+(bad input found while initialising).  When a second signal ends the process at
+once, :meth:`Observer.abandoned` is called instead of :meth:`Observer.finished`,
+from another thread (see :mod:`master.interrupts`).
 """
 from __future__ import annotations
 
 import io
 import json
+import os
 import sys
+import threading
 import time as clock
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,14 +87,28 @@ class Observer:
     def aborted(self) -> None:
         """The run never started; undo what :meth:`started` did."""
 
+    def abandoned(self, result) -> None:
+        """The process ends at once (a second SIGINT or SIGTERM), from another thread,
+        while the main thread may be stuck in an FMU's native code: write what can be
+        written without waiting for the main thread (never a lock it may hold, never
+        an FMU call); ``result`` is the interrupted run as far as it got."""
+
 
 class CsvRecorder(Observer):
     """``time``, recorded outputs, joint forces: one row per converged step, in full
     double precision, under a temporary name renamed to ``path`` when the run ends
-    (see :mod:`master.output_files`).  Rows reach the file in whole rows at least
+    (see :mod:`master.output_files`).  Rows reach the file (``os.write``: the
+    operating system's, whatever happens to this process) in whole rows at least
     every ``flush_seconds`` and when the run ends, however it ends: a failed or
-    interrupted run keeps every converged step (a process killed outright loses at
-    most the last ``flush_seconds``)."""
+    interrupted run keeps every converged step, and a process killed outright loses
+    at most the last ``flush_seconds`` (under the temporary name).
+
+    A step rarely flushes by itself: rows wait in memory until ``flush_seconds`` have
+    passed, so a fast run makes few writes.  A step that never returns (an FMU stuck in
+    its own code) must not keep the rows before it in memory, so a daemon thread
+    flushes rows that have waited ``flush_seconds``; the main thread is in native code
+    then and the thread has the interpreter to itself.  One lock guards the pending
+    rows and the file; it is never held across an FMU call."""
 
     def __init__(self, path, flush_seconds: float = 0.05):
         self.path = Path(path)
@@ -99,6 +117,9 @@ class CsvRecorder(Observer):
         self.flush_seconds = flush_seconds
         self._pending: list[str] = []
         self._flushed_at = 0.0
+        self._lock = threading.Lock()
+        self._done = threading.Event()
+        self._late_error: OutputError | None = None
         self.files = {}
 
     def started(self, info: RunInfo) -> None:
@@ -107,15 +128,27 @@ class CsvRecorder(Observer):
         self.output.append((",".join(("time",) + info.columns + info.text_columns)
                             + "\n").encode())
         self._flushed_at = clock.monotonic()
+        self._done.clear()
+        threading.Thread(target=self._flush_late_rows, name="dsim-csv-flush",
+                         daemon=True).start()
 
     def stepped(self, record: StepRecord) -> None:
-        self._pending.append((record.time, record.values, record.texts))
-        self.rows += 1
-        if clock.monotonic() - self._flushed_at >= self.flush_seconds:
-            self.flush()
+        with self._lock:
+            if self._late_error is not None:  # the thread's write failed: the run fails
+                error, self._late_error = self._late_error, None
+                raise error
+            self._pending.append((record.time, record.values, record.texts))
+            self.rows += 1
+            if clock.monotonic() - self._flushed_at >= self.flush_seconds:
+                self._write_pending()
 
     def flush(self) -> None:
         """Write the pending rows (whole rows, or none of them: OutputError)."""
+        with self._lock:
+            self._write_pending()
+
+    def _write_pending(self) -> None:
+        """:meth:`flush` with the lock held."""
         if self._pending:
             # repr: the shortest text that reads back as the same double
             text = "".join(",".join([repr(time)] + list(map(repr, values.tolist()))
@@ -125,16 +158,52 @@ class CsvRecorder(Observer):
             self.output.append(text.encode(), separator=b"\n")
         self._flushed_at = clock.monotonic()
 
+    def _flush_late_rows(self) -> None:
+        """The flushing thread: rows that waited ``flush_seconds`` go to the file
+        (an error is raised at the next step, in the main thread)."""
+        while not self._done.wait(self.flush_seconds / 2):
+            with self._lock:
+                if (not self._pending or self._late_error is not None or
+                        clock.monotonic() - self._flushed_at < self.flush_seconds):
+                    continue
+                try:
+                    self._write_pending()
+                except OutputError as error:
+                    self._late_error = error
+
     def finished(self, result) -> None:
-        if self.output and self.output.is_open:
-            try:
-                self.flush()
-            except OutputError as error:
-                result.warnings.append(str(error))
-            self.output.commit()
-            self.files["csv"] = self.path
+        self._done.set()
+        with self._lock:
+            if self.output and self.output.is_open:
+                try:
+                    if self._late_error is not None:
+                        raise self._late_error
+                    self._write_pending()
+                except OutputError as error:
+                    result.warnings.append(str(error))
+                self.output.commit()
+                self.files["csv"] = self.path
+
+    def abandoned(self, result) -> None:
+        """The process ends at once (a second signal): the pending rows are written
+        and the file renamed, unless the main thread holds the lock (it is writing
+        them itself; what it handed to the OS is kept under the temporary name)."""
+        self._done.set()
+        if not self._lock.acquire(timeout=0.5):
+            return
+        try:
+            if self.output and self.output.is_open:
+                try:
+                    self._write_pending()
+                except OutputError:
+                    pass  # the whole rows written before stay
+                os.replace(self.output.partial, self.output.target)  # fd and lock die with us
+                self.files["csv"] = self.path
+        finally:
+            self._lock.release()
 
     def aborted(self) -> None:
+        self._done.set()
         if self.output:
             self.output.discard()
 
@@ -216,6 +285,10 @@ class StatisticsWriter(FileWriter):
 
     def content(self, result) -> bytes:
         return json.dumps(result.statistics, indent=2, default=str).encode()
+
+    def abandoned(self, result) -> None:
+        if self.kind not in self.files:  # unless the run's end wrote it already
+            self.finished(result)
 
 
 class PlotWriter(FileWriter):
