@@ -19,6 +19,7 @@ import os
 import sys
 import threading
 import time as clock
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -103,19 +104,20 @@ class CsvRecorder(Observer):
     interrupted run keeps every converged step, and a process killed outright loses
     at most the last ``flush_seconds`` (under the temporary name).
 
-    A step rarely flushes by itself: rows wait in memory until ``flush_seconds`` have
-    passed, so a fast run makes few writes.  A step that never returns (an FMU stuck in
-    its own code) must not keep the rows before it in memory, so a daemon thread
-    flushes rows that have waited ``flush_seconds``; the main thread is in native code
-    then and the thread has the interpreter to itself.  One lock guards the pending
-    rows and the file; it is never held across an FMU call."""
+    Rows wait in memory until ``flush_seconds`` have passed, so that a fast run makes
+    few writes.  A step that never returns (an FMU stuck in its own code) must not keep
+    the rows before it in memory, so a daemon thread writes rows that have waited
+    ``flush_seconds``; the main thread is in native code then (it released the
+    interpreter) and the thread runs.  The rows wait in a deque (appended without a
+    lock: the step costs what it did) and leave it, in order, only under a lock that
+    guards the file; that lock is never held across an FMU call."""
 
     def __init__(self, path, flush_seconds: float = 0.05):
         self.path = Path(path)
         self.output: OutputFile | None = None
         self.rows = 0
         self.flush_seconds = flush_seconds
-        self._pending: list[str] = []
+        self._pending: deque = deque()
         self._flushed_at = 0.0
         self._lock = threading.Lock()
         self._done = threading.Event()
@@ -133,38 +135,43 @@ class CsvRecorder(Observer):
                          daemon=True).start()
 
     def stepped(self, record: StepRecord) -> None:
-        with self._lock:
-            if self._late_error is not None:  # the thread's write failed: the run fails
-                error, self._late_error = self._late_error, None
-                raise error
-            self._pending.append((record.time, record.values, record.texts))
-            self.rows += 1
-            if clock.monotonic() - self._flushed_at >= self.flush_seconds:
-                self._write_pending()
+        # no lock here: a deque's append and popleft are atomic, and the rows leave it
+        # in order, only under the lock
+        self._pending.append((record.time, record.values, record.texts))
+        self.rows += 1
+        if clock.monotonic() - self._flushed_at >= self.flush_seconds:
+            self.flush()
 
     def flush(self) -> None:
-        """Write the pending rows (whole rows, or none of them: OutputError)."""
+        """Write the pending rows (whole rows, or none of them: OutputError; also when
+        the flushing thread's last write failed)."""
         with self._lock:
+            if self._late_error is not None:
+                error, self._late_error = self._late_error, None
+                self._pending.clear()  # rows after a lost batch would leave a gap
+                raise error
             self._write_pending()
 
     def _write_pending(self) -> None:
-        """:meth:`flush` with the lock held."""
-        if self._pending:
+        """Write the rows pending now, with the lock held."""
+        pending = self._pending
+        rows = [pending.popleft() for _ in range(len(pending))]
+        if rows:
             # repr: the shortest text that reads back as the same double
             text = "".join(",".join([repr(time)] + list(map(repr, values.tolist()))
                                     + [_quoted(t) for t in texts]) + "\n"
-                           for time, values, texts in self._pending)
-            self._pending = []
+                           for time, values, texts in rows)
             self.output.append(text.encode(), separator=b"\n")
         self._flushed_at = clock.monotonic()
 
     def _flush_late_rows(self) -> None:
         """The flushing thread: rows that waited ``flush_seconds`` go to the file
-        (an error is raised at the next step, in the main thread)."""
+        (an error is raised by the main thread's next flush)."""
         while not self._done.wait(self.flush_seconds / 2):
+            if not self._pending or clock.monotonic() - self._flushed_at < self.flush_seconds:
+                continue
             with self._lock:
-                if (not self._pending or self._late_error is not None or
-                        clock.monotonic() - self._flushed_at < self.flush_seconds):
+                if self._late_error is not None or self._done.is_set():
                     continue
                 try:
                     self._write_pending()
