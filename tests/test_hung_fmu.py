@@ -114,7 +114,7 @@ def test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row(
         process.kill()
         process.wait()
     assert process.returncode == 128 + number, err
-    assert took < 3.0, took
+    assert took < 2.0, took  # measured: 0.01 s in-process, 0.2 s isolated (deadline: 3 s)
     header, data = read_csv(target)
     assert header[:2] == ["time", "osc.s"] and data.shape[0] == ROWS
     assert np.allclose(np.diff(data[:, 0]), 1e-3) and abs(data[-1, 0] - 0.05) < 1e-12
