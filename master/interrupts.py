@@ -105,7 +105,7 @@ def _nothing(number, frame) -> None:
 def end_at_once(execution, number: int) -> None:
     """End the process now, keeping what can be kept (see the module docstring)."""
     code = 128 + number
-    deadline = threading.Timer(DEADLINE, os._exit, (code,))
+    deadline = threading.Timer(DEADLINE, _last_resort, (code,))
     deadline.daemon = True
     deadline.start()
     try:
@@ -127,6 +127,12 @@ def end_at_once(execution, number: int) -> None:
     where = result.files.get("csv")
     _say(f"dsim: interrupted: {result.message}"
          + (f"; the {result.steps} converged steps are in {where}" if where else ""))
+    os._exit(code)
+
+
+def _last_resort(code: int) -> None:
+    """The deadline: something below hung (an observer, Ray); end anyway."""
+    kill_descendants()
     os._exit(code)
 
 

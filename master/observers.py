@@ -380,3 +380,12 @@ class ProgressBar(Observer):
 
     def aborted(self) -> None:
         self.finished()
+
+    def abandoned(self, result) -> None:
+        # the bar's own stop takes its console's lock, which the main thread may hold:
+        # only the terminal's cursor, which the bar hid, is given back
+        if self.progress:
+            try:
+                os.write((self.stream or sys.stderr).fileno(), b"\r\x1b[2K\x1b[?25h")
+            except (OSError, ValueError):
+                pass

@@ -94,13 +94,15 @@ def session_processes(session: int) -> list[str]:
     return found
 
 
-@pytest.mark.parametrize("backend", ["in-process", "isolated"])
-@pytest.mark.parametrize("name", ["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("backend, name", [
+    ("in-process", "SIGINT"), ("in-process", "SIGTERM"), ("isolated", "SIGINT"),
+    ("isolated", "SIGTERM"), ("ray", "SIGTERM")])
 def test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row(
         hung_scene, tmp_path, backend, name):
     number = signal.Signals[name]
     target = tmp_path / "out" / "run.csv"
-    process = start(hung_scene, target, *(["--isolate"] if backend == "isolated" else []))
+    process = start(hung_scene, target, *{"in-process": [], "isolated": ["--isolate"],
+                                          "ray": ["--backend", "ray"]}[backend])
     try:
         wait_for_the_hang(process, target)
         process.send_signal(number)
@@ -126,7 +128,7 @@ def test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row(
     assert err.strip().splitlines()[-1].endswith(
         f"the {CONVERGED} converged steps are in {target}")
     assert session_processes(process.pid) == []  # the Ray instance and its workers too
-    if backend == "isolated":
+    if backend != "in-process":
         worker = stats["components"]["osc"]["worker"]["pid"]
         assert worker != process.pid and not alive(worker)
 
