@@ -377,20 +377,24 @@ class Execution:
         made from another thread while the main thread may be inside an FMU: no
         subsystem is called and no worker asked (the counters of workers elsewhere are
         not known then, only where they ran)."""
-        first = self.signal
-        self.stop(self._stop_requested or
-                  f"interrupted by {signal.Signals(signal_number).name}", first or signal_number)
-        self.status = "interrupted"
-        message = (f"{self._stop_requested}, then ended at once by "
-                   f"{signal.Signals(signal_number).name} (stopped at t = {self.time:g} s, "
-                   f"step {self.index} of {self.planned_steps})")
-        result = RunResult("interrupted", message, self.time, self.index,
-                           warnings=list(self.warnings), signal=signal_number)
+        name = signal.Signals(signal_number).name
+        if self.status in ("completed", "failed"):  # ended already, finishing: it says so
+            status = self.status
+            message = (str(self.error) if self.error else "completed") + \
+                f"; then ended at once by {name} while the subsystems were released"
+        else:
+            self.stop(self._stop_requested or f"interrupted by {name}",
+                      self.signal or signal_number)
+            self.status = status = "interrupted"
+            message = (f"{self._stop_requested}, then ended at once by {name} (stopped at "
+                       f"t = {self.time:g} s, step {self.index} of {self.planned_steps})")
+        result = RunResult(status, message, self.time, self.index, warnings=list(self.warnings),
+                           error=self.error, signal=signal_number)
         components = None
         backend = self.backend
         if backend is not None and backend.remote:
-            components = {name: {"worker": dict(place)} if place else {}
-                          for name, place in zip(backend.names, backend.places())}
+            components = {component: {"worker": dict(place)} if place else {}
+                          for component, place in zip(backend.names, backend.places())}
         wall = clock.perf_counter() - (self._wall_start or clock.perf_counter())
         result.statistics = run_statistics(self, wall, components)
         result.statistics["message"] = message

@@ -63,18 +63,20 @@ class SignalWatch:
         self._pipe = (read, write)
         self._thread = threading.Thread(target=self._watch, name="dsim-signals", daemon=True)
         self._thread.start()
+        # the pipe first, the handlers after (and the other way round at the end): no
+        # signal may reach the handler below without reaching the pipe
+        self._previous_fd = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
         for number in SIGNALS:
             # the handler itself does nothing: the watchdog acts, also while the main
             # thread cannot run a handler (it is a Python handler, not SIG_IGN, so that
             # the interpreter's C-level handler catches the signal and writes the pipe)
             self._previous[number] = signal.signal(number, _nothing)
-        self._previous_fd = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
         return self
 
     def __exit__(self, *exc) -> None:
-        signal.set_wakeup_fd(self._previous_fd)
         for number, handler in self._previous.items():
             signal.signal(number, handler)
+        signal.set_wakeup_fd(self._previous_fd)
         read, write = self._pipe
         os.set_blocking(write, True)
         os.write(write, _STOP)

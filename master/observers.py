@@ -263,6 +263,8 @@ class FileWriter(Observer):
         self.path = Path(path)
         self.inputs = ()
         self.files = {}
+        #: held while the file is written (a second signal waits for it, see abandoned)
+        self._writing = threading.Lock()
 
     def started(self, info: RunInfo) -> None:
         from master.output_files import check_not_input
@@ -274,15 +276,16 @@ class FileWriter(Observer):
         raise NotImplementedError
 
     def finished(self, result) -> None:
-        try:
-            data = self.content(result)
-            if data is None:
+        with self._writing:
+            try:
+                data = self.content(result)
+                if data is None:
+                    return
+                write_whole(self.path, data, self.inputs)
+            except Exception as error:  # a full disk must not hide how the run ended
+                result.warnings.append(f"{self.kind} not written to {self.path}: {error}")
                 return
-            write_whole(self.path, data, self.inputs)
-        except Exception as error:  # a full disk must not hide how the run ended
-            result.warnings.append(f"{self.kind} not written to {self.path}: {error}")
-            return
-        self.files[self.kind] = self.path
+            self.files[self.kind] = self.path
 
 
 class StatisticsWriter(FileWriter):
@@ -294,6 +297,10 @@ class StatisticsWriter(FileWriter):
         return json.dumps(result.statistics, indent=2, default=str).encode()
 
     def abandoned(self, result) -> None:
+        # the main thread may be writing it (the run had ended): let it finish, briefly
+        if not self._writing.acquire(timeout=0.5):
+            return
+        self._writing.release()
         if self.kind not in self.files:  # unless the run's end wrote it already
             self.finished(result)
 

@@ -148,3 +148,32 @@ def test_rows_are_on_disk_when_the_process_is_killed_outright(hung_scene, tmp_pa
     assert not target.exists() and rows_on_disk(partial) == ROWS
     shutil.copy(partial, target)
     assert read_csv(target)[1].shape[0] == ROWS  # whole rows only
+
+
+def test_two_signals_at_once_leave_a_consistent_run_when_no_fmu_hangs(block_fmus, tmp_path):
+    """SIGINT twice in a row while the run steps (the main thread in Python, perhaps
+    already finishing): the process ends with 130 and the files agree, whichever
+    thread wrote them."""
+    from tests.test_nothing_lost import block_scene
+
+    folder = block_scene(tmp_path / "scene", block_fmus["state"], stop=1e6)
+    target = tmp_path / "run.csv"
+    process = start(folder, target)
+    try:
+        partial = target.with_name(".run.csv.partial")
+        deadline = time.monotonic() + 60
+        while rows_on_disk(partial) < 100:
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.05)
+        process.send_signal(signal.SIGINT)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=10)
+    finally:
+        process.kill()
+        process.wait()
+    assert process.returncode == 130, err
+    header, data = read_csv(target)
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert stats["status"] == "interrupted" and stats["steps"] == data.shape[0] - 1 >= 99
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.stats.json",
+                                                          "scene"]
