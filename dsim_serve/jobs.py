@@ -22,6 +22,9 @@ from dsim_serve.store import ACTIVE, Store
 
 #: seconds a worker gets to stop after SIGTERM when the server shuts down
 STOP_GRACE = 10.0
+#: seconds a worker gets to end after a second cancel (it ends at once, with its rows
+#: and statistics, unless something is badly wrong) before it is killed
+KILL_GRACE = 5.0
 
 
 def child_env() -> dict:
@@ -83,6 +86,8 @@ class Jobs:
         self.processes: dict[int, subprocess.Popen] = {}
         self.lock = threading.Lock()
         self.wake = threading.Event()
+        #: run id -> when its worker is killed if it has not ended (after a second cancel)
+        self.kill_at: dict[int, float] = {}
         self.stopping = False
         self.thread: threading.Thread | None = None
 
@@ -171,6 +176,11 @@ class Jobs:
             ended = [(i, p) for i, p in self.processes.items() if p.poll() is not None]
             for run_id, _ in ended:
                 del self.processes[run_id]
+                self.kill_at.pop(run_id, None)
+            late = [p for i, p in self.processes.items()
+                    if self.kill_at.get(i, float("inf")) < time.monotonic()]
+        for process in late:  # a second cancel did not end it: its whole session goes
+            _kill_session(process)
         for run_id, process in ended:
             self.finalize(run_id, process.returncode)
 
@@ -218,8 +228,11 @@ class Jobs:
 
     # --- ends ------------------------------------------------------------------------------
     def cancel(self, run_id: int) -> bool:
-        """Stop a run after its current step (SIGTERM; a second cancel kills it at
-        once); a queued run never starts.  False when it was not active."""
+        """Stop a run after its current step (SIGTERM); a queued run never starts.  A
+        second cancel sends SIGTERM again, which ends the worker at once, also while an
+        FMU hangs in its step, keeping its converged rows and statistics
+        (master/interrupts.py); if it has not ended :data:`KILL_GRACE` seconds later,
+        it is killed.  False when the run was not active."""
         run = self.store.run(run_id)
         if run is None or run["status"] not in ACTIVE:
             return False
@@ -231,7 +244,10 @@ class Jobs:
                 return True
         self.store.update_run(run_id, cancel_requested=run["cancel_requested"] + 1)
         if process is not None:
-            _signal(process, signal.SIGKILL if run["cancel_requested"] else signal.SIGTERM)
+            if run["cancel_requested"]:
+                with self.lock:
+                    self.kill_at.setdefault(run_id, time.monotonic() + KILL_GRACE)
+            _signal(process, signal.SIGTERM)
         self.wake.set()
         return True
 
@@ -269,6 +285,15 @@ class Jobs:
             exit_code=outcome.get("exit_code"), steps=outcome.get("steps"),
             time_reached=outcome.get("time"), statistics=statistics,
             inputs=_read_json(folder / "inputs.json") or {}, ended=time.time(), pid=None)
+
+
+def _kill_session(process: subprocess.Popen) -> None:
+    """SIGKILL a worker and every process of its session (it was started in one of its
+    own: the Ray instance of an isolated run is in it)."""
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except OSError:
+        _signal(process, signal.SIGKILL)
 
 
 def _signal(process: subprocess.Popen, number: int) -> None:

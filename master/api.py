@@ -50,7 +50,8 @@ def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress:
     ``statistics``); without it the signals are kept in memory.  ``plot``: a PNG of
     the signals.  ``mat``: a MATLAB .mat file of them.  ``progress``: a progress bar on a terminal.  ``observers``: more
     :class:`~master.observers.Observer` objects.  ``handle_signals``: SIGINT and
-    SIGTERM end the run after the current step (main thread only).  ``force``: run
+    SIGTERM end the run after the current step (main thread only); a second one ends
+    the process at once, files kept (:mod:`master.interrupts`).  ``force``: run
     even when the CSV would not fit the free disk space (else refused before the
     run, as bad input).  Other keywords
     are settings (see :func:`prepare`).  Raises InputError for bad input, before

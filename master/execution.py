@@ -20,12 +20,14 @@ import math
 import signal
 import threading
 import time as clock
+from contextlib import nullcontext
 
 import numpy as np
 
 from master.backends import BACKENDS
 from master.couplings import COUPLINGS
 from master.errors import InputError, SimulationError
+from master.interrupts import SignalWatch
 from master.observers import CsvRecorder, MemoryRecorder, RunInfo, StepRecord
 from master.output_files import OutputError
 from master.results import RunResult
@@ -357,22 +359,43 @@ class Execution:
     def run(self, handle_signals: bool = True) -> RunResult:
         """Start (unless started), step to the end and finish.  With
         ``handle_signals`` (main thread only), SIGINT and SIGTERM end the run after
-        the current step, as interrupted, with everything written."""
-        previous = {}
+        the current step, as interrupted, with everything written; a second one ends
+        the process at once, also while an FMU is stuck in its step, with the
+        converged rows and the statistics kept (:mod:`master.interrupts`)."""
+        watch = nullcontext()
         if handle_signals and threading.current_thread() is threading.main_thread():
-            for number in (signal.SIGINT, signal.SIGTERM):
-                previous[number] = signal.signal(number, self._on_signal)
-        try:
+            watch = SignalWatch(self)
+        with watch:  # over finish() too: releasing a subsystem may hang as well
             if self.status == "created":
                 self.start()
             while self.step():
                 pass
-        finally:
-            for number, handler in previous.items():
-                signal.signal(number, handler)
-        return self.finish()
+            return self.finish()
 
-    def _on_signal(self, number, frame) -> None:
-        if self._stop_requested and number == signal.SIGINT:
-            raise KeyboardInterrupt  # a second Ctrl-C: do not wait for the step
-        self.stop(f"interrupted by {signal.Signals(number).name}", number)
+    def abandon(self, signal_number: int) -> RunResult:
+        """The run as far as it got, for a process that ends at once (a second signal),
+        made from another thread while the main thread may be inside an FMU: no
+        subsystem is called and no worker asked (the counters of workers elsewhere are
+        not known then, only where they ran)."""
+        name = signal.Signals(signal_number).name
+        if self.status in ("completed", "failed"):  # ended already, finishing: it says so
+            status = self.status
+            message = (str(self.error) if self.error else "completed") + \
+                f"; then ended at once by {name} while the subsystems were released"
+        else:
+            self.stop(self._stop_requested or f"interrupted by {name}",
+                      self.signal or signal_number)
+            self.status = status = "interrupted"
+            message = (f"{self._stop_requested}, then ended at once by {name} (stopped at "
+                       f"t = {self.time:g} s, step {self.index} of {self.planned_steps})")
+        result = RunResult(status, message, self.time, self.index, warnings=list(self.warnings),
+                           error=self.error, signal=signal_number)
+        components = None
+        backend = self.backend
+        if backend is not None and backend.remote:
+            components = {component: {"worker": dict(place)} if place else {}
+                          for component, place in zip(backend.names, backend.places())}
+        wall = clock.perf_counter() - (self._wall_start or clock.perf_counter())
+        result.statistics = run_statistics(self, wall, components)
+        result.statistics["message"] = message
+        return result

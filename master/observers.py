@@ -7,14 +7,19 @@ input), :meth:`Observer.stepped` for the start time (index 0) and for every
 converged macro step, :meth:`Observer.warned` for every warning, and
 :meth:`Observer.finished` once with the :class:`~master.results.RunResult`,
 whatever the ending; :meth:`Observer.aborted` instead when the run never started
-(bad input found while initialising).
+(bad input found while initialising).  When a second signal ends the process at
+once, :meth:`Observer.abandoned` is called instead of :meth:`Observer.finished`,
+from another thread (see :mod:`master.interrupts`).
 """
 from __future__ import annotations
 
 import io
 import json
+import os
 import sys
+import threading
 import time as clock
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -83,14 +88,29 @@ class Observer:
     def aborted(self) -> None:
         """The run never started; undo what :meth:`started` did."""
 
+    def abandoned(self, result) -> None:
+        """The process ends at once (a second SIGINT or SIGTERM), from another thread,
+        while the main thread may be stuck in an FMU's native code: write what can be
+        written without waiting for the main thread (never a lock it may hold, never
+        an FMU call); ``result`` is the interrupted run as far as it got."""
+
 
 class CsvRecorder(Observer):
     """``time``, recorded outputs, joint forces: one row per converged step, in full
     double precision, under a temporary name renamed to ``path`` when the run ends
-    (see :mod:`master.output_files`).  Rows reach the file in whole rows at least
+    (see :mod:`master.output_files`).  Rows reach the file (``os.write``: the
+    operating system's, whatever happens to this process) in whole rows at least
     every ``flush_seconds`` and when the run ends, however it ends: a failed or
-    interrupted run keeps every converged step (a process killed outright loses at
-    most the last ``flush_seconds``)."""
+    interrupted run keeps every converged step, and a process killed outright loses
+    at most the last ``flush_seconds`` (under the temporary name).
+
+    Rows wait in memory until ``flush_seconds`` have passed, so that a fast run makes
+    few writes.  A step that never returns (an FMU stuck in its own code) must not keep
+    the rows before it in memory, so a daemon thread writes rows that have waited
+    ``flush_seconds``; the main thread is in native code then (it released the
+    interpreter) and the thread runs.  The rows wait in a deque (appended without a
+    lock: the step costs what it did) and leave it, in order, only under a lock that
+    guards the file; that lock is never held across an FMU call."""
 
     def __init__(self, path, flush_seconds: float = 0.05, force: bool = False):
         self.path = Path(path)
@@ -99,8 +119,11 @@ class CsvRecorder(Observer):
         self.output: OutputFile | None = None
         self.rows = 0
         self.flush_seconds = flush_seconds
-        self._pending: list[str] = []
+        self._pending: deque = deque()
         self._flushed_at = 0.0
+        self._lock = threading.Lock()
+        self._done = threading.Event()
+        self._late_error: OutputError | None = None
         self.files = {}
 
     def started(self, info: RunInfo) -> None:
@@ -112,38 +135,95 @@ class CsvRecorder(Observer):
         self.output.append((",".join(("time",) + info.columns + info.text_columns)
                             + "\n").encode())
         self._flushed_at = clock.monotonic()
+        self._done.clear()
+        threading.Thread(target=self._flush_late_rows, name="dsim-csv-flush",
+                         daemon=True).start()
 
     def stepped(self, record: StepRecord) -> None:
+        # no lock here: a deque's append and popleft are atomic, and the rows leave it
+        # in order, only under the lock
         self._pending.append((record.time, record.values, record.texts))
         self.rows += 1
         if clock.monotonic() - self._flushed_at >= self.flush_seconds:
             self.flush()
 
     def flush(self) -> None:
-        """Write the pending rows (whole rows, or none of them: OutputError)."""
-        if self._pending:
+        """Write the pending rows (whole rows, or none of them: OutputError; also when
+        the flushing thread's last write failed)."""
+        with self._lock:
+            if self._late_error is not None:
+                error, self._late_error = self._late_error, None
+                self._pending.clear()  # rows after a lost batch would leave a gap
+                raise error
+            self._write_pending()
+
+    def _write_pending(self) -> None:
+        """Write the rows pending now, with the lock held."""
+        pending = self._pending
+        rows = [pending.popleft() for _ in range(len(pending))]
+        if rows:
             # repr: the shortest text that reads back as the same double
             text = "".join(",".join([repr(time)] + list(map(repr, values.tolist()))
                                     + [_quoted(t) for t in texts]) + "\n"
-                           for time, values, texts in self._pending)
-            self._pending = []
+                           for time, values, texts in rows)
             self.output.append(text.encode(), separator=b"\n")
         self._flushed_at = clock.monotonic()
 
+    def _flush_late_rows(self) -> None:
+        """The flushing thread: rows that waited ``flush_seconds`` go to the file
+        (an error is raised by the main thread's next flush)."""
+        while not self._done.wait(self.flush_seconds / 2):
+            if not self._pending or clock.monotonic() - self._flushed_at < self.flush_seconds:
+                continue
+            with self._lock:
+                if self._late_error is not None or self._done.is_set():
+                    continue
+                try:
+                    self._write_pending()
+                except OutputError as error:
+                    self._late_error = error
+
     def finished(self, result) -> None:
-        if self.output and self.output.is_open:
-            try:
-                self.flush()
-            except OutputError as error:
-                result.warnings.append(str(error))
-            try:
-                self.output.commit()
-            except OutputError as error:
-                result.warnings.append(str(error))
-                return
-            self.files["csv"] = self.path
+        self._done.set()
+        with self._lock:
+            if self.output and self.output.is_open:
+                try:
+                    if self._late_error is not None:
+                        raise self._late_error
+                    self._write_pending()
+                except OutputError as error:
+                    result.warnings.append(str(error))
+                try:
+                    self.output.commit()
+                except OutputError as error:
+                    result.warnings.append(str(error))
+                    return
+                self.files["csv"] = self.path
+
+    def abandoned(self, result) -> None:
+        """The process ends at once (a second signal): the pending rows are written
+        and the file renamed, unless the main thread holds the lock (it is writing
+        them itself; what it handed to the OS is kept under the temporary name, and
+        the next run on this output ends that file for it: master.output_files)."""
+        self._done.set()
+        if not self._lock.acquire(timeout=0.5):
+            return
+        try:
+            if self.output and self.output.is_open:
+                try:
+                    self._write_pending()
+                except OutputError:
+                    pass  # the whole rows written before stay
+                try:
+                    self.output.commit()
+                except OutputError:
+                    return
+                self.files["csv"] = self.path
+        finally:
+            self._lock.release()
 
     def aborted(self) -> None:
+        self._done.set()
         if self.output:
             self.output.discard()
 
@@ -198,6 +278,8 @@ class FileWriter(Observer):
         self.path = Path(path)
         self.output: OutputFile | None = None
         self.files = {}
+        #: held while the file is written (a second signal waits for it, see abandoned)
+        self._writing = threading.Lock()
 
     def started(self, info: RunInfo) -> None:
         self.output = OutputFile(self.path, info.inputs)
@@ -208,20 +290,21 @@ class FileWriter(Observer):
         raise NotImplementedError
 
     def finished(self, result) -> None:
-        if self.output is None or not self.output.is_open:
-            return
-        try:
-            data = self.content(result)
-            if data is None:
-                self.output.discard()
+        with self._writing:
+            if self.output is None or not self.output.is_open:
                 return
-            self.output.append(data)
-            self.output.commit()
-        except Exception as error:  # a full disk must not hide how the run ended
-            self.output.discard()
-            result.warnings.append(f"{self.kind} not written to {self.path}: {error}")
-            return
-        self.files[self.kind] = self.path
+            try:
+                data = self.content(result)
+                if data is None:
+                    self.output.discard()
+                    return
+                self.output.append(data)
+                self.output.commit()
+            except Exception as error:  # a full disk must not hide how the run ended
+                self.output.discard()
+                result.warnings.append(f"{self.kind} not written to {self.path}: {error}")
+                return
+            self.files[self.kind] = self.path
 
     def aborted(self) -> None:
         if self.output:
@@ -235,6 +318,14 @@ class StatisticsWriter(FileWriter):
 
     def content(self, result) -> bytes:
         return json.dumps(result.statistics, indent=2, default=str).encode()
+
+    def abandoned(self, result) -> None:
+        # the main thread may be writing it (the run had ended): let it finish, briefly
+        if not self._writing.acquire(timeout=0.5):
+            return
+        self._writing.release()
+        if self.kind not in self.files:  # unless the run's end wrote it already
+            self.finished(result)
 
 
 class PlotWriter(FileWriter):
@@ -319,3 +410,12 @@ class ProgressBar(Observer):
 
     def aborted(self) -> None:
         self.finished()
+
+    def abandoned(self, result) -> None:
+        # the bar's own stop takes its console's lock, which the main thread may hold:
+        # only the terminal's cursor, which the bar hid, is given back
+        if self.progress:
+            try:
+                os.write((self.stream or sys.stderr).fileno(), b"\r\x1b[2K\x1b[?25h")
+            except (OSError, ValueError):
+                pass

@@ -35,12 +35,15 @@ def _components(execution) -> dict:
     return result
 
 
-def run_statistics(execution, wall_seconds: float) -> dict:
-    """The statistics of an ended :class:`~master.execution.Execution` (seconds, counts)."""
+def run_statistics(execution, wall_seconds: float, components: dict | None = None) -> dict:
+    """The statistics of an ended :class:`~master.execution.Execution` (seconds, counts);
+    ``components``: what is known of them, when they cannot be asked (an abandoned run
+    whose workers may be stuck)."""
     scene, settings = execution.scene, execution.settings
-    components = _components(execution)
-    inside = sum(c["seconds"] for c in components.values())
-    do_steps = sum(c["do_steps"] for c in components.values())
+    components = _components(execution) if components is None else components
+    # (an abandoned run knows only where its workers ran: no seconds, no counts)
+    inside = sum(c.get("seconds", 0.0) for c in components.values())
+    do_steps = sum(c.get("do_steps", 0) for c in components.values())
     iterations = np.array(execution._iterations or [0])
     steps = execution.index
     coupling = execution.coupling

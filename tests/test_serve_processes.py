@@ -11,6 +11,7 @@ from tests.serve_fixtures import (ServerProcess, launch, server, upload,  # noqa
                                   wait_run)
 
 import dsim
+from tests.test_hung_fmu import hung_scene  # noqa: F401 (a fixture)
 
 
 def test_a_crashing_fmu_ends_its_run_never_the_server(server, block_fmus):
@@ -94,3 +95,35 @@ def test_runs_in_flight_when_the_server_ends_show_as_interrupted(built, tmp_path
                 "completed"
     finally:
         second.stop()
+
+
+def test_a_second_cancel_ends_a_run_hung_in_an_fmu_with_its_rows_and_step_count(
+        server, hung_scene, tmp_path):
+    """The oscillator hangs in its 51st step (tests/test_hung_fmu.py): the first cancel
+    asks for a stop after a step that never ends; the second ends the worker at once
+    (not killed after the grace), with the 50 converged rows and the statistics."""
+    from dsim_serve.jobs import KILL_GRACE
+    from tests.scene_files import pack
+    from tests.test_hung_fmu import CONVERGED, ROWS, rows_on_disk
+
+    client, store, _ = server
+    scene_id = upload(client, pack(hung_scene, tmp_path / "hung.ssp")).json()["id"]
+    run_id = launch(client, scene_id, signals=("osc.s",))
+    run = wait_run(client, run_id, until=("running",))
+    partial = store.run_folder(run_id) / ".results.csv.partial"
+    deadline = time.monotonic() + 60
+    while rows_on_disk(partial) < ROWS:
+        assert time.monotonic() < deadline, rows_on_disk(partial)
+        time.sleep(0.05)
+    assert client.post(f"/api/runs/{run_id}/cancel").json() == {"cancelled": True}
+    time.sleep(0.5)
+    assert client.get(f"/api/runs/{run_id}").json()["status"] == "running"  # stuck
+    assert client.post(f"/api/runs/{run_id}/cancel").json() == {"cancelled": True}
+    sent = time.monotonic()
+    run = wait_run(client, run_id, timeout=30)
+    assert time.monotonic() - sent < KILL_GRACE  # it ended by itself, nobody killed it
+    assert (run["status"], run["exit_code"], run["steps"]) == ("interrupted", 143, CONVERGED)
+    columns = dsim.read_columns(store.run_folder(run_id) / "results.csv")
+    assert len(columns["time"]) == ROWS and abs(columns["time"][-1] - 0.05) < 1e-12
+    assert run["statistics"]["status"] == "interrupted"
+    assert run["statistics"]["steps"] == CONVERGED

@@ -15,6 +15,8 @@ class Backend(ABC):
 
     #: registry name
     name = ""
+    #: whether the subsystems live in other processes (their counters need a call)
+    remote = False
 
     @classmethod
     def problems(cls, **options) -> list[str]:
@@ -110,6 +112,11 @@ class Backend(ABC):
     @abstractmethod
     def close(self) -> list[Exception]:
         """Terminate every subsystem, even if some fail; the errors they raised."""
+
+    def abandon(self) -> None:
+        """The process ends at once (a second signal) while a subsystem may be stuck:
+        end what this backend started elsewhere, without waiting for any subsystem
+        (processes on this machine are killed by the caller)."""
 
 
 def terminate_all(subsystems) -> list[Exception]:

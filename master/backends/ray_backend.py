@@ -17,6 +17,8 @@ that crashes its process ends the run with a message, never dsim itself.
 """
 from __future__ import annotations
 
+import threading
+
 from master.backends.base import Backend
 from master.backends.ray_worker import Host, deal
 from master.errors import InputError, SimulationError
@@ -59,6 +61,7 @@ class RayBackend(Backend):
     """Every subsystem in a Ray actor (a worker process); batched calls in parallel."""
 
     name = "ray"
+    remote = True
     #: one worker per FMU instance whatever the number of CPUs
     one_per_instance = False
 
@@ -345,6 +348,25 @@ class RayBackend(Backend):
             cluster.closed = True
             cluster.connection.close()
         return errors
+
+    def abandon(self) -> None:
+        """Kill every worker (on a cluster they are not this machine's to kill by pid),
+        giving Ray a second at most: the process ends at once."""
+        cluster = self._cluster
+        if cluster.closed:
+            return
+        ray = cluster.connection.ray
+
+        def kill_all():
+            for host in cluster.hosts:
+                try:
+                    ray.kill(host)
+                except Exception:  # gone already, or Ray itself is
+                    pass
+
+        killer = threading.Thread(target=kill_all, name="dsim-ray-kill", daemon=True)
+        killer.start()
+        killer.join(timeout=1.0)
 
     def _last_counters(self, live) -> dict:
         """Every live subsystem's counters before the workers go (the statistics are
