@@ -217,4 +217,4 @@ def main(argv=None) -> int:
 if __name__ == "__main__":
     from master.process_exit import end_process
 
-    end_process(main())  # outcome.json is written: a fatal FMU's exit handlers never run
+    end_process(main())  # outcome.json is written; the FMU libraries' exit handlers must not run

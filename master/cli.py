@@ -465,8 +465,8 @@ def main(argv=None) -> int:
 
 def console() -> None:
     """The ``dsim`` console script and ``python -m master.cli``: :func:`main`, then the
-    process ends as :mod:`master.process_exit` decides (main itself returns, for the
-    callers in this process)."""
+    process ends without the native libraries' exit handlers (:mod:`master.process_exit`;
+    main itself returns, for callers in this process such as the tests)."""
     from master.process_exit import end_process
 
     end_process(main())

@@ -1,11 +1,12 @@
 """No dsim process ends by a signal on an error path.
 
 An FMU that refuses its parameters, fails a step or goes fatal ends the command with
-its documented exit code (2 bad input, 1 a failed run) and one line saying why; the
-process then exits cleanly, also when an instance returned fmi2Fatal and so could
-not be freed (its library's exit handlers are skipped: master/process_exit.py).  A
-crash at exit was seen about once in 90 runs, so every path runs many times, two
-processes side by side as a loaded machine runs them."""
+its documented exit code (2 bad input, 1 a failed run) and one line saying why, and
+the process ends with that code: the dsim command skips the FMU libraries' exit
+handlers (master/process_exit.py), where pythonfmu's crashed it about once in 90
+runs.  So every path runs many times, two processes side by side as a loaded
+machine runs them.  Our own FMUs refuse parameters without going fatal, and dsim
+frees an instance that failed initialization unless it went fatal."""
 import os
 import subprocess
 import sys
