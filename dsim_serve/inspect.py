@@ -8,10 +8,9 @@ server: loading a library runs its constructors, so a page that got a file
 uploaded (see :class:`dsim_serve.app.Guard`) would run code on this machine.
 Only modelDescription.xml is read, and the library for this platform is checked
 to be there and, on Linux, to be a whole ELF shared object for this machine
-(:func:`library_problem`, reading bytes only).  A library runs only in a run's
-own worker process, when a user starts a run.  dsim's check of a scene loads
-each FMU's library in a probe process (``master.fmu_archive``); for a scene
-this child uses :func:`fmu_problem` instead (:func:`_without_loading`).
+(``master.fmu_archive.fmu_problem(path, load=False)``, reading bytes only; the
+scene checks are ``dsim validate``'s, which load nothing either).  A library runs
+only in a run's own worker process, when a user starts a run.
 
 Why a child process besides: reading an upload unpacks archives into temporary
 folders and fills caches; all of that ends with the child, so a long-running
@@ -22,14 +21,12 @@ from __future__ import annotations
 
 import json
 import shutil
-import struct
 import sys
 import tempfile
 import zipfile
-from contextlib import contextmanager
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
-from master.unpacking import MAX_MEMBERS, MAX_UNPACKED  # noqa: F401 (shared)
+from master.unpacking import MAX_UNPACKED
 from master.unpacking import check_archive as shared_check_archive
 
 #: capability flags of <CoSimulation> shown on a model's page
@@ -40,87 +37,8 @@ CAPABILITIES = ("canGetAndSetFMUstate", "canSerializeFMUstate",
                 "canRunAsynchronuously", "maxOutputDerivativeOrder")
 
 
-#: ELF e_machine of each Linux platform of FMI 2.0
-ELF_MACHINES = {"linux64": (2, 62), "linux32": (1, 3)}  # (ELF class, e_machine)
-
-
 class Refused(Exception):
     """The file is not acceptable: the message says why, in one line."""
-
-
-def _elf_problem(data: bytes, platform: str) -> str | None:
-    """What keeps ``data`` from being a whole ELF shared object for ``platform``,
-    from its headers alone (nothing is loaded or run): a library cut short or made
-    for another machine is refused here rather than at its first run."""
-    if data[:4] != b"\x7fELF":
-        return "is not an ELF shared library"
-    expected = ELF_MACHINES.get(platform)
-    if expected is None:
-        return None
-    bits, machine = expected
-    if data[4] != bits or data[5] != 1:  # class, little-endian
-        return f"is not a little-endian {32 * bits}-bit library"
-    if bits == 2:
-        if len(data) < 64:
-            return "is cut short (no whole ELF header)"
-        kind, found, phoff, shoff = struct.unpack_from("<HH12xQQ", data, 16)
-        phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 54)
-    else:
-        if len(data) < 52:
-            return "is cut short (no whole ELF header)"
-        kind, found, phoff, shoff = struct.unpack_from("<HH8xII", data, 16)
-        phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 42)
-    if kind != 3:
-        return "is not a shared object (ELF type %d)" % kind
-    if found != machine:
-        return f"is built for another machine (ELF machine {found})"
-    if phoff + phnum * phentsize > len(data) or shoff + shnum * shentsize > len(data):
-        return "is cut short (its headers point past its end)"
-    return None
-
-
-def library_problem(path: Path) -> str | None:
-    """The library of this platform that an FMU names is in the archive and looks
-    whole (:func:`_elf_problem`), read as bytes, never loaded."""
-    from fmpy import platform, sharedLibraryExtension
-
-    from master.ports import model_description
-
-    identifier = model_description(path).coSimulation.modelIdentifier
-    member = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
-    with zipfile.ZipFile(path) as archive:
-        if member not in archive.namelist():
-            found = sorted({n.split("/")[1] for n in archive.namelist()
-                            if n.startswith("binaries/") and n.count("/") >= 2})
-            return (f"no binary for this platform ({member} missing; the FMU has "
-                    f"{', '.join(found) or 'no binaries'})")
-        problem = _elf_problem(archive.read(member), platform) if member.endswith(".so") \
-            else None
-    return f"its library {member} {problem}" if problem else None
-
-
-def fmu_problem(path: Path) -> str | None:
-    """dsim's check of an FMU (:func:`master.fmu_archive.fmu_problem`: a readable
-    archive, FMI 2.0 co-simulation) but for its library, which is checked by
-    :func:`library_problem` instead of being loaded."""
-    from master.fmu_archive import _archive_problem, _description_problem
-
-    return _archive_problem(path) or _description_problem(path) or library_problem(path)
-
-
-@contextmanager
-def _without_loading():
-    """dsim's checks of a scene (``dsim validate``, :func:`dsim.prepare`) with
-    :func:`fmu_problem` for each FMU: theirs loads the library to probe it.  Only
-    in this child process, which ends after one file."""
-    import master.plan
-
-    loading = master.plan.fmu_problem
-    master.plan.fmu_problem = fmu_problem
-    try:
-        yield
-    finally:
-        master.plan.fmu_problem = loading
 
 
 def check_archive(path: Path, what: str, max_unpacked: int = MAX_UNPACKED) -> list[str]:
@@ -145,10 +63,11 @@ def _start(variable):
 def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     """The summary of an FMU's modelDescription that a model's page shows, after
     dsim's checks of an FMU (:func:`master.fmu_archive.fmu_problem`)."""
+    from master.fmu_archive import fmu_problem
     from master.ports import conventional_ports, model_description
 
     names = check_archive(path, "FMU", max_unpacked)
-    problem = fmu_problem(path)
+    problem = fmu_problem(path, load=False)
     if problem:
         raise Refused(problem)
     description = model_description(path)
@@ -228,12 +147,12 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     try:
         with zipfile.ZipFile(path) as archive:
             archive.extractall(folder)
-        with _without_loading():
-            found = validate(folder)
-            if not found.ok:
-                raise Refused("\n".join(p.replace(str(folder), "scene")
-                                         for p in found.errors))
-            plan = prepare(folder)
+        # the libraries are checked as bytes, never loaded (docs/security.md)
+        found = validate(folder, load_libraries=False)
+        if not found.ok:
+            raise Refused("\n".join(p.replace(str(folder), "scene")
+                                     for p in found.errors))
+        plan = prepare(folder, load_libraries=False)
         layout, _ = plan.assemble()
         scene = plan.scene
         fmus = {}

@@ -17,13 +17,15 @@ from master.settings import BACKEND_OPTIONS, resolve
 from master.ssp import load_scene
 
 
-def prepare(scene, **settings):
+def prepare(scene, *, load_libraries: bool = True, **settings):
     """The checked :class:`~master.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
     options: stop, step, tolerance, relative_tolerance, max_iterations,
     refresh_after, perturbation, predictor, refresh, coupling, start, backend,
-    address, call_timeout, parameter_set).
+    address, call_timeout, parameter_set).  ``load_libraries=False`` checks each FMU's
+    library as bytes without loading it (no code of the FMU runs: what ``dsim
+    validate`` and ``dsim serve``'s uploads do).
     Raises :class:`~master.errors.InputError` listing every problem."""
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
@@ -37,7 +39,7 @@ def prepare(scene, **settings):
     if "stop" in options:  # the user said when to stop: no default assumed
         scene = replace(scene, stop_time=options["stop"], experiment=True)
     return make_plan(replace(scene, master=master), options.get("backend", "in-process"),
-                     {key: options.get(key) for key in BACKEND_OPTIONS})
+                     {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries)
 
 
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,

@@ -10,6 +10,7 @@ child process, where a crash is only a message.
 from __future__ import annotations
 
 import hashlib
+import struct
 import subprocess
 import sys
 import zipfile
@@ -100,15 +101,73 @@ def _library_problem(path: Path) -> str | None:
     return None
 
 
-_CHECKED: dict[str, str | None] = {}
+#: ELF class and e_machine of each Linux platform of FMI 2.0
+ELF_MACHINES = {"linux64": (2, 62), "linux32": (1, 3)}  # (ELF class, e_machine)
 
 
-def fmu_problem(path: Path) -> str | None:
+
+def _elf_problem(data: bytes, platform: str) -> str | None:
+    """What keeps ``data`` from being a whole ELF shared object for ``platform``,
+    from its headers alone (nothing is loaded or run): a library cut short or made
+    for another machine is refused here rather than at its first run."""
+    if data[:4] != b"\x7fELF":
+        return "is not an ELF shared library"
+    expected = ELF_MACHINES.get(platform)
+    if expected is None:
+        return None
+    bits, machine = expected
+    if data[4] != bits or data[5] != 1:  # class, little-endian
+        return f"is not a little-endian {32 * bits}-bit library"
+    if bits == 2:
+        if len(data) < 64:
+            return "is cut short (no whole ELF header)"
+        kind, found, phoff, shoff = struct.unpack_from("<HH12xQQ", data, 16)
+        phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 54)
+    else:
+        if len(data) < 52:
+            return "is cut short (no whole ELF header)"
+        kind, found, phoff, shoff = struct.unpack_from("<HH8xII", data, 16)
+        phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 42)
+    if kind != 3:
+        return "is not a shared object (ELF type %d)" % kind
+    if found != machine:
+        return f"is built for another machine (ELF machine {found})"
+    if phoff + phnum * phentsize > len(data) or shoff + shnum * shentsize > len(data):
+        return "is cut short (its headers point past its end)"
+    return None
+
+
+def _library_bytes_problem(path: Path) -> str | None:
+    """The library of this platform that an FMU names is in the archive and looks
+    whole (:func:`_elf_problem`), read as bytes, never loaded."""
+    from master.ports import model_description
+
+    identifier = model_description(path).coSimulation.modelIdentifier
+    member = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+    with zipfile.ZipFile(path) as archive:
+        if member not in archive.namelist():
+            found = sorted({n.split("/")[1] for n in archive.namelist()
+                            if n.startswith("binaries/") and n.count("/") >= 2})
+            return (f"no binary for this platform ({member} missing; the FMU has "
+                    f"{', '.join(found) or 'no binaries'})")
+        problem = _elf_problem(archive.read(member), platform) if member.endswith(".so") \
+            else None
+    return f"its library {member} {problem}" if problem else None
+
+
+_CHECKED: dict[tuple[str, bool], str | None] = {}
+
+
+def fmu_problem(path: Path, load: bool = True) -> str | None:
     """What is wrong with the FMU file at ``path`` for dsim, or None (checked once per
-    content: the same FMU extracted again from a scene archive is not probed again)."""
+    content: the same FMU extracted again from a scene archive is not probed again).
+    Its library is read as bytes (:func:`_library_bytes_problem`) and, with ``load``,
+    loaded in a child process; without, nothing of the FMU runs (``dsim validate``,
+    uploads to ``dsim serve``: an FMU's library runs its constructors when loaded)."""
     path = Path(path)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    if digest not in _CHECKED:
-        _CHECKED[digest] = (_archive_problem(path) or _description_problem(path)
-                            or _library_problem(path))
-    return _CHECKED[digest]
+    if (digest, load) not in _CHECKED:
+        _CHECKED[digest, load] = (
+            _archive_problem(path) or _description_problem(path)
+            or _library_bytes_problem(path) or (_library_problem(path) if load else None))
+    return _CHECKED[digest, load]

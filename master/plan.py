@@ -97,14 +97,15 @@ class Plan:
         return files + list(self.scene.inputs)
 
 
-def _usable(scene: Scene, problems: list) -> dict:
+def _usable(scene: Scene, problems: list, load_libraries: bool = True) -> dict:
     """component path -> its variables by name, for the components whose FMU can be
-    used; every other component gets one problem line."""
+    used; every other component gets one problem line (``load_libraries``: also load
+    each library in a child process, see :func:`master.fmu_archive.fmu_problem`)."""
     usable = {}
     for component in scene.components:
         if not component.source.is_file():
             continue  # the reader has said so
-        problem = fmu_problem(component.source)
+        problem = fmu_problem(component.source, load_libraries)
         if problem:
             problems.append(f"{component.location}: FMU {component.source.name}: {problem}")
         else:
@@ -279,9 +280,11 @@ def _passes(paths: list[str], links) -> int:
         return len(paths)
 
 
-def make_plan(scene: Scene, backend: str = "in-process", backend_options=None) -> Plan:
+def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
+              load_libraries: bool = True) -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
-    InputError listing every problem."""
+    InputError listing every problem.  ``load_libraries=False``: no FMU library is
+    loaded, not even in a child process (its bytes are checked)."""
     from master.backends import BACKENDS
 
     backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
@@ -292,7 +295,7 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None) -
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
                         f"{len(scene.joints)} joints: use iterative or explicit")
-    usable = _usable(scene, problems)
+    usable = _usable(scene, problems, load_libraries)
     ports = component_ports(scene, problems, usable)
     warnings = []
     _check_connectors(scene, usable, problems, warnings)

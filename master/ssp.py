@@ -11,7 +11,6 @@ instantiated.
 """
 from __future__ import annotations
 
-import math
 import zipfile
 from collections import Counter
 from functools import lru_cache

@@ -7,7 +7,7 @@ Names: a component or system is known by its dotted path from the root system
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from master.scene import Connection, Connector, Transformation
 

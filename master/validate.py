@@ -28,12 +28,15 @@ class Validation:
         return not self.errors
 
 
-def validate(scene, **settings) -> Validation:
-    """Check ``scene`` (a path, as :func:`dsim.prepare` takes) with ``settings``."""
+def validate(scene, load_libraries: bool = False, **settings) -> Validation:
+    """Check ``scene`` (a path, as :func:`dsim.prepare` takes) with ``settings``.  No
+    FMU library is loaded unless ``load_libraries``: validating a file must not run
+    its code (a library runs its constructors when loaded); each library is checked
+    as bytes (present for this platform, a whole ELF shared object)."""
     from master.api import prepare
 
     try:
-        plan = prepare(scene, **settings)
+        plan = prepare(scene, load_libraries=load_libraries, **settings)
     except InputError as error:
         return Validation(error.problems, error.warnings)
     found = plan.scene

@@ -35,6 +35,32 @@ def test_validate_says_every_finding_in_one_line_each(block_fmus, tmp_path, caps
     assert all("SystemStructure.ssd line" in line for line in lines)  # where, each time
 
 
+def test_validate_runs_no_code_of_the_fmus(tmp_path):
+    """A library runs its constructors when it is loaded: validating a scene reads its
+    FMUs' libraries as bytes only (a C FMU that writes a marker file from a constructor
+    leaves none), while a run does load it."""
+    import subprocess
+    import sys
+
+    from tests.third_party.build import c_fmu
+
+    marker = tmp_path / "constructor-ran"
+    fmu = c_fmu(tmp_path / "fmu", "marker", source="marker.c",
+                defines=[f'MARKER_FILE="{marker}"'])
+    folder = write_scene(tmp_path / "scene", system(block("b1", "resources/marker.fmu")),
+                         {"marker.fmu": fmu})
+    command = [sys.executable, "-m", "master.cli"]
+    checked = subprocess.run(command + ["validate", str(folder)], cwd=ROOT,
+                             capture_output=True, text=True, timeout=120)
+    assert checked.returncode == 0, checked.stderr
+    assert not marker.exists(), "dsim validate loaded the FMU's library"
+    ran = subprocess.run(command + ["run", str(folder), "--out", str(tmp_path / "r.csv"),
+                                    "--quiet"], cwd=ROOT, capture_output=True, text=True,
+                         timeout=120)
+    assert ran.returncode == 0, ran.stderr
+    assert marker.read_text().startswith("loaded")  # the marker FMU does write it
+
+
 def test_validate_passes_every_shipped_scene(built, capsys):
     for archive in sorted(built["ssp"].glob("*.ssp")):
         assert main(["validate", str(archive)]) == 0, archive
