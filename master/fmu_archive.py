@@ -71,17 +71,18 @@ def _description_problem(path: Path) -> str | None:
     return None
 
 
-def _library_problem(path: Path) -> str | None:
+def _library_member(path: Path) -> str:
+    """The archive member of the library for this platform that the FMU names."""
     from master.ports import model_description
 
     identifier = model_description(path).coSimulation.modelIdentifier
-    member = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
-    with zipfile.ZipFile(path) as archive:
-        if member not in archive.namelist():
-            found = sorted({n.split("/")[1] for n in archive.namelist()
-                            if n.startswith("binaries/") and n.count("/") >= 2})
-            return (f"no binary for this platform ({member} missing; the FMU has "
-                    f"{', '.join(found) or 'no binaries'})")
+    return f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+
+
+def _library_problem(path: Path) -> str | None:
+    """Whether the library (there, and whole as bytes: :func:`_library_bytes_problem`)
+    loads: in a child process, where a crash is only a message."""
+    member = _library_member(path)
     try:
         library = Path(unzipped(path)) / member
     except InputError as error:
@@ -140,10 +141,7 @@ def _elf_problem(data: bytes, platform: str) -> str | None:
 def _library_bytes_problem(path: Path) -> str | None:
     """The library of this platform that an FMU names is in the archive and looks
     whole (:func:`_elf_problem`), read as bytes, never loaded."""
-    from master.ports import model_description
-
-    identifier = model_description(path).coSimulation.modelIdentifier
-    member = f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+    member = _library_member(path)
     with zipfile.ZipFile(path) as archive:
         if member not in archive.namelist():
             found = sorted({n.split("/")[1] for n in archive.namelist()
