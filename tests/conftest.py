@@ -45,3 +45,30 @@ def ray_local():
     signal.signal(signal.SIGTERM, previous)
     yield ray
     ray.shutdown()
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config):
+    """End the test process as the dsim command ends (master/process_exit.py): without
+    the native exit handlers of the FMU libraries loaded in it.  pythonfmu's library
+    cannot be unloaded and releases its interpreter state twice at exit, which now and
+    then aborts a process that has finished all its work; pytest's own work is done
+    here (its report printed, its cache written)."""
+    import atexit
+    import os
+    import sys
+
+    status = getattr(config, "_dsim_exit_status", None)
+    if status is None:
+        return
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(int(status))
+
+
+def pytest_sessionfinish(session, exitstatus):
+    session.config._dsim_exit_status = exitstatus
