@@ -103,10 +103,14 @@ def test_kernel_study_measures_noise_and_a_result_beyond_it_regresses(built, tmp
     spec.write_text(json.dumps({"settings": {"stop": 0.1}, "rtol": 1e-6}))
     assert main(["regress", str(scenes), "--update", "--kernels",
                  ",".join(STUDY_KERNELS)]) == 0
-    assert "kernel study: Prescott, Sandybridge besides the default" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert "kernel study: " in said and "besides the default" in said
     record = json.loads(spec.read_text())
     assert record["settings"] == {"stop": 0.1} and record["rtol"] == 1e-6  # kept
-    assert set(STUDY_KERNELS) <= set(record["study"]["kernels"])
+    # the kernels asked for ran, unless one is the code this process runs already (the
+    # suite itself may run under OPENBLAS_CORETYPE=Prescott): then it is the default
+    ran = set(record["study"]["kernels"]) | set(record["study"].get("same code as", {}))
+    assert set(STUDY_KERNELS) <= ran, record["study"]
     assert record["study"]["numpy"] == np.__version__
     noise = record["noise"]["coupler.omega"]
     assert 1e-16 < noise < 1e-9  # round-off of a zero, not a change of the dynamics
