@@ -17,7 +17,7 @@ from master.settings import BACKEND_OPTIONS, resolve
 from master.ssp import load_scene
 
 
-def prepare(scene, *, load_libraries: bool = True, **settings):
+def prepare(scene, *, load_libraries: bool = True, strict: bool = False, **settings):
     """The checked :class:`~master.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -25,7 +25,8 @@ def prepare(scene, *, load_libraries: bool = True, **settings):
     refresh_after, perturbation, predictor, refresh, coupling, start, backend,
     address, call_timeout, parameter_set).  ``load_libraries=False`` checks each FMU's
     library as bytes without loading it (no code of the FMU runs: what ``dsim
-    validate`` and ``dsim serve``'s uploads do).
+    validate`` and ``dsim serve``'s uploads do).  ``strict``: refuse what would
+    otherwise be a warning (a rule the files break that does not change the results).
     Raises :class:`~master.errors.InputError` listing every problem."""
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
@@ -35,11 +36,13 @@ def prepare(scene, *, load_libraries: bool = True, **settings):
     try:
         master, options = resolve(scene.master, settings)
     except InputError as error:
-        raise InputError(list(scene.problems) + error.problems) from None
+        refused = InputError(list(scene.problems) + error.problems)
+        refused.warnings = list(scene.warnings)
+        raise refused from None
     if "stop" in options:  # the user said when to stop: no default assumed
         scene = replace(scene, stop_time=options["stop"], experiment=True)
     return make_plan(replace(scene, master=master), options.get("backend", "in-process"),
-                     {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries)
+                     {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries, strict)
 
 
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,

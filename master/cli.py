@@ -61,7 +61,7 @@ def _cmd_run(args) -> int:
         settings["backend"] = "isolated"
     progress = ProgressBar(Path(args.scene).stem)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
-                      force=args.force, **settings)
+                      force=args.force, strict=args.strict, **settings)
     if result.status != "completed":
         label = "simulation failed" if result.status == "failed" else "interrupted"
         print(f"dsim: {label}: {result.message}", file=sys.stderr)
@@ -103,6 +103,7 @@ def _cmd_info(args) -> int:
     scene = checked.scene
     print(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s"
           + ("" if scene.experiment else " (no DefaultExperiment: dsim's default span)"))
+    print(f"SSP version {scene.ssp_version or 'not declared'}")
     m = scene.master
     print(f"master: {checked.coupling} coupling, step {m.step:g} s, tolerance {m.tolerance:g} "
           f"(relative {m.relative_tolerance:g}), maxIterations {m.max_iterations}, predictor "
@@ -145,7 +146,7 @@ def _cmd_validate(args) -> int:
     from master.validate import validate
 
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
-    found = validate(args.scene, **settings)
+    found = validate(args.scene, strict=args.strict, **settings)
     for problem in found.errors:
         print(f"dsim: error: {problem}", file=sys.stderr)
     for warning in found.warnings:
@@ -321,6 +322,11 @@ def _add_settings(run_parser) -> None:
                                 if setting.rule != "choice" else "NAME", help=text)
 
 
+#: what --strict does (run and validate)
+STRICT_HELP = ("refuse (exit 2) what is otherwise a warning: a rule the files break that "
+               "does not change what the run computes")
+
+
 def parser() -> argparse.ArgumentParser:
     """The command-line parser."""
     main_parser = argparse.ArgumentParser(
@@ -341,12 +347,14 @@ def parser() -> argparse.ArgumentParser:
                             help="run every FMU in its own worker process on this machine "
                             "(--backend isolated; needs dsim[ray]): an FMU that crashes ends "
                             "the run with a message, never dsim")
+    run_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
     run_parser.set_defaults(handler=_cmd_run)
     validate_parser = commands.add_parser(
         "validate", help="every check of dsim run, without running: one line per finding, "
         "exit 2 when the scene cannot run")
     validate_parser.add_argument("scene")
     _add_settings(validate_parser)
+    validate_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
     validate_parser.set_defaults(handler=_cmd_validate)
     plot_parser = commands.add_parser(
         "plot", help="a PNG of chosen signals of one or more results CSVs, overlaid")

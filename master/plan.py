@@ -20,8 +20,8 @@ from master.connections import (Transfer, build_text_transfer, build_transfer,
 from master.errors import InputError
 from master.fmu import SubsystemSpec, can_save_state
 from master.fmu_archive import fmu_problem
-from master.ports import (NEEDED, component_ports, joint_port_dofs, model_description,
-                          variables_by_name)
+from master.ports import (NEEDED, component_ports, description_warning, joint_port_dofs,
+                          model_description, variables_by_name)
 from master.scene import Scene
 from master.settings import check_span
 from master.ssp_values import TYPES
@@ -97,7 +97,8 @@ class Plan:
         return files + list(self.scene.inputs)
 
 
-def _usable(scene: Scene, problems: list, load_libraries: bool = True) -> dict:
+def _usable(scene: Scene, problems: list, warnings: list,
+            load_libraries: bool = True) -> dict:
     """component path -> its variables by name, for the components whose FMU can be
     used; every other component gets one problem line (``load_libraries``: also load
     each library in a child process, see :func:`master.fmu_archive.fmu_problem`)."""
@@ -106,10 +107,23 @@ def _usable(scene: Scene, problems: list, load_libraries: bool = True) -> dict:
         if not component.source.is_file():
             continue  # the reader has said so
         problem = fmu_problem(component.source, load_libraries)
-        if problem:
-            problems.append(f"{component.location}: FMU {component.source.name}: {problem}")
+        where = f"{component.location}: FMU {component.source.name}"
+        model_exchange = component.implementation == "ModelExchange"
+        if problem and model_exchange and problem.startswith("a Model Exchange FMU"):
+            problems.append(f"{component.location}: implementation=\"ModelExchange\": dsim "
+                            "runs co-simulation only, and FMU "
+                            f"{component.source.name} has no CoSimulation interface")
+        elif problem:
+            problems.append(f"{where}: {problem}")
         else:
             usable[component.path] = variables_by_name(component.source)
+            tolerated = description_warning(component.source)
+            if tolerated:
+                warnings.append(f"{where}: {tolerated}")
+            if model_exchange:  # SSP lets the SSD choose; dsim has no integrator of its own
+                warnings.append(f"{component.location}: implementation=\"ModelExchange\": "
+                                "dsim runs co-simulation; the FMU's CoSimulation interface "
+                                "is run instead")
     return usable
 
 
@@ -164,17 +178,22 @@ def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list
                     problems.append(f"{where}: its unit and the FMU variable's: {error}")
 
 
-def _with_files(component) -> dict:
+def _with_files(component, variables: dict) -> dict:
     """The component's parameter values with each scene file it names (a String
-    ``resources/...``) given as the file's absolute path."""
-    return {**component.parameters,
-            **{name: ("String", str(file)) for name, file in component.files.items()}}
+    ``resources/...``) given as the file's absolute path; names that are no variable
+    of its FMU are left out (:func:`_check_parameters` warned about them)."""
+    return {name: value for name, value in {
+        **component.parameters,
+        **{name: ("String", str(file)) for name, file in component.files.items()}}.items()
+        if name in variables}
 
 
-def _check_parameters(scene: Scene, usable: dict, problems: list) -> None:
+def _check_parameters(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
     """Every parameter value must reach a variable that FMI 2.0 lets a master set
     before initialization: variability not constant, and an input, a parameter or a
-    variable with initial="exact" or "approx"."""
+    variable with initial="exact" or "approx".  A value naming no variable is a
+    warning (SSP ignores it; a set may carry values for other tools, such as CAD
+    geometry): it is not applied."""
     for component in scene.components:
         variables = usable.get(component.path)
         if variables is None:
@@ -183,8 +202,8 @@ def _check_parameters(scene: Scene, usable: dict, problems: list) -> None:
             where = component.origins.get(name, component.location)
             variable = variables.get(name)
             if variable is None:
-                problems.append(f"{where}: parameter '{name}' is not a variable of component "
-                                f"'{component.path}' ({component.source.name})")
+                warnings.append(f"{where}: parameter '{name}' is not a variable of component "
+                                f"'{component.path}' ({component.source.name}): not applied")
             elif variable.variability == "constant" or not (
                     variable.causality in ("parameter", "input")
                     or variable.initial in ("exact", "approx")):
@@ -281,10 +300,11 @@ def _passes(paths: list[str], links) -> int:
 
 
 def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
-              load_libraries: bool = True) -> Plan:
+              load_libraries: bool = True, strict: bool = False) -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem.  ``load_libraries=False``: no FMU library is
-    loaded, not even in a child process (its bytes are checked)."""
+    loaded, not even in a child process (its bytes are checked).  ``strict``: every
+    warning is a problem too."""
     from master.backends import BACKENDS
 
     backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
@@ -295,11 +315,11 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
                         f"{len(scene.joints)} joints: use iterative or explicit")
-    usable = _usable(scene, problems, load_libraries)
+    warnings = list(scene.warnings)
+    usable = _usable(scene, problems, warnings, load_libraries)
     ports = component_ports(scene, problems, usable)
-    warnings = []
     _check_connectors(scene, usable, problems, warnings)
-    _check_parameters(scene, usable, problems)
+    _check_parameters(scene, usable, problems, warnings)
     _capabilities(scene, usable, problems)
     records, text_records = _records(scene, usable)
     links = check_connections(scene, usable, problems)
@@ -310,6 +330,14 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                             f"'{'.'.join(fed[link.end])}' and '{'.'.join(link.start)}'")
         fed[link.end] = link.start
     sides = _sides(scene, ports, problems)
+    if not scene.experiment:
+        warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
+                        f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "
+                        "--stop sets the stop time)")
+    warnings = list(dict.fromkeys(warnings))
+    if strict:
+        problems += [f"{warning} (a warning; refused with --strict)" for warning in warnings]
+        warnings = []
     if problems:
         error = InputError(list(dict.fromkeys(problems)))
         error.warnings = warnings
@@ -337,8 +365,8 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         offset += len(reads[path])
     kinds = _kinds(scene)
     specs = tuple(SubsystemSpec(
-        c.path, c.source, tuple(interfaces[c.path]), _with_files(c), tuple(reads[c.path]),
-        tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
+        c.path, c.source, tuple(interfaces[c.path]), _with_files(c, usable[c.path]),
+        tuple(reads[c.path]), tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
         kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
         tuple(text_reads[c.path]), tuple(text_writes[c.path]),
         scene.placements.get(c.path, ""), tuple(c.files)) for c in scene.components)
@@ -346,10 +374,6 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
                   text_reads[p].index(n) for p, n in text_recorded]
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
-    if not scene.experiment:
-        warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
-                        f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "
-                        "--stop sets the stop time)")
     return Plan(scene, coupling if scene.joints else "causal", backend, specs,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
                 ports, start_transfer, _passes(paths, links), tuple(warnings),

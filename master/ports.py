@@ -17,6 +17,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from fmpy import read_model_description
+from fmpy.model_description import ValidationError
 
 from master.scene import Joint, PortMap, Scene
 
@@ -39,10 +40,37 @@ class PortDof:
     acceleration: int | None
 
 
+#: what fmpy's checks say of a rule that does not change what the FMU computes
+CONTINUOUS_DISCRETE = 'must have variability != "continuous"'
+#: FMU file -> the rule its description breaks that dsim tolerates (a warning)
+_TOLERATED: dict[Path, str] = {}
+
+
 @lru_cache(maxsize=64)
 def model_description(path: Path):
-    """fmpy's parsed modelDescription.xml of an FMU file (cached per file)."""
-    return read_model_description(str(path))
+    """fmpy's parsed modelDescription.xml of an FMU file (cached per file).
+
+    OpenModelica exports Enumeration (and other non-Real) variables with
+    variability="continuous", which FMI 2.0 forbids but which changes nothing a
+    co-simulation master does with them: such a description is read again without
+    fmpy's semantic checks, and :func:`description_warning` says so."""
+    try:
+        return read_model_description(str(path))
+    except ValidationError as error:
+        if not error.problems or not all(CONTINUOUS_DISCRETE in p for p in error.problems):
+            raise
+        names = [p.split('"')[1] for p in error.problems]
+        _TOLERATED[path] = (f"modelDescription.xml declares {len(names)} non-Real "
+                            "variable(s) variability=\"continuous\" (FMI 2.0 forbids it; "
+                            f"it changes nothing dsim does): {', '.join(names[:3])}"
+                            f"{', ...' if len(names) > 3 else ''}")
+    return read_model_description(str(path), validate=False)
+
+
+def description_warning(path: Path) -> str | None:
+    """The rule ``path``'s modelDescription.xml breaks that dsim tolerates, or None."""
+    model_description(path)
+    return _TOLERATED.get(path)
 
 
 def variables_by_name(path: Path) -> dict:

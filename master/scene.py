@@ -74,6 +74,9 @@ class Component:
     origins: dict = field(default_factory=dict)
     #: String parameters naming a file of the scene (``resources/...``) -> that file
     files: dict = field(default_factory=dict)
+    #: the interface the SSD asks for (``implementation``: "", CoSimulation,
+    #: ModelExchange or any); dsim runs co-simulation
+    implementation: str = ""
 
 
 @dataclass(frozen=True)
@@ -162,6 +165,11 @@ class Scene:
     reference: Path | None = None
     #: component path -> the Ray resource whose node runs it (``glue:Placement``)
     placements: dict = field(default_factory=dict)
+    #: rules the files break that do not change what the run computes (each one line;
+    #: ``strict`` refuses them)
+    warnings: tuple[str, ...] = ()
+    #: the SSP version the SystemStructure.ssd declares (1.0, 2.0, ...)
+    ssp_version: str = ""
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

@@ -11,6 +11,7 @@ instantiated.
 """
 from __future__ import annotations
 
+import re
 import zipfile
 from collections import Counter
 from functools import lru_cache
@@ -68,13 +69,35 @@ def _schema(schema_name: str) -> etree.XMLSchema:
     return etree.XMLSchema(file=str(Path(fmpy_ssd.__file__).parent / "schema" / schema_name))
 
 
-def _schema_problems(root, shown: str, schema_name: str) -> list[str]:
-    """Problems against the SSP 1.0 schema that fmpy ships."""
+#: an SSP 2.x version attribute: SSP 2.0 keeps the 1.0 namespaces (OMSimulator writes it)
+SSP2 = re.compile(r"2[.][0-9]+(-.*)?")
+#: schema complaints about content the SSP 1.0 schema does not know
+UNKNOWN_CONTENT = ("This element is not expected", "is not allowed")
+
+
+def _check_schema(root, shown: str, schema_name: str, problems: list, warnings: list) -> None:
+    """Problems against the SSP 1.0 schema that fmpy ships.  A 2.x document (its root,
+    or an inline parameter set) is checked as 1.0, which it extends: what 2.0 adds
+    (elements and attributes the 1.0 schema does not know) is a warning, as dsim does
+    not use it; every other violation is a problem."""
+    versioned = [e for e in root.iter() if SSP2.fullmatch(e.get("version") or "")]
+    originals = [e.get("version") for e in versioned]
+    for element in versioned:
+        element.set("version", "1.0")
     schema = _schema(schema_name)
-    if schema.validate(root):
-        return []
-    return [f"{shown} line {e.line}: not valid SSP 1.0: {e.message}"
-            for e in list(schema.error_log)[:3]]
+    try:
+        if schema.validate(root):
+            return
+    finally:  # the document keeps what it says (dsim info shows the version)
+        for element, version in zip(versioned, originals):
+            element.set("version", version)
+    errors = list(schema.error_log)
+    if versioned:
+        unknown = [e for e in errors if any(text in e.message for text in UNKNOWN_CONTENT)]
+        warnings += [f"{shown} line {e.line}: SSP 2.0 content dsim does not use: {e.message}"
+                     for e in unknown[:3]]
+        errors = [e for e in errors if e not in unknown]
+    problems += [f"{shown} line {e.line}: not valid SSP 1.0: {e.message}" for e in errors[:3]]
 
 
 class _Reader:
@@ -87,6 +110,12 @@ class _Reader:
         self.root = self.base.resolve()
         self.shown = shown
         self.problems: list[str] = []
+        #: rules broken that do not change what the run computes (``strict`` refuses them)
+        self.warnings: list[str] = []
+        #: the .ssv file of each ParameterBinding that names one -> (owner, whether a
+        #: component, the binding element, where): ``--parameter-set`` applies that file
+        #: there, through the binding's mapping and prefix
+        self.bound_files: dict[Path, list] = {}
         self.components: list[dict] = []
         self.connections: list[RawConnection] = []
         self.bindings: list[Binding] = []
@@ -131,7 +160,7 @@ class _Reader:
         except etree.XMLSyntaxError as error:
             self.problems.append(f"{self.shown}: {source}: malformed XML: {error}")
             return None
-        self.problems += _schema_problems(root, f"{self.shown}: {source}", schema)
+        _check_schema(root, f"{self.shown}: {source}", schema, self.problems, self.warnings)
         return root
 
     # --- parameters ------------------------------------------------------------
@@ -145,7 +174,11 @@ class _Reader:
             root = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
         if root is None:
             return {}
-        values = parameter_set(root, where, self.problems)
+        return self.mapped(parameter_set(root, where, self.problems), binding, where)
+
+    def mapped(self, values: dict, binding, where: str) -> dict:
+        """Parameter values as a ParameterBinding gives them: renamed by its
+        parameter mapping, with its prefix prepended."""
         mapping = binding.find("ssd:ParameterMapping", NS)
         if mapping is not None:
             mapping_source = mapping.get("source")
@@ -154,7 +187,7 @@ class _Reader:
                             if mapping_source else mapping.find("ssm:ParameterMapping", NS))
             if mapping_root is not None:
                 values = apply_mapping(values, parameter_mapping(mapping_root, where,
-                                                                 self.problems),
+                                                                 self.problems, self.warnings),
                                        where, self.problems)
         prefix = binding.get("prefix", "")
         return {prefix + name: value for name, value in values.items()}
@@ -162,6 +195,9 @@ class _Reader:
     def bindings_of(self, element, owner: str, component: bool, depth: int) -> None:
         where = self.where(element)
         for binding in element.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+            if binding.get("source"):
+                file = (self.base / binding.get("source")).resolve()
+                self.bound_files.setdefault(file, []).append((owner, component, binding, where))
             self.bindings.append(Binding(owner, component, depth,
                                          self.binding_values(binding, where), where))
 
@@ -224,7 +260,8 @@ class _Reader:
         path = prefix + element.get("name", "")
         self.bindings_of(element, path, True, depth)
         self.components.append(dict(path=path, source=file, location=where,
-                                    connectors=self.connectors_of(element)))
+                                    connectors=self.connectors_of(element),
+                                    implementation=element.get("implementation", "")))
 
     def parameter_set_on_top(self, chosen: str) -> None:
         """Bind a parameter set of the scene above every other binding."""
@@ -249,16 +286,22 @@ class _Reader:
             file = named[chosen]
         root = self._document(str(file.relative_to(self.base)), where,
                               "SystemStructureParameterValues.xsd")
-        if root is not None:
-            self.bindings.append(Binding("", False, -1, parameter_set(root, where,
-                                                                      self.problems), where))
+        if root is None:
+            return
+        values = parameter_set(root, where, self.problems)
+        # a set the scene binds is meant for that place: its names are those of the
+        # binding's ParameterMapping and prefix, relative to the binding's owner
+        places = self.bound_files.get(file.resolve(), [("", False, None, where)])
+        for owner, component, binding, _ in places:
+            given = self.mapped(values, binding, where) if binding is not None else values
+            self.bindings.append(Binding(owner, component, -1, given, where))
 
     # --- the components, as the hierarchy makes them ---------------------------
     def resolve(self) -> tuple[list[Component], list]:
         paths = {c["path"] for c in self.components}
         connectors = {c["path"]: c["connectors"] for c in self.components}
         values, origins, connector_values = resolve_bindings(
-            self.bindings, paths, self.system_connectors, self.problems)
+            self.bindings, paths, self.system_connectors, self.problems, self.warnings)
         connections, starts = resolve_connections(
             self.connections, paths, connectors, self.system_connectors, connector_values,
             self.problems)
@@ -268,7 +311,7 @@ class _Reader:
             files = self.scene_files(parameters, origins[c["path"]], c["location"])
             components.append(Component(c["path"], c["source"], parameters,
                                         tuple(c["connectors"].values()), c["location"],
-                                        origins[c["path"]], files))
+                                        origins[c["path"]], files, c["implementation"]))
         return components, connections
 
     def scene_files(self, parameters: dict, origins: dict, location: str) -> dict[str, Path]:
@@ -331,7 +374,8 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
         raise InputError(f"{shown}: SystemStructure.ssd: root element is "
                          f"'{etree.QName(root).localname}', not ssd:SystemStructureDescription")
     reader = _Reader(ssd, shown)
-    reader.problems += _schema_problems(root, shown, "SystemStructureDescription.xsd")
+    _check_schema(root, shown, "SystemStructureDescription.xsd", reader.problems,
+                  reader.warnings)
     system = root.find("ssd:System", NS)
     if system is None:
         raise InputError(reader.problems or [f"{shown}: SystemStructure.ssd has no ssd:System"])
@@ -344,7 +388,9 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
     _check_references(reader, components, connections)
     problems = tuple(dict.fromkeys(reader.problems))
     if problems and strict:
-        raise InputError(list(problems))
+        error = InputError(list(problems))
+        error.warnings = list(dict.fromkeys(reader.warnings))
+        raise error
     name = root.get("name") or path.stem
     reference = ssd.parent / "resources" / "reference.csv"
     if reference.is_file() and not reference.resolve().is_relative_to(ssd.parent.resolve()):
@@ -353,7 +399,8 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
                  tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
                  scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
                  reference if reference and reference.is_file() else None,
-                 {path: resource for path, resource, _ in reader.placements})
+                 {path: resource for path, resource, _ in reader.placements},
+                 tuple(dict.fromkeys(reader.warnings)), root.get("version", ""))
 
 
 def _check_references(reader: _Reader, components, connections) -> None:

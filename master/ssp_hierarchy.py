@@ -42,14 +42,17 @@ def _join(path: str, name: str) -> str:
 
 
 def resolve_bindings(bindings: list[Binding], components: set[str],
-                     system_connectors: dict[str, dict[str, Connector]], problems: list):
+                     system_connectors: dict[str, dict[str, Connector]], problems: list,
+                     warnings: list):
     """(component path -> {variable: (type, value)}, component path -> {variable: where},
     system connector node (system path, connector) -> (type, value)).
 
     Bindings of an enclosing system take precedence over inner ones; at one level a
     later binding over an earlier one (SSP 1.0, ParameterBinding).  A name that reaches
-    no component and no system connector is a problem: SSP would ignore it, but a value
-    that silently does not apply is a wrong result."""
+    no component and no system connector is a warning (an error with ``strict``): SSP
+    ignores it, and tools write sets with values for other tools (CAD geometry beside
+    the model's parameters), but a value that silently does not apply may be a wrong
+    result."""
     values: dict[str, dict] = {path: {} for path in components}
     origins: dict[str, dict] = {path: {} for path in components}
     connector_values: dict[tuple[str, str], tuple] = {}
@@ -61,8 +64,8 @@ def resolve_bindings(bindings: list[Binding], components: set[str],
             else:
                 target = _target(_join(binding.owner, name), components, system_connectors)
                 if target is None:
-                    problems.append(f"{binding.where}: parameter '{name}' names no component "
-                                    "variable and no system connector")
+                    warnings.append(f"{binding.where}: parameter '{name}' names no component "
+                                    "variable and no system connector: not applied")
                     continue
             if target[0] in components:
                 values[target[0]][target[1]] = typed

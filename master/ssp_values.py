@@ -22,7 +22,10 @@ NS = {
 }
 #: SSP type element -> the value type dsim keeps
 TYPES = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer",
-         "Boolean": "Boolean", "String": "String"}
+         "Boolean": "Boolean", "String": "String",
+         # SSP 2.0 (same namespaces) names FMI 3.0's types: a value in one is still a value
+         "Float64": "Real", "Float32": "Real",
+         **{f"{sign}Int{bits}": "Integer" for sign in ("", "U") for bits in (8, 16, 32, 64)}}
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
@@ -54,7 +57,7 @@ def parameter_set(root, where: str, problems: list) -> dict:
                 continue
             text = child.get("value")
             try:
-                values[name] = (TYPES[kind], typed_value(kind, text))
+                values[name] = (TYPES[kind], typed_value(TYPES[kind], text))
             except (TypeError, ValueError):
                 problems.append(f"{where}: parameter '{name}' has bad {kind} value '{text}'")
     return values
@@ -94,17 +97,26 @@ def transformation(element, where: str, problems: list) -> Transformation | None
     return None
 
 
-def parameter_mapping(root, where: str, problems: list) -> dict:
+def parameter_mapping(root, where: str, problems: list, warnings: list) -> dict:
     """source name -> (target name, transformation or None) of an
-    ``ssm:ParameterMapping`` element."""
+    ``ssm:ParameterMapping`` element.  Entries with an empty source (OpenModelica
+    writes hundreds: one per model parameter, most mapping nothing) map nothing:
+    skipped, with one warning for them all."""
     mapping = {}
+    empty = []
     for entry in root.iterfind("ssm:MappingEntry", NS):
         source, target = entry.get("source"), entry.get("target")
+        if source == "" and target is not None:
+            empty.append(target)
+            continue
         if not source or not target:
             problems.append(f"{where}: MappingEntry needs source and target")
             continue
         mapping[source] = (target, transformation(entry, f"{where}: MappingEntry '{source}'",
                                                   problems))
+    if empty:
+        warnings.append(f"{where}: {len(empty)} MappingEntry with an empty source skipped "
+                        f"(targets {', '.join(empty[:3])}{', ...' if len(empty) > 3 else ''})")
     return mapping
 
 
