@@ -162,6 +162,9 @@ class Scene:
     reference: Path | None = None
     #: component path -> the Ray resource whose node runs it (``glue:Placement``)
     placements: dict = field(default_factory=dict)
+    #: where the macro step came from: the step setting, glue:Master, another tool's
+    #: annotation (master.ssp_tools) or dsim's default (dsim info and validate say it)
+    step_from: str = "dsim's default"
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import zipfile
 from collections import Counter
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from master.scene import Component, Connector, MasterSettings, Scene
 from master.settings import settings_from_annotation
 from master.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from master.ssp_hierarchy import Binding, RawConnection, resolve_bindings, resolve_connections
+from master.ssp_tools import tool_step
 from master.ssp_values import (NS, TYPES, apply_mapping, parameter_mapping, parameter_set,
                                transformation, units)
 from master.unpacking import check_archive, extract
@@ -301,7 +303,8 @@ SCENE_RESOURCES = "resources/"
 DEFAULT_START, DEFAULT_STOP = 0.0, 1.0
 
 
-def _master_settings(root, shown: str, problems: list) -> tuple[float, float, MasterSettings]:
+def _master_settings(root, shown: str,
+                     problems: list) -> tuple[float, float, MasterSettings, str]:
     experiment = root.find("ssd:DefaultExperiment", NS)
     start, stop = DEFAULT_START, DEFAULT_STOP
     attributes = {}
@@ -313,7 +316,14 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
             "ssd:Annotations/ssc:Annotation[@type='org.dsim.master']/glue:Master", NS)
         if node is not None:
             attributes = dict(node.attrib)
-    return start, stop, settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
+    settings = settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
+    if "step" in attributes:
+        return start, stop, settings, "glue:Master"
+    # no step of dsim's own: the one OMSimulator or OSP wrote, if any
+    step, step_from = tool_step(root, shown, problems)
+    if step is None:
+        return start, stop, settings, "dsim's default"
+    return start, stop, replace(settings, step=step), step_from
 
 
 def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
@@ -339,7 +349,7 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
     for chosen in parameter_sets:
         reader.parameter_set_on_top(chosen)
     components, connections = reader.resolve()
-    start, stop, master = _master_settings(root, shown, reader.problems)
+    start, stop, master, step_from = _master_settings(root, shown, reader.problems)
     scene_units = units(root, shown, reader.problems)
     _check_references(reader, components, connections)
     problems = tuple(dict.fromkeys(reader.problems))
@@ -353,7 +363,7 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
                  tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
                  scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
                  reference if reference and reference.is_file() else None,
-                 {path: resource for path, resource, _ in reader.placements})
+                 {path: resource for path, resource, _ in reader.placements}, step_from)
 
 
 def _check_references(reader: _Reader, components, connections) -> None:
