@@ -114,7 +114,15 @@ class _Reader:
                                  "names only files inside itself")
             return None
         file = self.base / source
-        if not file.resolve().is_relative_to(self.root):
+        try:  # the name itself may be unusable (too long): one line, not a traceback
+            outside = not file.resolve().is_relative_to(self.root)
+            file.is_file()
+        except OSError as error:
+            shown = source if len(source) <= 80 else source[:80] + "..."
+            self.problems.append(f"{where}: {what} '{shown}' ({len(source)} characters) "
+                                 f"cannot be a file name: {error.strerror}")
+            return None
+        if outside:
             self.problems.append(f"{where}: {what} '{source}' is outside the scene")
             return None
         return file
@@ -132,6 +140,9 @@ class _Reader:
             root = etree.parse(str(file)).getroot()
         except etree.XMLSyntaxError as error:
             self.problems.append(f"{self.shown}: {source}: malformed XML: {error}")
+            return None
+        except OSError as error:  # lxml's error for bytes that are not the declared encoding
+            self.problems.append(f"{self.shown}: {source}: cannot read: {error}")
             return None
         self.problems += _schema_problems(root, f"{self.shown}: {source}", schema)
         return root
@@ -241,7 +252,7 @@ class _Reader:
                     continue  # a link out of the scene: not one of its files
                 try:
                     named[etree.parse(str(candidate)).getroot().get("name")] = candidate
-                except etree.XMLSyntaxError:
+                except (etree.XMLSyntaxError, OSError):  # unreadable: not a set to choose
                     continue
             if chosen not in named:
                 listed = ", ".join(sorted(map(str, named))) or "none"
