@@ -41,6 +41,8 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, **setti
         raise refused from None
     if "stop" in options:  # the user said when to stop: no default assumed
         scene = replace(scene, stop_time=options["stop"], experiment=True)
+    if settings.get("step") is not None:  # said by dsim info and validate
+        scene = replace(scene, step_from="the step setting (--step)")
     return make_plan(replace(scene, master=master), options.get("backend", "in-process"),
                      {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries, strict)
 

@@ -105,10 +105,10 @@ def _cmd_info(args) -> int:
           + ("" if scene.experiment else " (no DefaultExperiment: dsim's default span)"))
     print(f"SSP version {scene.ssp_version or 'not declared'}")
     m = scene.master
-    print(f"master: {checked.coupling} coupling, step {m.step:g} s, tolerance {m.tolerance:g} "
-          f"(relative {m.relative_tolerance:g}), maxIterations {m.max_iterations}, predictor "
-          f"{m.predictor}, refresh {m.refresh} (after {m.refresh_after}), start {m.start}, "
-          f"perturbation {m.perturbation:g}")
+    print(f"master: {checked.coupling} coupling, step {m.step:g} s (from {scene.step_from}), "
+          f"tolerance {m.tolerance:g} (relative {m.relative_tolerance:g}), maxIterations "
+          f"{m.max_iterations}, predictor {m.predictor}, refresh {m.refresh} (after "
+          f"{m.refresh_after}), start {m.start}, perturbation {m.perturbation:g}")
     print(f"components ({len(scene.components)}):")
     for index, component in enumerate(scene.components):
         description = model_description(component.source)

@@ -10,7 +10,8 @@ released, the statistics made, and the observers finish with the
 :class:`~master.results.RunResult`.
 
 Time is ``start + n * step`` (no drift); the last step is shortened to land on
-the stop time exactly, and every other step is given to the FMUs as exactly
+the stop time exactly (never past it, also in the FMUs' own sum ``t + h``:
+:mod:`master.timeline`), and every other step is given to the FMUs as exactly
 ``step``, so that nothing that depends on the step size (the interface
 flexibility, the gluing matrix's factor) is rebuilt for round-off.
 """
@@ -33,6 +34,7 @@ from master.output_files import OutputError
 from master.results import RunResult
 from master.start import check_start, start_forces
 from master.statistics import run_statistics
+from master.timeline import size_to, step_count
 
 
 #: cut steps (and least-squares steps) named one by one in the warnings
@@ -63,8 +65,8 @@ class Execution:
         self.index = 0
         self.time = self.scene.start_time
         self.warnings: list[str] = []
-        self.planned_steps = max(1, math.ceil(
-            (self.scene.stop_time - self.scene.start_time) / self.settings.step - 1e-9))
+        self.planned_steps = step_count(self.scene.start_time, self.scene.stop_time,
+                                        self.settings.step)
         self.backend = None
         self.coupling = None
         self.layout = None
@@ -86,11 +88,11 @@ class Execution:
         return self.scene.start_time + index * self.settings.step
 
     def _step_size(self, index: int) -> float:
-        """Size of the step from point ``index``: ``step`` unless it is the last one
-        and really shorter."""
-        size = self.step_time(index + 1) - self.step_time(index)
-        nominal = self.settings.step
-        return nominal if abs(size - nominal) <= 1e-9 * nominal else size
+        """Size handed to the FMUs for the step from point ``index``: ``step``, except
+        for the last one, which ends at the stop time and never past it."""
+        if index + 1 < self.planned_steps:
+            return self.settings.step
+        return size_to(self.step_time(index), self.step_time(index + 1), self.settings.step)
 
     # --- observers ---------------------------------------------------------------
     def _notify(self, hook: str, *args) -> None:
@@ -270,7 +272,7 @@ class Execution:
         index, time = self.index, self.time
         started = clock.perf_counter()
         end = self.step_time(index + 1)
-        size = self.settings.step if index + 1 < self.planned_steps else self._step_size(index)
+        size = self._step_size(index)
         try:
             if self._text_reads:
                 self._write_texts()

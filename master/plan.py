@@ -25,6 +25,7 @@ from master.ports import (NEEDED, component_ports, description_warning, joint_po
 from master.scene import Scene
 from master.settings import check_span
 from master.ssp_values import TYPES
+from master.timeline import is_whole
 from master.units import conversion, fmu_units, variable_unit
 
 #: variable types a recorded column can carry
@@ -238,8 +239,8 @@ def _sides(scene: Scene, ports: dict, problems: list) -> dict:
 def _capabilities(scene: Scene, usable: dict, problems: list) -> None:
     """What an FMU's co-simulation capabilities forbid this run: a shortened last step
     for an FMU that needs a fixed one, two instances of an FMU that allows one."""
-    span, step = scene.stop_time - scene.start_time, scene.master.step
-    uneven = abs(span / step - round(span / step)) > 1e-9 * max(span / step, 1.0)
+    step = scene.master.step
+    uneven = not is_whole(scene.start_time, scene.stop_time, step)
     users: dict = {}
     for component in scene.components:
         if component.path not in usable:

@@ -170,6 +170,9 @@ class Scene:
     warnings: tuple[str, ...] = ()
     #: the SSP version the SystemStructure.ssd declares (1.0, 2.0, ...)
     ssp_version: str = ""
+    #: where the macro step came from: the step setting, glue:Master, another tool's
+    #: annotation (master.ssp_tools) or dsim's default (dsim info and validate say it)
+    step_from: str = "dsim's default"
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

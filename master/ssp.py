@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 import zipfile
 from collections import Counter
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -24,6 +25,7 @@ from master.scene import Component, Connector, MasterSettings, Scene
 from master.settings import settings_from_annotation
 from master.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from master.ssp_hierarchy import Binding, RawConnection, resolve_bindings, resolve_connections
+from master.ssp_tools import tool_step
 from master.ssp_values import (NS, TYPES, apply_mapping, parameter_mapping, parameter_set,
                                transformation, units)
 from master.unpacking import check_archive, extract
@@ -141,7 +143,15 @@ class _Reader:
                                  "names only files inside itself")
             return None
         file = self.base / source
-        if not file.resolve().is_relative_to(self.root):
+        try:  # the name itself may be unusable (too long): one line, not a traceback
+            outside = not file.resolve().is_relative_to(self.root)
+            file.is_file()
+        except OSError as error:
+            shown = source if len(source) <= 80 else source[:80] + "..."
+            self.problems.append(f"{where}: {what} '{shown}' ({len(source)} characters) "
+                                 f"cannot be a file name: {error.strerror}")
+            return None
+        if outside:
             self.problems.append(f"{where}: {what} '{source}' is outside the scene")
             return None
         return file
@@ -159,6 +169,9 @@ class _Reader:
             root = etree.parse(str(file)).getroot()
         except etree.XMLSyntaxError as error:
             self.problems.append(f"{self.shown}: {source}: malformed XML: {error}")
+            return None
+        except OSError as error:  # lxml's error for bytes that are not the declared encoding
+            self.problems.append(f"{self.shown}: {source}: cannot read: {error}")
             return None
         _check_schema(root, f"{self.shown}: {source}", schema, self.problems, self.warnings)
         return root
@@ -276,7 +289,7 @@ class _Reader:
                     continue  # a link out of the scene: not one of its files
                 try:
                     named[etree.parse(str(candidate)).getroot().get("name")] = candidate
-                except etree.XMLSyntaxError:
+                except (etree.XMLSyntaxError, OSError):  # unreadable: not a set to choose
                     continue
             if chosen not in named:
                 listed = ", ".join(sorted(map(str, named))) or "none"
@@ -344,7 +357,8 @@ SCENE_RESOURCES = "resources/"
 DEFAULT_START, DEFAULT_STOP = 0.0, 1.0
 
 
-def _master_settings(root, shown: str, problems: list) -> tuple[float, float, MasterSettings]:
+def _master_settings(root, shown: str,
+                     problems: list) -> tuple[float, float, MasterSettings, str]:
     experiment = root.find("ssd:DefaultExperiment", NS)
     start, stop = DEFAULT_START, DEFAULT_STOP
     attributes = {}
@@ -356,7 +370,14 @@ def _master_settings(root, shown: str, problems: list) -> tuple[float, float, Ma
             "ssd:Annotations/ssc:Annotation[@type='org.dsim.master']/glue:Master", NS)
         if node is not None:
             attributes = dict(node.attrib)
-    return start, stop, settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
+    settings = settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
+    if "step" in attributes:
+        return start, stop, settings, "glue:Master"
+    # no step of dsim's own: the one OMSimulator or OSP wrote, if any
+    step, step_from = tool_step(root, shown, problems)
+    if step is None:
+        return start, stop, settings, "dsim's default"
+    return start, stop, replace(settings, step=step), step_from
 
 
 def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
@@ -383,7 +404,7 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
     for chosen in parameter_sets:
         reader.parameter_set_on_top(chosen)
     components, connections = reader.resolve()
-    start, stop, master = _master_settings(root, shown, reader.problems)
+    start, stop, master, step_from = _master_settings(root, shown, reader.problems)
     scene_units = units(root, shown, reader.problems)
     _check_references(reader, components, connections)
     problems = tuple(dict.fromkeys(reader.problems))
@@ -400,7 +421,7 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
                  scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
                  reference if reference and reference.is_file() else None,
                  {path: resource for path, resource, _ in reader.placements},
-                 tuple(dict.fromkeys(reader.warnings)), root.get("version", ""))
+                 tuple(dict.fromkeys(reader.warnings)), root.get("version", ""), step_from)
 
 
 def _check_references(reader: _Reader, components, connections) -> None:

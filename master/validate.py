@@ -44,5 +44,5 @@ def validate(scene, load_libraries: bool = False, **settings) -> Validation:
     summary = (f"{found.file}: valid: {len(found.components)} components ({len(plan.glued)} "
                f"glued, {free} free), {len(found.joints)} joints, {len(found.connections)} "
                f"connections; runs {found.start_time:g} .. {found.stop_time:g} s in steps of "
-               f"{found.master.step:g} s with the {plan.coupling} coupling")
+               f"{found.master.step:g} s (from {found.step_from}) with the {plan.coupling} coupling")
     return Validation([], list(plan.warnings), summary)

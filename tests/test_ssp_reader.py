@@ -110,7 +110,7 @@ def test_nested_systems_inline_parameters_and_annotations(tmp_path, built):
 def test_info_lists_components_capabilities_ports_joints_and_settings(built, capsys):
     assert main(["info", str(built["ssp"] / "spring_mass_nonlinear.ssp")]) == 0
     text = capsys.readouterr().out
-    for expected in ("step 0.01 s, tolerance 1e-10", "left: SpringMass.fmu",
+    for expected in ("step 0.01 s (from glue:Master), tolerance 1e-10", "left: SpringMass.fmu",
                      "state yes", "ports: P(x), Q(x)", "j1: left.P -> right.Q dofs x, flexible"):
         assert expected in text
 

@@ -17,6 +17,7 @@ from master.couplings.base import StepReport
 from master.couplings.divergence import BLOCKS, GROWTH, EnvelopeWatch
 from master.couplings.iterative import IterativeCoupling
 from master.errors import SimulationError
+from master.timeline import same_size
 
 
 class ExplicitCoupling(IterativeCoupling):
@@ -35,7 +36,9 @@ class ExplicitCoupling(IterativeCoupling):
         """Advance every glued subsystem once with predicted forces; record the
         residual left at the interface."""
         forces = self.predict()
-        if self._step_size is not None and step_size != self._step_size:
+        # a size that differs by round-off only (a last step fitted to the stop time)
+        # keeps the flexibility
+        if self._step_size is not None and not same_size(step_size, self._step_size):
             self._flexibility = None
         self._step_size = step_size
         if self._flexibility is None and self.start_sensitivity is not None:

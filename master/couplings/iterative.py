@@ -33,6 +33,7 @@ from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
 from master.errors import SimulationError, StepFailure
 from master.joints import EPS, ROUNDOFF_ULPS
+from master.timeline import halves, same_size
 
 
 #: gluing matrices of at most this many joint dofs are factored dense
@@ -210,7 +211,9 @@ class IterativeCoupling(Coupling):
         first half starts from the state its whole step saved); when the step size
         changed, take the flexibility measured for the new one, if any (G is the
         response over one step)."""
-        if self._step_size is not None and step_size != self._step_size:
+        # a size that differs by round-off only (a last step fitted to the stop time)
+        # has the same response
+        if self._step_size is not None and not same_size(step_size, self._step_size):
             self._measured[self._step_size] = self._flexibility
             held = self._measured.get(step_size)
             self._flexibility = None
@@ -286,9 +289,9 @@ class IterativeCoupling(Coupling):
                 raise
             spent = failure.iterations
         self.cuts += depth == 0
-        half = 0.5 * step_size
-        first = self._cut_or_fail(time, half, step_index, depth + 1, False)
-        second = self._cut_or_fail(time + half, half, step_index, depth + 1, True)
+        (start, half), (middle, rest) = halves(time, step_size)  # never past the step's end
+        first = self._cut_or_fail(start, half, step_index, depth + 1, False)
+        second = self._cut_or_fail(middle, rest, step_index, depth + 1, True)
         return StepReport(spent + first.iterations + second.iterations,
                           first.refreshed + second.refreshed,
                           max(first.residual, second.residual),

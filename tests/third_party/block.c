@@ -11,7 +11,9 @@
  * 3 fmi2DoStep returns fmi2Discard, 4 the process aborts (a crashing FMU), 5 fmi2DoStep
  * returns fmi2Fatal; after 2 or 3, fmi2Terminate fails too (a cleanup that must not
  * hide the first error).  failure 6 and 7 make fmi2ExitInitializationMode return
- * fmi2Error and fmi2Fatal.  Compiled with -DINSTANTIATE_FAILS=3 (or 4) fmi2Instantiate
+ * fmi2Error and fmi2Fatal.  failure 8 makes it check its stop time as some tools' FMUs
+ * do: a step that would end past the stopTime of fmi2SetupExperiment, by any amount
+ * (round-off too), returns fmi2Error.  Compiled with -DINSTANTIATE_FAILS=3 (or 4) fmi2Instantiate
  * logs an error (a fatal error) and returns NULL; with -DNO_STATE it implements no
  * state saving. */
 #include <math.h>
@@ -33,6 +35,8 @@ typedef struct {
     int b[N_BOOLEANS];
     char s[N_STRINGS][TEXT];
     double time;
+    double stop;      /* fmi2SetupExperiment's stopTime, when defined */
+    int stop_defined;
     int failed;  /* a simulated failure happened: fmi2Terminate fails too */
     char name[128];
     fmi2CallbackFunctions cb;
@@ -74,7 +78,11 @@ FMI2_Export void fmi2FreeInstance(fmi2Component c) {
 FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined,
                                            fmi2Real tol, fmi2Real start,
                                            fmi2Boolean stopDefined, fmi2Real stop) {
-    ((Model *)c)->time = start; return fmi2OK;
+    Model *m = c;
+    m->time = start;
+    m->stop = stop;
+    m->stop_defined = stopDefined;
+    return fmi2OK;
 }
 FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return fmi2OK; }
 FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
@@ -179,6 +187,13 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
                                   fmi2Boolean noSetPrior) {
     Model *m = c;
     double *r = m->r;
+    if (m->i[I_FAILURE] == 8 && m->stop_defined && t + h > m->stop) {
+        char text[160];
+        snprintf(text, sizeof text, "block: Exceeded model finish time: %.17g > %.17g",
+                 t + h, m->stop);
+        log_message(m, fmi2Error, text);
+        return fmi2Error;
+    }
     if (t + h >= r[R_FAIL_TIME]) {
         char text[160];
         m->failed = m->i[I_FAILURE] > 1;
