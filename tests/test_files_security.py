@@ -3,6 +3,7 @@ they were found: real links, a real zip bomb, a real scene of many components, r
 archives naming files outside themselves, a killed process's leftovers."""
 import hashlib
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -191,7 +192,9 @@ def test_an_fmu_that_is_a_zip_bomb_is_refused(block_fmus, tmp_path, zeros_member
     temp = tmp_path / "temp"
     code, lines = dsim_cli("validate", folder, tmpdir=temp)
     assert code == 2 and len(lines) == 1
-    assert "FMU block.fmu: FMU archive unpacks to 100 MiB, 973 times its size" in lines[0]
+    # the ratio depends on how well the test's own library compresses: about 970
+    assert re.search(r"FMU block\.fmu: FMU archive unpacks to 100 MiB, 9\d\d times its size",
+                     lines[0]), lines[0]
     assert "a zip bomb" in lines[0] and list(temp.iterdir()) == []
 
 
