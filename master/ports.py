@@ -130,7 +130,8 @@ def joint_port_dofs(joint: Joint, side: str, ports: dict, problems: list) -> lis
     for member in members:
         for dof in joint.dofs:
             kinds = ports[member].get(dof, {})
-            missing = [k for k in ("f",) + NEEDED[joint.measure] if k not in kinds]
+            # an unknown measure is the reader's problem, said already: needs no more here
+            missing = [k for k in ("f",) + NEEDED.get(joint.measure, ()) if k not in kinds]
             if missing:
                 problems.append(
                     f"{joint.location}: port '{component}.{member}' has no "
