@@ -23,16 +23,18 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, **setti
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
     options: stop, step, tolerance, relative_tolerance, max_iterations,
     refresh_after, perturbation, predictor, refresh, coupling, start, backend,
-    address, call_timeout, parameter_set).  ``load_libraries=False`` checks each FMU's
+    address, call_timeout, parameter_set, ssd).  ``load_libraries=False`` checks each FMU's
     library as bytes without loading it (no code of the FMU runs: what ``dsim
     validate`` and ``dsim serve``'s uploads do).  ``strict``: refuse what would
     otherwise be a warning (a rule the files break that does not change the results).
     Raises :class:`~master.errors.InputError` listing every problem."""
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
-        scene = load_scene(scene, [chosen] if chosen else (), strict=False)
-    elif chosen:
-        raise InputError("setting parameter_set: give the scene's file, not a loaded scene")
+        scene = load_scene(scene, [chosen] if chosen else (), strict=False,
+                           ssd=settings.get("ssd"))
+    elif chosen or settings.get("ssd"):
+        raise InputError("settings parameter_set and ssd: give the scene's file, not a "
+                         "loaded scene")
     try:
         master, options = resolve(scene.master, settings)
     except InputError as error:

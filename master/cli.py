@@ -99,8 +99,14 @@ def _cmd_info(args) -> int:
     from master.fmu import can_save_state
     from master.ports import model_description
 
-    checked = prepare(args.scene)
+    from master.ssp import ssd_files
+
+    checked = prepare(args.scene, ssd=args.ssd)
     scene = checked.scene
+    structures = ssd_files(args.scene)
+    if len(structures) > 1:
+        print(f"system structures: {', '.join(structures)} (this is "
+              f"{args.ssd or 'SystemStructure.ssd'}; --ssd NAME reads another)")
     print(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s"
           + ("" if scene.experiment else " (no DefaultExperiment: dsim's default span)"))
     print(f"SSP version {scene.ssp_version or 'not declared'}")
@@ -410,6 +416,7 @@ def parser() -> argparse.ArgumentParser:
     info_parser = commands.add_parser("info", help="components, capabilities, ports, "
                                       "joints and master settings of a scene")
     info_parser.add_argument("scene")
+    info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
     info_parser.set_defaults(handler=_cmd_info)
     compare_parser = commands.add_parser(
         "compare", help="compare a results CSV with a reference CSV (exit 1 if it differs)")

@@ -90,6 +90,9 @@ SETTINGS = {s.keyword: s for s in (
     Setting("parameter_set", None, str, "text",
             "a parameter set of the scene applied on top of its bindings: an .ssv file's "
             "path in the scene or a ParameterSet's name"),
+    Setting("ssd", None, str, "text",
+            "the system structure to read, when the archive or folder holds several .ssd "
+            "files (dsim info lists them; default SystemStructure.ssd)"),
 )}
 
 #: the settings a backend takes (not the master's), with the backends that take each

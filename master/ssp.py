@@ -31,27 +31,63 @@ from master.ssp_values import (NS, TYPES, apply_mapping, parameter_mapping, para
 from master.unpacking import check_archive, extract
 
 
-def _open(path: Path) -> tuple[Path, str]:
-    """The SystemStructure.ssd to read and the name used in messages."""
+#: the system structure an SSP archive's root holds by default (SSP 1.0, 5.1)
+DEFAULT_SSD = "SystemStructure.ssd"
+
+
+def _ssd_name(name: str | None) -> str:
+    """The .ssd file name asked for (``--ssd``): a plain file name of the scene's root."""
+    name = name or DEFAULT_SSD
+    if "/" in name or "\\" in name or name in (".", "..") or not name.endswith(".ssd"):
+        raise InputError(f"ssd '{name}': give the name of an .ssd file at the scene's root "
+                         "(dsim info lists them)")
+    return name
+
+
+def ssd_name_given(path: Path, ssd: Path) -> bool:
+    """Whether the user named the .ssd (an .ssd file given, or --ssd)."""
+    return path.suffix.lower() == ".ssd" or ssd.name != DEFAULT_SSD
+
+
+def ssd_files(path) -> list[str]:
+    """The .ssd files at the root of a scene archive or folder (an .ssd file: itself)."""
+    path = Path(path)
+    if path.is_dir():
+        return sorted(p.name for p in path.glob("*.ssd") if p.is_file())
+    if path.suffix.lower() == ".ssd":
+        return [path.name]
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return sorted(n for n in archive.namelist() if "/" not in n and n.endswith(".ssd"))
+    except (zipfile.BadZipFile, OSError):
+        return []
+
+
+def _open(path: Path, ssd_name: str | None = None) -> tuple[Path, str]:
+    """The .ssd to read (``ssd_name``, default SystemStructure.ssd) and the name used
+    in messages."""
     if not path.exists():
         raise InputError(f"{path}: no such file")
+    name = _ssd_name(ssd_name)
     if path.is_dir():
-        ssd = path / "SystemStructure.ssd"
+        ssd = path / name
         if not ssd.is_file():
-            raise InputError(f"{path}: folder has no SystemStructure.ssd")
+            raise InputError(f"{path}: folder has no {name} (it has: "
+                             f"{', '.join(ssd_files(path)) or 'no .ssd file'})")
         return ssd, str(path)
     if path.suffix.lower() == ".ssd":
         return path, str(path)
     if not zipfile.is_zipfile(path):
         raise InputError(f"{path}: not an SSP archive (not a zip file)")
     try:
-        if "SystemStructure.ssd" not in check_archive(path, "SSP"):
-            raise InputError("archive has no SystemStructure.ssd at its root")
+        if name not in check_archive(path, "SSP"):
+            raise InputError(f"archive has no {name} at its root (it has: "
+                             f"{', '.join(ssd_files(path)) or 'no .ssd file'})")
         # removed at exit, or by the next run when this one is killed (master.unpacking)
         folder = extract(path, "SSP", "ssp")
     except InputError as error:  # one line that names the file
         raise InputError([f"{path}: {problem}" for problem in error.problems]) from None
-    return folder / "SystemStructure.ssd", str(path)
+    return folder / name, str(path)
 
 
 def _parse_xml(path: Path, shown: str):
@@ -131,7 +167,7 @@ class _Reader:
         tag = etree.QName(element).localname
         name = element.get("name")
         label = f"{tag} '{name}'" if name else tag
-        return f"{self.shown} (SystemStructure.ssd line {element.sourceline}): {label}"
+        return f"{self.shown} ({self.ssd.name} line {element.sourceline}): {label}"
 
     # --- files -----------------------------------------------------------------
     def inside(self, source: str, where: str, what: str) -> Path | None:
@@ -240,7 +276,7 @@ class _Reader:
             else:
                 self.problems.append(f"{self.where(child)}: element kind '{tag}' not supported")
         for connection in element.iterfind("ssd:Connections/ssd:Connection", NS):
-            where = f"{self.shown} (SystemStructure.ssd line {connection.sourceline}): Connection"
+            where = f"{self.shown} ({self.ssd.name} line {connection.sourceline}): Connection"
             self.connections.append(RawConnection(
                 path, (connection.get("startElement"), connection.get("startConnector", "")),
                 (connection.get("endElement"), connection.get("endConnector", "")),
@@ -380,16 +416,17 @@ def _master_settings(root, shown: str,
     return start, stop, replace(settings, step=step), step_from
 
 
-def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
+def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None) -> Scene:
     """Read and check an SSP system; raise InputError listing every problem (or, not
     ``strict``, keep the problems in ``Scene.problems`` when the system could still be
     read, so that the plan's checks can add theirs).
 
     ``parameter_sets``: parameter sets applied on top of every binding of the scene,
     as if bound to the root system last: each an .ssv file of the scene (its path in
-    the scene, like ``resources/heavy.ssv``) or the name of a ParameterSet in one."""
+    the scene, like ``resources/heavy.ssv``) or the name of a ParameterSet in one.
+    ``ssd``: which .ssd of the archive or folder (default SystemStructure.ssd)."""
     path = Path(path)
-    ssd, shown = _open(path)
+    ssd, shown = _open(path, ssd)
     root = _parse_xml(ssd, shown)
     if etree.QName(root).localname != "SystemStructureDescription":
         raise InputError(f"{shown}: SystemStructure.ssd: root element is "
@@ -397,6 +434,11 @@ def load_scene(path, parameter_sets=(), strict: bool = True) -> Scene:
     reader = _Reader(ssd, shown)
     _check_schema(root, shown, "SystemStructureDescription.xsd", reader.problems,
                   reader.warnings)
+    others = [name for name in ssd_files(path) if name != ssd.name]
+    if others and not ssd_name_given(path, ssd):
+        reader.warnings.append(f"{shown}: holds other system structures too "
+                               f"({', '.join(others)}): this reads {ssd.name} (--ssd NAME "
+                               "chooses)")
     system = root.find("ssd:System", NS)
     if system is None:
         raise InputError(reader.problems or [f"{shown}: SystemStructure.ssd has no ssd:System"])
