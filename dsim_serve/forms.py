@@ -25,8 +25,9 @@ def run_settings(fields: dict) -> dict:
     from master.scene import MasterSettings
     from master.settings import SETTINGS, resolve
 
-    settings = {k: str(fields[k]).strip() for k in SETTINGS
-                if str(fields.get(k) or "").strip()}
+    # the scene a run reads is the one stored, described by its own SystemStructure.ssd
+    settings = {k: str(fields[k]).strip() for k in SETTINGS if k != "ssd"
+                and str(fields.get(k) or "").strip()}
     try:
         resolve(MasterSettings(), settings)
     except InputError as error:

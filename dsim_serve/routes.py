@@ -319,7 +319,7 @@ def scene_page(request: Request, scene_id: int, parameter_set: str = ""):
                 "parameter_set": ""}
     settings = [{"keyword": k, "option": s.option, "help": s.help, "default": defaults.get(k),
                  "choices": choices(k) if s.kind is str and s.rule == "choice" else None}
-                for k, s in SETTINGS.items() if k != "parameter_set"]
+                for k, s in SETTINGS.items() if k not in ("parameter_set", "ssd")]
     models = scene_models(store, scene)
     return _render(request, "scene.html", scene=scene, d=d, models=models,
                    svg=diagram.scene_svg(d, models),
@@ -599,7 +599,7 @@ async def run_api(request: Request, scene_id: int):
         raise HTTPException(400, '"signals" must be a JSON list of column names')
     from master.settings import SETTINGS
 
-    unknown = sorted(set(settings) - set(SETTINGS))
+    unknown = sorted(set(settings) - set(SETTINGS) | ({"ssd"} & set(settings)))
     if unknown:  # a form has other fields; a JSON body names settings only
         raise HTTPException(400, f"unknown setting {', '.join(map(repr, unknown))} "
                                  f"(known: {', '.join(SETTINGS)})")
