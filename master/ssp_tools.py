@@ -7,7 +7,9 @@ with the step its author chose, not dsim's default.
   system);
 * OSP (libcosim): ``ssc:Annotation type="com.opensimulationplatform"`` holding
   ``osp:Algorithm`` / ``osp:FixedStepAlgorithm baseStepSize="..."`` (on the
-  DefaultExperiment).
+  DefaultExperiment); its predecessor cse-core: ``type="org.open-simulation-platform"``
+  with ``osp:SimulationInformation`` / ``osp:FixedStepMaster stepSize="..."`` (on the
+  root system).  Checked against those tools' own parsers and test files.
 
 Elements are matched by local name under the annotation of the tool's type, so a
 namespace URI that differs between a tool's versions does not hide the step.
@@ -24,6 +26,9 @@ from master.ssp_values import NS
 TOOL_STEPS = (
     ("org.openmodelica", "FixedStepMaster", "stepSize", "OMSimulator"),
     ("com.opensimulationplatform", "FixedStepAlgorithm", "baseStepSize",
+     "Open Simulation Platform"),
+    # libcosim's predecessor (cse-core) read this one, on the root system
+    ("org.open-simulation-platform", "FixedStepMaster", "stepSize",
      "Open Simulation Platform"),
 )
 

@@ -19,10 +19,19 @@ OSP = ('<ssc:Annotation type="com.opensimulationplatform">'
        '<osp:FixedStepAlgorithm baseStepSize="{step}"/></osp:Algorithm></ssc:Annotation>')
 
 
-def scene(folder, fmu, oms=None, osp=None, master=""):
+CSE = ('<ssd:Annotations><ssc:Annotation type="org.open-simulation-platform">'
+       '<osp:SimulationInformation xmlns:osp="http://opensimulationplatform.com/SSP/'
+       'OSPAnnotations"><osp:FixedStepMaster description="x" stepSize="{step}"/>'
+       "</osp:SimulationInformation></ssc:Annotation></ssd:Annotations>")
+
+
+def scene(folder, fmu, oms=None, osp=None, master="", cse=None):
     """A block scene with the tools' step annotations (None: without)."""
     text = ssd("tools", [component("b1", "resources/block.fmu", outputs=["y"])], stop=0.1,
                master=master)
+    if cse is not None:  # on the root system, as libcosim's predecessor read it
+        text = text.replace("</ssd:Elements></ssd:System>",
+                            "</ssd:Elements>" + CSE.format(step=cse) + "</ssd:System>")
     if oms is not None:  # on the root system, after its elements, as OMSimulator writes it
         text = text.replace("</ssd:Elements></ssd:System>",
                             "</ssd:Elements>" + OMS.format(step=oms) + "</ssd:System>")
@@ -66,3 +75,10 @@ def test_a_bad_tool_step_is_one_line_naming_the_element(block_fmus, tmp_path, ca
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "OMSimulator annotation FixedStepMaster: stepSize" in lines[0]
     assert str(folder) in lines[0] and "line" in lines[0]
+
+
+def test_the_step_of_libcosims_predecessor_is_read(block_fmus, tmp_path):
+    folder = scene(tmp_path / "s", block_fmus["state"], cse="0.05")
+    loaded = dsim.load_scene(folder)
+    assert loaded.master.step == 0.05
+    assert loaded.step_from == "Open Simulation Platform annotation (FixedStepMaster stepSize)"
