@@ -137,20 +137,22 @@ class JointStates:
             residual = np.where(mask, force + forces, 0.0)
             with np.errstate(divide="ignore", invalid="ignore"):
                 delta = np.where(mask, residual / stiffness, 0.0)
-            scale = np.maximum(np.abs(q - delta), 1e-12)
-            if not np.all(np.isfinite(q - delta)):
-                q = q - delta
+            updated = q - delta
+            if not np.all(np.isfinite(updated)):
+                q = updated
                 break
+            scale = np.maximum(np.abs(updated), 1e-12)
             if not self.nonlinear or np.all(np.abs(delta) <= self.newton_tolerance * scale
                                             + 1e-300):
-                q = q - delta
+                q = updated
                 break
-            # the law's residual at the round-off of its terms: no better q exists
-            terms = np.abs(force - (self.c0 + self.c1 * np.abs(qd)) * qd) + np.abs(
-                (self.c0 + self.c1 * np.abs(qd)) * qd) + np.abs(forces)
+            # the law's residual at the round-off of its terms (spring, damper and the
+            # joint force): no better q exists
+            damping = (self.c0 + self.c1 * np.abs(qd)) * qd
+            terms = np.abs(force - damping) + np.abs(damping) + np.abs(forces)
             if np.all(np.abs(residual) <= ROUNDOFF_ULPS * EPS * terms):
                 break
-            q = q - delta
+            q = updated
         else:
             raise SimulationError("a flexible joint law has no solution for the "
                                   "current force (Newton on the law did not converge)")
