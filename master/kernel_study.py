@@ -107,7 +107,9 @@ _PROBE = ("import json; from master.kernel_study import openblas_cores; "
           "print(json.dumps(openblas_cores()))")
 
 
-def _environment(kernel: str | None) -> dict:
+def kernel_environment(kernel: str | None) -> dict:
+    """This process's environment for a subprocess under ``kernel`` (None: the CPU's
+    default), importing this checkout's master."""
     env = dict(os.environ)
     env.pop("OPENBLAS_CORETYPE", None)
     if kernel:
@@ -124,7 +126,7 @@ def forced_core(kernel: str) -> str:
     kernels to others: Prescott reports Katmai, and Zen may be Haswell's)."""
     import json
 
-    done = subprocess.run([sys.executable, "-c", _PROBE], env=_environment(kernel),
+    done = subprocess.run([sys.executable, "-c", _PROBE], env=kernel_environment(kernel),
                           capture_output=True, text=True, timeout=60)
     cores = set(json.loads(done.stdout or "{}").values()) if done.returncode == 0 else set()
     return "/".join(sorted(cores)) or "?"
@@ -165,7 +167,7 @@ def run_with_kernel(scene, settings: dict, kernel: str, out: Path,
     core = forced_core(kernel)
     start = time.perf_counter()
     try:
-        done = subprocess.run(command_line(scene, settings, out), env=_environment(kernel),
+        done = subprocess.run(command_line(scene, settings, out), env=kernel_environment(kernel),
                               capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return KernelRun(kernel, core, None, time.perf_counter() - start,

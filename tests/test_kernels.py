@@ -6,14 +6,14 @@ numpy's OpenBLAS picks its kernels by CPU at run time, so the last bits of a sol
 differ between machines; ``OPENBLAS_CORETYPE`` forces one.  Near the four bar's
 singular points those bits are amplified the most (docs/reproducibility.md).
 """
-import os
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
 
-from master.kernel_study import blas_name, supported_kernels
+from master.kernel_study import blas_name, kernel_environment, supported_kernels
 from master.results import read_columns
 from tests.conftest import ROOT
 
@@ -31,24 +31,17 @@ def _kernels() -> list:
 
 
 def _run(kernels, tmp_path):
-    """Run tests.kernel_check under each kernel (None: the default), two at a time."""
-    done, running = {}, []
-    queue = list(kernels)
-    while queue or running:
-        while queue and len(running) < 2:
-            kernel = queue.pop(0)
-            env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-            env.pop("OPENBLAS_CORETYPE", None)
-            if kernel:
-                env["OPENBLAS_CORETYPE"] = kernel
-            out = tmp_path / (kernel or "default")
-            running.append((kernel, out, subprocess.Popen(
-                [sys.executable, "-m", "tests.kernel_check", str(out)], cwd=ROOT, env=env,
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)))
-        kernel, out, process = running.pop(0)
-        text, _ = process.communicate(timeout=300)
-        done[kernel] = (process.returncode, text, out)
-    return done
+    """Run tests.kernel_check under each kernel (None: the default), two at a time:
+    kernel -> (exit code, output, its folder)."""
+    def one(kernel):
+        env = dict(kernel_environment(kernel), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+        out = tmp_path / (kernel or "default")
+        done = subprocess.run([sys.executable, "-m", "tests.kernel_check", str(out)], cwd=ROOT,
+                              env=env, capture_output=True, text=True, timeout=300)
+        return done.returncode, done.stdout + done.stderr, out
+
+    with ThreadPoolExecutor(2) as pool:
+        return dict(zip(kernels, pool.map(one, kernels)))
 
 
 @pytest.mark.skipif("openblas" not in blas_name().lower(),
