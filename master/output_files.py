@@ -59,7 +59,7 @@ def check_not_input(target: Path, inputs) -> None:
                              f"({source}); choose another output file")
 
 
-def _lock_is_free(path: Path) -> os.stat_result | None:
+def lock_is_free(path: Path) -> os.stat_result | None:
     """The status of the regular file at ``path`` when no process holds its lock (its
     writer is dead), else None.  Opened read-only and without following a link."""
     try:
@@ -113,7 +113,7 @@ def sweep_dead_partials(folder: Path) -> list[Path]:
         return removed
     for name in names:
         path = folder / name
-        info = _lock_is_free(path)
+        info = lock_is_free(path)
         if info and time.time() - info.st_mtime > STALE_SECONDS and _same(path, info):
             try:
                 _finish_for_the_dead(path, info)
@@ -200,7 +200,7 @@ class OutputFile:
             raise InputError(f"{self.target}: {self.partial.name} exists and is not a file "
                              "dsim wrote (a link or a folder): remove it, or choose another "
                              "output")
-        dead = _lock_is_free(self.partial)
+        dead = lock_is_free(self.partial)
         if dead is None:
             raise InputError(f"{self.target}: another run is writing this file now "
                              f"({self.partial.name} is locked); wait for it or choose "

@@ -31,6 +31,7 @@ import zipfile
 from pathlib import Path, PurePosixPath
 
 from master.errors import InputError
+from master.output_files import lock_is_free
 
 #: largest unpacked size of an archive (its members added up), bytes
 MAX_UNPACKED = 2 << 30
@@ -119,9 +120,13 @@ def temporary_folder(kind: str) -> Path:  # kind: "ssp" or "fmu" (see _OURS)
     this process's life (removed at its exit, or by the next run if it is killed)."""
     sweep_dead_folders()
     folder = tempfile.mkdtemp(prefix=f"{PREFIX}{kind}-{os.getpid()}-")
-    fd = os.open(os.path.join(folder, _LOCK), os.O_RDWR | os.O_CREAT | os.O_EXCL
-                 | os.O_NOFOLLOW, 0o600)
+    # the lock appears under its name already locked (made aside, then renamed): another
+    # process's sweep never sees it free while this one lives (without a lock file it
+    # asks whether the pid in the folder's name still runs)
+    aside = os.path.join(folder, f"{_LOCK}.new")
+    fd = os.open(aside, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
     fcntl.flock(fd, fcntl.LOCK_EX)
+    os.rename(aside, os.path.join(folder, _LOCK))
     _HELD[folder] = fd
     return Path(folder)
 
@@ -148,20 +153,10 @@ def _pid_alive(pid: int) -> bool:
 def _dead(folder: Path) -> bool:
     """Whether the run that made ``folder`` is provably gone: its lock is free, or it
     has no lock file and the process its name says is gone."""
-    try:
-        fd = os.open(folder / _LOCK, os.O_RDONLY | os.O_NOFOLLOW)
-    except FileNotFoundError:
-        pid = int(_OURS.match(folder.name).group(1))
-        return not _pid_alive(pid)
-    except OSError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        return True
-    except OSError:
-        return False
-    finally:
-        os.close(fd)
+    lock = folder / _LOCK
+    if not os.path.lexists(lock):
+        return not _pid_alive(int(_OURS.match(folder.name).group(1)))
+    return lock_is_free(lock) is not None
 
 
 #: the name of a folder of :func:`temporary_folder`: kind, then the process id
