@@ -237,6 +237,7 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
+    from master.design import DESIGNS, parse_vary
     from master.sweep import (TIGHTEST, Sweep, cheapest, command_line, read_sweep_file,
                               run_sweep)
 
@@ -249,6 +250,29 @@ def _cmd_sweep(args) -> int:
                 sweep.fixed[keyword] = values[0]
             else:
                 sweep.grid[keyword] = values
+    if args.design:
+        sweep.design = args.design
+    if args.samples is not None:
+        sweep.samples = args.samples
+    if args.seed is not None:
+        sweep.seed = args.seed
+    if sweep.design != "grid" and sweep.seed is None:
+        sweep.seed = 0  # a sampled design is reproducible without being asked
+    if args.vary:
+        if sweep.design not in DESIGNS:
+            raise InputError(f"--design {sweep.design}: not one of {', '.join(DESIGNS)}")
+        problems, vary = [], []
+        for text in args.vary:
+            try:
+                vary.append(parse_vary(text, sweep.design != "grid"))
+            except InputError as error:
+                problems += error.problems
+        if problems:
+            raise InputError(problems)
+        given = {f.name for f in vary}
+        sweep.vary = [f for f in sweep.vary if f.name not in given] + vary
+    if args.kpi:
+        sweep.kpis = list(dict.fromkeys(list(sweep.kpis) + args.kpi))
     if args.reference:
         sweep.reference = args.reference if args.reference == TIGHTEST else Path(args.reference)
     if args.columns:
@@ -256,15 +280,30 @@ def _cmd_sweep(args) -> int:
     out = Path(args.out or f"{Path(args.scene).stem}_sweep")
 
     def progress(done, total, point):
-        print(f"point {done}/{total}: {point.label}: {point.status}, error "
-              f"{point.error:.2e}, {point.wall_seconds:.2f} s", file=sys.stderr)
+        kpis = "".join(f", {k} {v:.4g}" for k, v in point.kpis.items())
+        error = f", error {point.error:.2e}" if point.error == point.error else ""
+        print(f"point {done}/{total}: {point.label}: {point.status}"
+              f"{error}{kpis}, {point.wall_seconds:.2f} s", file=sys.stderr)
 
-    points, interrupted = run_sweep(args.scene, sweep, out, progress, bars=True)
-    print(f"sweep       {len(points)} points: {out / 'sweep.csv'}, {out / 'sweep.md'}, "
-          f"{out / 'sweep.png'}")
+    def resumed(finished, total):
+        print(f"resume      {finished} of {total} points already finished in {out}: "
+              f"running the other {total - finished}", file=sys.stderr)
+
+    points, interrupted = run_sweep(args.scene, sweep, out, progress, bars=True,
+                                    resumed=resumed)
+    written = [out / name for name in ("sweep.csv", "sweep.md", "sweep.png", "kpis.png",
+                                       "scatter.png", "sensitivity.md")
+               if (out / name).is_file()]
+    print(f"sweep       {len(points)} points: {', '.join(str(w) for w in written)}")
+    failed = [p for p in points if p.status != "completed"]
+    if failed:
+        print(f"failed      {len(failed)} of {len(points)} points did not complete "
+              f"(their rows say why): points {', '.join(str(p.index) for p in failed[:12])}"
+              f"{' ...' if len(failed) > 12 else ''}")
     front = sorted((p for p in points if p.pareto), key=lambda p: p.wall_seconds)
     for point in front:
         print(f"pareto      {point.label}: error {point.error:.2e}, {point.wall_seconds:.2f} s")
+    _print_rankings(out)
     if args.target_error is not None:
         best = cheapest(points, args.target_error)
         if best is None:
@@ -276,10 +315,24 @@ def _cmd_sweep(args) -> int:
                   f"{best.wall_seconds:.2f} s)")
             print(f"run it      {command_line(args.scene, best, sweep.fixed)}")
     if interrupted:
-        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}",
-              file=sys.stderr)
+        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}; "
+              "run the same command again to finish the others", file=sys.stderr)
         return 128 + interrupted
     return 0
+
+
+def _print_rankings(out: Path) -> None:
+    """The factors of each KPI ranked by the sweep's sensitivity table."""
+    from master.sensitivity import Index, ranking
+    from master.sweep_folder import read_sensitivity
+
+    rows = read_sensitivity(out)
+    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
+               for r in rows]
+    for kpi in dict.fromkeys(i.kpi for i in indices):
+        order = ranking(indices, kpi)
+        if order:
+            print(f"ranking     {kpi}: {' > '.join(order)}")
 
 
 def _cmd_regress(args) -> int:
@@ -370,8 +423,10 @@ def parser() -> argparse.ArgumentParser:
     plot_parser.add_argument("--title", help="a title")
     plot_parser.set_defaults(handler=_cmd_plot)
     sweep_parser = commands.add_parser(
-        "sweep", help="the speed-accuracy trade of a scene: run it at every point of a grid "
-        "of settings and measure error, wall time, iterations and stability")
+        "sweep", help="run a scene at every point of a grid of settings or a design of "
+        "experiments over settings and model parameters; measure error, KPIs, wall time, "
+        "iterations and sensitivity (a rerun into the same --out finishes only the missing "
+        "points)")
     sweep_parser.add_argument("scene")
     for keyword, setting in SETTINGS.items():
         sweep_parser.add_argument(setting.option, dest=keyword, metavar="V1,V2",
@@ -385,6 +440,22 @@ def parser() -> argparse.ArgumentParser:
                               "(default: every common column)")
     sweep_parser.add_argument("--out", help="folder for sweep.csv, sweep.md, sweep.png and "
                               "each point's results (default: SCENE_sweep)")
+    sweep_parser.add_argument("--vary", action="append", metavar="NAME=SPEC",
+                              help="vary a setting or a model parameter (COMPONENT.VARIABLE): "
+                              "a list a,b,c, a range lo:hi:N or lo:hi:log:N on a grid, lo:hi "
+                              "or lo:hi:log for a sampled design (repeatable)")
+    sweep_parser.add_argument("--design", help="grid (the full factorial, default), lhs, "
+                              "sobol, halton (scipy.stats.qmc), saltelli (Sobol' indices) or "
+                              "morris (elementary effects)")
+    sweep_parser.add_argument("--samples", type=int, help="points of a sampled design (sobol "
+                              "and saltelli: a power of 2; saltelli runs N (2 d + 2) points, "
+                              "morris N (d + 1))")
+    sweep_parser.add_argument("--seed", type=int, help="seed of a sampled design (default 0: "
+                              "the same points every time)")
+    sweep_parser.add_argument("--kpi", action="append", metavar="REDUCTION(COLUMN)",
+                              help="a quantity of interest per point: max, min, maxabs, mean, "
+                              "rms, final, argmax, argmin of a column or a glob of columns "
+                              "(repeatable; docs/doe.md)")
     sweep_parser.add_argument("--target-error", type=float, help="name the cheapest measured "
                               "point whose error is at most this, and its command line")
     sweep_parser.set_defaults(handler=_cmd_sweep)

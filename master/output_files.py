@@ -101,6 +101,18 @@ def _finish_for_the_dead(path: Path, info: os.stat_result) -> None:
         os.unlink(path)
 
 
+def finish_dead_partial(target: Path) -> bool:
+    """End the temporary file of ``target`` that a killed run left (its lock free) as
+    that run would have: rows renamed to ``target``, an empty file removed.  Whether
+    there was one; a live run's file is left alone."""
+    partial = Path(target).with_name(f".{Path(target).name}.partial")
+    info = lock_is_free(partial)
+    if info is None or not _same(partial, info):
+        return False
+    _finish_for_the_dead(partial, info)
+    return True
+
+
 def sweep_dead_partials(folder: Path) -> list[Path]:
     """End the temporary files of ``folder`` left by killed runs (a ``.*.partial`` or
     ``.*.tmp`` regular file whose lock nobody holds, untouched for

@@ -1,18 +1,23 @@
-"""``dsim sweep``: the speed-accuracy trade of one scene, measured.
+"""``dsim sweep``: a scene run at every point of a design, each point measured.
 
 A sweep runs a scene at every point of a grid of settings (macro step, tolerance,
 coupling, predictor, refresh policy, parameter set: anything ``dsim.simulate``
-takes) and measures each: the error against a reference (a results CSV the user
+takes) or of a design of experiments over settings and model parameters
+(:mod:`master.design`: full-factorial grids, Latin hypercube, Sobol', Halton, Saltelli,
+Morris), and measures each: the error against a reference (a results CSV the user
 gives, else the monolithic twin's results a scene ships as ``resources/reference.csv``,
-else the sweep's tightest run), wall
-time, iterations and doSteps per step, and whether it stayed stable.  Each
-finished point is a whole row of ``sweep.csv`` at once, so an interrupted sweep
-keeps them; at the end (or the interrupt) it writes ``sweep.md`` (a table) and
-``sweep.png`` (error against wall time, the Pareto front marked).
+else the sweep's tightest run; none by default where model parameters vary, since a
+twin at the nominal parameters is no reference for other ones), the quantities of
+interest asked for (:mod:`master.kpi`), wall time, iterations and doSteps per step,
+and whether it stayed stable.  Each finished point is a whole row of ``sweep.csv`` at
+once, so an interrupted or killed sweep keeps them, and a rerun into the same folder
+runs only the points missing (:mod:`master.sweep_folder`).  At the end (or the
+interrupt) it writes ``sweep.md`` (a table), ``sweep.png`` (error against wall time,
+the Pareto front marked), and for KPIs ``kpis.png``, ``scatter.png`` and the
+sensitivity indices (:mod:`master.sensitivity`).
 """
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import shlex
@@ -22,44 +27,28 @@ from pathlib import Path
 
 import numpy as np
 
+from master.design import DESIGNS, SALIB, Design, Factor, parse_vary, split
 from master.errors import InputError
-from master.output_files import OutputFile, write_whole
+from master.kpi import parse_all
 from master.settings import SETTINGS, convert
+from master.sweep_plots import plot_points  # noqa: F401  (its place before the split)
+from master.sweep_table import MEASURES, Point, SweepTable, markdown  # noqa: F401
 
 #: the reference named to measure against the sweep's tightest point even where the
 #: scene ships its monolithic twin
 TIGHTEST = "tightest"
-#: the columns of sweep.csv, after the point's settings
-MEASURES = ("status", "stable", "error", "wall_seconds", "iterations_per_step",
-            "do_steps_per_fmu_step", "lambda_refreshes", "steps", "message")
-
-
-@dataclass
-class Point:
-    """One configuration of a sweep and what it measured."""
-
-    settings: dict
-    status: str = ""
-    stable: bool = False
-    error: float = math.nan
-    wall_seconds: float = math.nan
-    iterations_per_step: float = math.nan
-    do_steps_per_fmu_step: float = math.nan
-    lambda_refreshes: int = 0
-    steps: int = 0
-    message: str = ""
-    results: Path | None = None
-    pareto: bool = False
-
-    @property
-    def label(self) -> str:
-        return " ".join(f"{k}={v}" for k, v in self.settings.items())
+#: the keys of a sweep file
+FILE_KEYS = ("grid", "points", "settings", "reference", "columns", "vary", "design",
+             "samples", "seed", "kpis")
 
 
 @dataclass
 class Sweep:
-    """What to sweep: a grid (setting -> values) or explicit points, settings that
-    hold for every point, the reference and the compared columns."""
+    """What to sweep: a grid (setting -> values), factors to vary (``vary``: settings or
+    model parameters, :class:`~master.design.Factor`) by a design (``design``: grid,
+    lhs, sobol, halton, saltelli, morris; ``samples`` and ``seed`` of a sampled one) or
+    explicit points, settings that hold for every point, the KPIs (``kpis``: ``--kpi``
+    texts), the reference and the compared columns."""
 
     grid: dict = field(default_factory=dict)
     points: list = field(default_factory=list)
@@ -67,50 +56,87 @@ class Sweep:
     #: a results CSV, TIGHTEST, or None (the scene's twin where it ships one)
     reference: Path | str | None = None
     columns: list | None = None
+    vary: list = field(default_factory=list)
+    design: str = "grid"
+    samples: int | None = None
+    seed: int | None = None
+    kpis: list = field(default_factory=list)
+
+    def plan(self) -> Design:
+        """The design: the grid's settings as lists, then the varied factors."""
+        factors = [Factor(name, "list", tuple(values)) for name, values in self.grid.items()]
+        return Design(factors + list(self.vary), self.design, self.samples, self.seed)
 
     def configurations(self) -> list[dict]:
-        """Every point's settings: the grid's product, then the explicit points."""
-        keys = list(self.grid)
-        product = [dict(zip(keys, values)) for values in
-                   itertools.product(*(self.grid[k] for k in keys))] if keys else []
-        return [{**p} for p in product + list(self.points)]
+        """Every point's settings and parameters: the design's points, then the
+        explicit points."""
+        return [{**p} for p in self.plan().configurations() + list(self.points)]
+
+    @property
+    def varies_parameters(self) -> bool:
+        return any("." in name for c in [self.fixed] + self.points + [
+            {f.name: 0 for f in self.vary}] for name in c)
 
 
 def read_sweep_file(path) -> Sweep:
     """A sweep file (JSON): ``{"grid": {"step": [...], ...}, "points": [{...}],
-    "settings": {"stop": 1.0}, "reference": "twin.csv", "columns": [...]}``."""
+    "settings": {"stop": 1.0}, "reference": "twin.csv", "columns": [...],
+    "vary": ["left.k=1e3:1e5:log"], "design": "lhs", "samples": 64, "seed": 1,
+    "kpis": ["max(right.x[2])"]}``."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as error:
         raise InputError(f"{path}: cannot read the sweep file: {error}") from None
-    unknown = set(data) - {"grid", "points", "settings", "reference", "columns"}
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: a sweep file is a JSON object (keys {', '.join(FILE_KEYS)})")
+    unknown = set(data) - set(FILE_KEYS)
     if unknown:
-        raise InputError(f"{path}: unknown keys {', '.join(sorted(unknown))} (known: grid, "
-                         "points, settings, reference, columns)")
+        raise InputError(f"{path}: unknown keys {', '.join(sorted(unknown))} (known: "
+                         f"{', '.join(FILE_KEYS)})")
     reference = data.get("reference")
     if reference and reference != TIGHTEST:
         reference = path.parent / reference
+    design = str(data.get("design", "grid"))
+    vary = [parse_vary(str(v), design != "grid") for v in data.get("vary", [])]
     return Sweep(dict(data.get("grid", {})), list(data.get("points", [])),
-                 dict(data.get("settings", {})), reference, data.get("columns"))
+                 dict(data.get("settings", {})), reference, data.get("columns"), vary,
+                 design, data.get("samples"), data.get("seed"), list(data.get("kpis", [])))
 
 
 def check(sweep: Sweep) -> None:
-    """Every swept name is a setting and every value valid for it (InputError listing
-    every problem, before any point runs)."""
+    """Every swept name is a setting or a dotted model parameter, every setting's value
+    valid for it, the design and the KPIs well formed (InputError listing every
+    problem, before any point runs; parameter values are checked by the run's own
+    checks against the FMUs, also before any point runs)."""
     problems = []
-    pairs = [(name, value) for name, values in sweep.grid.items() for value in values]
+    pairs = [(name, None) for name in sweep.grid]  # their values: the design's check
     pairs += [pair for settings in [sweep.fixed] + sweep.points for pair in settings.items()]
     for name, value in pairs:
+        if "." in name:
+            continue
         if name not in SETTINGS:
             problems.append(f"sweep: unknown setting '{name}' (known: "
-                            f"{', '.join(SETTINGS)})")
+                            f"{', '.join(SETTINGS)}; a model parameter is "
+                            "COMPONENT.VARIABLE)")
             continue
-        _, problem = convert(SETTINGS[name], value, f"sweep: {name}")
+        _, problem = convert(SETTINGS[name], value, f"sweep: {name}") if value is not None \
+            else (None, None)
         if problem:
             problems.append(problem)
-    if not sweep.configurations():
-        problems.append("sweep: no points (give at least one setting with values)")
+    unknown = {name for name in sweep.grid if name not in SETTINGS and "." not in name}
+    for problem_source in (Design([f for f in sweep.plan().factors if f.name not in unknown],
+                                  sweep.design, sweep.samples, sweep.seed).check,
+                           lambda: parse_all(sweep.kpis)):
+        try:
+            problem_source()
+        except InputError as error:
+            problems += error.problems
+    if sweep.design not in DESIGNS:
+        pass  # said by the design's check
+    elif not problems and not sweep.configurations():
+        problems.append("sweep: no points (give at least one setting with values, or "
+                        "--vary NAME=SPEC)")
     if problems:
         raise InputError(list(dict.fromkeys(problems)))
 
@@ -187,174 +213,12 @@ def cheapest(points: list[Point], target: float) -> Point | None:
 def command_line(scene, point: Point, fixed: dict) -> str:
     """The ``dsim run`` command of a point."""
     words = ["dsim", "run", str(scene)]
-    for key, value in {**fixed, **point.settings}.items():
+    settings, parameters = split({**fixed, **point.settings})
+    for key, value in settings.items():
         words += [SETTINGS[key].option, str(value)]
+    for key, value in parameters.items():
+        words += ["--set", f"{key}={value}"]
     return " ".join(shlex.quote(w) for w in words)
-
-
-class SweepTable:
-    """``sweep.csv``: one whole row per finished point, as it finishes."""
-
-    def __init__(self, path: Path, names: list[str], inputs):
-        self.names = names
-        self.output = OutputFile(path, inputs)
-        self.output.open()
-        self.output.append((",".join(list(names) + list(MEASURES)) + "\n").encode())
-
-    def add(self, point: Point) -> None:
-        cells = [str(point.settings.get(n, "")) for n in self.names]
-        cells += [point.status, str(point.stable).lower(), repr(point.error),
-                  repr(point.wall_seconds), repr(point.iterations_per_step),
-                  repr(point.do_steps_per_fmu_step), str(point.lambda_refreshes),
-                  str(point.steps), json.dumps(point.message)]
-        self.output.append((",".join(cells) + "\n").encode(), separator=b"\n")
-
-    def close(self) -> None:
-        self.output.commit()
-
-
-def markdown(points: list[Point], names: list[str], reference: str) -> str:
-    """The sweep's table, Pareto points marked."""
-    lines = [f"Reference: {reference}. Error: the largest difference of any compared column "
-             "over the run, relative to that column's peak in the reference.", "",
-             "| " + " | ".join(names) + " | status | error | wall (s) | iterations per step "
-             "| doSteps per FMU per step | Pareto |",
-             "|" + "---|" * (len(names) + 6)]
-    for p in points:
-        lines.append("| " + " | ".join(str(p.settings.get(n, "")) for n in names)
-                     + f" | {p.status}{'' if p.stable else ' (unstable)'} | {p.error:.2e} | "
-                     f"{p.wall_seconds:.3f} | {p.iterations_per_step:.2f} | "
-                     f"{p.do_steps_per_fmu_step:.2f} | {'yes' if p.pareto else ''} |")
-    return "\n".join(lines) + "\n"
-
-
-def plot_points(points: list[Point], title: str) -> bytes:
-    """Error against wall time, log-log, the Pareto front joined; PNG bytes."""
-    import io
-
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from master.results import save_figure
-
-    figure, axis = plt.subplots(figsize=(7, 4.6))
-    stable = [p for p in points if p.stable and p.error > 0 and math.isfinite(p.error)]
-    exact = [p for p in points if p.stable and p.error == 0]
-    floor = min([p.error for p in stable], default=1e-16) / 10
-    axis.scatter([p.wall_seconds for p in stable], [p.error for p in stable], color="C0",
-                 label="stable point")
-    axis.scatter([p.wall_seconds for p in exact], [floor] * len(exact), color="C2",
-                 marker="*", s=90, label="the reference itself")
-    unstable = [p for p in points if not p.stable and math.isfinite(p.wall_seconds)]
-    if unstable:
-        axis.scatter([p.wall_seconds for p in unstable],
-                     [max(floor, 1.0)] * len(unstable), color="C3", marker="x",
-                     label="unstable / failed (drawn at 1)")
-    front = sorted((p for p in stable if p.pareto), key=lambda p: p.wall_seconds)
-    if front:
-        axis.plot([p.wall_seconds for p in front], [p.error for p in front], "C1-",
-                  label="Pareto front")
-    for p in front:  # the front's points named by their values, the rest in sweep.md
-        axis.annotate(" ".join(str(v) for v in p.settings.values()),
-                      (p.wall_seconds, p.error), fontsize=7, xytext=(4, 4),
-                      textcoords="offset points")
-    axis.set_xscale("log")
-    axis.set_yscale("log")
-    axis.set_xlabel("wall time (s)")
-    axis.set_ylabel("error / peak")
-    axis.grid(True, which="both", alpha=0.3)
-    axis.legend(fontsize=8, loc="lower left")
-    axis.set_title(f"{title}: error against wall time ("
-                   + ", ".join(dict.fromkeys(k for p in points for k in p.settings)) + ")",
-                   fontsize=9)
-    image = io.BytesIO()
-    save_figure(figure, image)
-    return image.getvalue()
-
-
-def run_sweep(scene, sweep: Sweep, out: Path, progress=None,
-              bars: bool = False) -> tuple[list[Point], int | None]:
-    """Run every point, writing ``out/sweep.csv`` as points finish, then
-    ``out/sweep.md`` and ``out/sweep.png``; returns the points and the signal that
-    interrupted the sweep, if one did (SIGINT or SIGTERM end the running points after
-    their current step, and the sweep after them, with everything written).
-    ``progress(done, total, point)`` is called as points finish; ``bars`` shows each
-    point's progress bar on a terminal (points run one after the other).
-
-    With the setting ``backend`` fixed to ``ray`` the points run side by side, one per
-    Ray worker (each in-process inside its worker: master/sweep_ray.py), on a local
-    Ray instance or the cluster at ``address``."""
-    from master.api import prepare
-    from master.results import read_columns
-
-    check(sweep)
-    configurations = sweep.configurations()
-    names = list(dict.fromkeys(k for c in configurations for k in c))
-    plan = prepare(scene, **sweep.fixed)  # bad input before any point runs
-    reference_file = (None if sweep.reference == TIGHTEST
-                      else sweep.reference or plan.scene.reference)
-    reference_index = None if reference_file else tightest(configurations)
-    if reference_index is not None:  # the tightest run first: the others compare with it
-        configurations.insert(0, configurations.pop(reference_index))
-    out = Path(out)
-    table = SweepTable(out / "sweep.csv", names, plan.inputs)
-    reference = read_columns(reference_file) if reference_file else None
-    label = ("the scene's monolithic twin (resources/reference.csv)"
-             if reference_file and not sweep.reference else
-             str(reference_file) if reference_file else "the tightest point")
-    points: dict[int, Point] = {}
-    interrupted = None
-    # measured in configuration order until there is a reference (the first point that
-    # completes, unless the user gave one); in any order after that
-    finished: dict[int, PointRun] = {}
-    order = iter(range(len(configurations)))
-    waiting = next(order)
-
-    def measure(k: int, run) -> None:
-        nonlocal reference, label, interrupted
-        if reference is None and run.result is not None and run.result.ok:
-            reference = run.result.signals
-            label = f"the tightest point ({Point(configurations[k]).label})"
-        point = measured(Point(configurations[k]), run, reference, sweep.columns)
-        if point.status == "interrupted" and run.result.signal:
-            interrupted = run.result.signal
-        points[k] = point
-        table.add(point)
-        if progress:
-            progress(len(points), len(configurations), point)
-
-    def finish(k: int, run) -> None:
-        nonlocal waiting
-        finished[k] = run
-        while reference is None and waiting in finished:
-            measure(waiting, finished.pop(waiting))
-            waiting = next(order, None)
-        if reference is not None:
-            for key in sorted(finished):
-                measure(key, finished.pop(key))
-
-    parallel = sweep.fixed.get("backend") == "ray"
-    try:
-        if parallel:
-            from master.sweep_ray import run_points
-            run_points(scene, configurations, sweep.fixed, out, plan.inputs, finish)
-        else:
-            for k, settings in enumerate(configurations):
-                finish(k, run_point(scene, {**sweep.fixed, **settings},
-                                    out / f"point_{k + 1:03d}.csv", bars))
-                if interrupted:
-                    break
-        for k in sorted(finished):  # no point completed: nothing to compare with
-            measure(k, finished.pop(k))
-    finally:
-        table.close()
-        ordered = [points[k] for k in sorted(points)]
-        mark_pareto(ordered)
-        write_whole(out / "sweep.md", markdown(ordered, names, label).encode(), plan.inputs)
-        if ordered:
-            write_whole(out / "sweep.png", plot_points(ordered, plan.scene.name), plan.inputs)
-    return [points[k] for k in sorted(points)], interrupted
 
 
 @dataclass
@@ -368,21 +232,32 @@ class PointRun:
     results: Path | None = None
 
 
+def keywords(configuration: dict) -> dict:
+    """The keywords of ``dsim.simulate``/``prepare`` for a point: its settings, and its
+    model parameters as ``parameters`` (left out when there are none)."""
+    settings, parameters = split(configuration)
+    return {**settings, "parameters": parameters} if parameters else settings
+
+
 def run_point(scene, settings: dict, results: Path, bars: bool = False) -> PointRun:
-    """Run one point in this process, its results CSV (and statistics) at ``results``
-    (``bars``: its progress bar on a terminal)."""
+    """Run one point (settings and dotted model parameters) in this process, its
+    results CSV (and statistics) at ``results`` (``bars``: its progress bar on a
+    terminal)."""
     from master.api import simulate
 
     start = clock.perf_counter()
     try:
-        result = simulate(scene, out=results, progress=bars, **settings)
+        result = simulate(scene, out=results, progress=bars, **keywords(settings))
     except InputError as error:
         return PointRun(problems=list(error.problems))
     return PointRun(result, wall_seconds=clock.perf_counter() - start, results=results)
 
 
-def measured(point: Point, run: PointRun, reference, columns) -> Point:
-    """``point`` with what its run measured (the error against ``reference``, if any)."""
+def measured(point: Point, run: PointRun, reference, columns, kpis=()) -> Point:
+    """``point`` with what its run measured: the error against ``reference`` (if any)
+    and the value of each of ``kpis`` (:class:`~master.kpi.Kpi`; nan unless the run
+    completed, and where the KPI has none, said in the message)."""
+    point.kpis = {k.label: math.nan for k in kpis}
     if run.result is None:
         point.status, point.message = "bad input", "; ".join(run.problems)
         return point
@@ -400,5 +275,150 @@ def measured(point: Point, run: PointRun, reference, columns) -> Point:
     point.results = run.results
     if reference is not None and result.steps:
         point.error = error_against(result.signals, reference, columns)
-    point.stable = result.ok and point.error <= 1.0
+    point.stable = result.ok and (point.error <= 1.0 if reference is not None else True)
+    if result.ok:
+        notes = []
+        for kpi in kpis:
+            try:
+                point.kpis[kpi.label] = kpi.value(result.signals)
+            except ValueError as error:
+                notes.append(str(error))
+        point.message = "; ".join([point.message] * bool(point.message) + notes)
     return point
+
+
+def check_parameters(scene, sweep: Sweep, configurations: list[dict]) -> None:
+    """Every value a varied model parameter takes at the ends of its range (or in its
+    list) checked against the FMUs, with every other quantity at the first point's
+    values: InputError listing every problem, before any point runs."""
+    from master.api import prepare
+
+    if not configurations:
+        return
+    base = {**sweep.fixed, **configurations[0]}
+    trials = []
+    for factor in sweep.plan().factors:
+        if factor.is_parameter:
+            values = factor.values if factor.kind == "list" else (factor.low, factor.high)
+            trials += [{**base, factor.name: v} for v in values]
+    trials += [{**sweep.fixed, **p} for p in sweep.points if any("." in k for k in p)]
+    problems = []
+    for trial in trials:
+        try:
+            prepare(scene, load_libraries=False, **keywords(trial))
+        except InputError as error:
+            problems += error.problems
+    if problems:
+        raise InputError(list(dict.fromkeys(problems)))
+
+
+def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
+              resumed=None) -> tuple[list[Point], int | None]:
+    """Run every point not already finished in ``out``, writing ``out/sweep.csv`` as
+    points finish, then ``out/sweep.md``, ``sweep.png`` and the KPIs' figures and
+    sensitivity (:func:`master.sweep_folder.write_outputs`); returns every point of the
+    folder and the signal that interrupted the sweep, if one did (SIGINT or SIGTERM
+    end the running points after their current step, and the sweep after them, with
+    everything written).  ``progress(done, total, point)`` is called as points finish;
+    ``resumed(finished, total)`` once, before any point runs, when the folder already
+    held finished points of this sweep; ``bars`` shows each point's progress bar on a
+    terminal (points run one after the other).
+
+    With the setting ``backend`` fixed to ``ray`` the points run side by side, one per
+    Ray worker (each in-process inside its worker: master/sweep_ray.py), on a local
+    Ray instance or the cluster at ``address``."""
+    from master.api import prepare
+    from master.results import read_columns
+    from master.sweep_folder import open_folder, spec, write_outputs
+
+    check(sweep)
+    kpis = parse_all(sweep.kpis)
+    labels = [k.label for k in kpis]
+    configurations = sweep.configurations()
+    names = list(dict.fromkeys(k for c in configurations for k in c))
+    plan = prepare(scene, **keywords(sweep.fixed))  # bad input before any point runs
+    check_parameters(scene, sweep, configurations)
+    reference_file, use_tightest = None, False
+    if sweep.reference == TIGHTEST:
+        use_tightest = True
+    elif sweep.reference is not None:
+        reference_file = Path(sweep.reference)
+    elif not sweep.varies_parameters:  # a twin at nominal parameters: no reference else
+        reference_file = plan.scene.reference
+        use_tightest = reference_file is None
+    use_tightest = use_tightest and sweep.design not in SALIB  # their points keep order
+    if use_tightest:  # the tightest run first: the others compare with it
+        configurations.insert(0, configurations.pop(tightest(configurations)))
+    out = Path(out)
+    configurations, points = open_folder(out, spec(scene, sweep, kpis), configurations,
+                                         plan.inputs)
+    total = len(configurations)
+    if points and resumed:
+        resumed(len(points), total)
+    table = SweepTable(out / "sweep.csv", names, plan.inputs, labels)
+    for k in sorted(points):
+        table.add(points[k])
+    reference = read_columns(reference_file) if reference_file else None
+    label = ("the scene's monolithic twin (resources/reference.csv)"
+             if reference_file and not sweep.reference else
+             str(reference_file) if reference_file else "the tightest point")
+    if use_tightest:  # resumed: the first completed point in order was the reference
+        first = next((points[k] for k in sorted(points) if points[k].status == "completed"),
+                     None)
+        if first is not None and first.results is not None:
+            reference = read_columns(first.results)
+            label = f"the tightest point ({Point(first.settings).label})"
+    measuring = reference_file is not None or use_tightest
+    interrupted = None
+    # measured in configuration order until there is a reference (the first point that
+    # completes, where it is the tightest); in any order after that
+    finished: dict[int, PointRun] = {}
+    todo = [k for k in range(total) if k not in points]
+    order = iter(todo)
+    waiting = next(order, None)
+
+    def measure(k: int, run) -> None:
+        nonlocal reference, label, interrupted
+        if measuring and reference is None and run.result is not None and run.result.ok:
+            reference = run.result.signals
+            label = f"the tightest point ({Point(configurations[k]).label})"
+        point = measured(Point(dict(configurations[k]), index=k + 1), run,
+                         reference if measuring else None, sweep.columns, kpis)
+        if point.status == "interrupted" and run.result.signal:
+            interrupted = run.result.signal
+        points[k] = point
+        table.add(point)
+        if progress:
+            progress(len(points), total, point)
+
+    def finish(k: int, run) -> None:
+        nonlocal waiting
+        finished[k] = run
+        while measuring and reference is None and waiting in finished:
+            measure(waiting, finished.pop(waiting))
+            waiting = next(order, None)
+        if reference is not None or not measuring:
+            for key in sorted(finished):
+                measure(key, finished.pop(key))
+
+    parallel = sweep.fixed.get("backend") == "ray"
+    try:
+        if parallel:
+            from master.sweep_ray import run_points
+            run_points(scene, [(k, configurations[k]) for k in todo], sweep.fixed, out,
+                       plan.inputs, finish)
+        else:
+            for k in todo:
+                finish(k, run_point(scene, {**sweep.fixed, **configurations[k]},
+                                    out / f"point_{k + 1:03d}.csv", bars))
+                if interrupted:
+                    break
+        for k in sorted(finished):  # no point completed: nothing to compare with
+            measure(k, finished.pop(k))
+    finally:
+        table.close()
+        ordered = [points[k] for k in sorted(points)]
+        mark_pareto(ordered)
+        write_outputs(out, ordered, sweep, names, labels, label, plan.scene.name,
+                      plan.inputs, total)
+    return ordered, interrupted

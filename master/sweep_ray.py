@@ -42,8 +42,9 @@ class StopFlag:
 
 
 def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) -> None:
-    """Run every configuration (with the ``fixed`` settings) as a Ray task; call
-    ``finish(k, PointRun)`` for each as it ends, its files written in ``out``."""
+    """Run every configuration (``(k, settings and parameters)`` pairs, with the
+    ``fixed`` settings) as a Ray task; call ``finish(k, PointRun)`` for each as it
+    ends, its files written in ``out`` as ``point_{k + 1:03d}``."""
     connection = connect(fixed.get("address"))
     ray = connection.ray
     stop = ray.remote(StopFlag).options(num_cpus=0).remote()
@@ -65,7 +66,7 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
         shipped = Shipment(ray).add(scene) if archive else None
         point_settings = {k: v for k, v in fixed.items() if k not in WHERE}
         task = ray.remote(_run_remote).options(num_cpus=1, max_retries=0)
-        waiting = list(enumerate(configurations))[::-1]
+        waiting = list(configurations)[::-1]
         width = max(1, connection.cpus())
         pending: dict = {}
         while waiting or pending:
@@ -134,6 +135,7 @@ def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
     from master.errors import InputError
     from master.execution import Execution
     from master.observers import CsvRecorder, StatisticsWriter
+    from master.sweep import keywords
 
     if shipped is not None:
         scene = landed(shipped)
@@ -142,7 +144,7 @@ def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
         statistics = results.with_suffix(".stats.json")
         start = clock.perf_counter()
         try:
-            plan = prepare(scene, **settings)
+            plan = prepare(scene, **keywords(settings))
         except InputError as error:
             return PointRun(problems=list(error.problems)), {}
         watcher = _StopWhenAsked(flag)
