@@ -39,10 +39,19 @@ def _list(text: str) -> list[str]:
     return [v for v in text.replace(",", " ").split() if v]
 
 
+def _lines(text: str) -> list[str]:
+    return [line.strip() for line in text.splitlines() if line.strip()
+            and not line.strip().startswith("#")]
+
+
 def sweep_spec(fields: dict, reference: str | None) -> dict:
     """A sweep's grid (``step``, ``tolerance``, ``coupling``, ``predictor``: lists
-    separated by commas or spaces) and fixed settings (``stop``), checked as
-    ``dsim sweep`` checks a sweep file."""
+    separated by commas or spaces), its design of experiments (``vary``: one
+    ``NAME=SPEC`` of ``dsim sweep --vary`` per line, settings or model parameters;
+    ``design``, ``samples``, ``seed``), its KPIs (``kpis``: one ``--kpi`` per line) and
+    fixed settings (``stop``; ``backend``: ray runs the points side by side), checked
+    as ``dsim sweep`` checks a sweep file."""
+    from master.design import DESIGNS, parse_vary
     from master.errors import InputError
     from master.sweep import Sweep, check
 
@@ -51,11 +60,57 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
     grid = {name: values for name, values in grid.items() if values}
     fixed = {"stop": str(fields["stop"]).strip()} if str(fields.get("stop") or "").strip() \
         else {}
-    try:
-        check(Sweep(grid=grid, fixed=fixed))
-    except InputError as error:
-        raise FormError(error.problems) from None
-    return {"grid": grid, "fixed": fixed, "reference": reference}
+    if str(fields.get("backend") or "") == "ray":
+        fixed["backend"] = "ray"
+    design = str(fields.get("design") or "grid").strip()
+    problems, numbers = [], {}
+    for name in ("samples", "seed"):
+        text = str(fields.get(name) or "").strip()
+        if text:
+            try:
+                numbers[name] = int(text)
+            except ValueError:
+                problems.append(f"{name} '{text}' is not a whole number")
+    if design not in DESIGNS:
+        problems.append(f"design '{design}' is not one of {', '.join(DESIGNS)}")
+    vary_lines = _lines(str(fields.get("vary") or ""))
+    vary = []
+    for line in vary_lines:
+        try:
+            vary.append(parse_vary(line, design != "grid"))
+        except InputError as error:
+            problems += error.problems
+    kpis = _lines(str(fields.get("kpis") or ""))
+    seed = numbers.get("seed", 0 if design != "grid" else None)
+    sweep = Sweep(grid=grid, fixed=fixed, vary=vary, design=design,
+                  samples=numbers.get("samples"), seed=seed, kpis=kpis)
+    if not problems:
+        try:
+            check(sweep)
+        except InputError as error:
+            problems += error.problems
+    if problems:
+        raise FormError(problems)
+    return {"grid": grid, "fixed": fixed, "reference": reference, "vary": vary_lines,
+            "design": design, "samples": numbers.get("samples"), "seed": seed,
+            "kpis": kpis}
+
+
+def job_sweep(spec: dict):
+    """The :class:`~master.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`)."""
+    from pathlib import Path
+
+    from master.design import parse_vary
+    from master.sweep import TIGHTEST, Sweep
+
+    design = spec.get("design") or "grid"
+    reference = spec.get("reference")
+    return Sweep(grid=spec["grid"], fixed=spec.get("fixed", {}),
+                 reference=Path(reference) if reference and reference != TIGHTEST
+                 else reference,
+                 vary=[parse_vary(v, design != "grid") for v in spec.get("vary", [])],
+                 design=design, samples=spec.get("samples"), seed=spec.get("seed"),
+                 kpis=list(spec.get("kpis", [])))
 
 
 def _parameters(text: str, variables: dict, where: str, problems: list) -> list:

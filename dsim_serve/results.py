@@ -4,9 +4,7 @@ read back from its ``sweep.csv``, and the .mat and PNG files made on request
 from a run's CSV with dsim's own writers."""
 from __future__ import annotations
 
-import csv
 import io
-import json
 import math
 import threading
 from pathlib import Path
@@ -16,7 +14,8 @@ import numpy as np
 from master.compare import compare_files
 from master.errors import InputError
 from master.results import mat_bytes, plot_overlay, plot_signals, read_columns
-from master.sweep import MEASURES, Point, mark_pareto
+from master.sweep import mark_pareto
+from master.sweep_table import Point, read_table
 
 #: most points per curve sent to a browser chart
 MAX_POINTS = 4000
@@ -78,32 +77,22 @@ def verdict(result_csv: Path, baseline_csv: Path, rtol: float, atol: float) -> d
 
 
 def sweep_points(folder: Path) -> tuple[list[str], list[Point]]:
-    """The swept settings' names and every finished point of a sweep's ``sweep.csv``,
-    Pareto front marked."""
+    """The varied names and every finished point of a sweep's ``sweep.csv`` (its
+    temporary file while the sweep runs), Pareto front marked."""
+    names, _, points = sweep_table(folder)
+    return names, points
+
+
+def sweep_table(folder: Path) -> tuple[list[str], list[str], list[Point]]:
+    """(varied names, KPI labels, points) of a sweep's folder, Pareto front marked; read
+    by dsim's own reader (:func:`master.sweep_table.read_table`), which the writer's
+    quoting matches."""
     path = folder / "sweep.csv"
     if not path.exists():
         path = folder / ".sweep.csv.partial"
-    try:
-        rows = list(csv.reader(io.StringIO(path.read_text())))
-    except OSError:
-        return [], []
-    if not rows:
-        return [], []
-    header = rows[0]
-    names = header[:len(header) - len(MEASURES)]
-    points = []
-    for row in rows[1:]:
-        if len(row) != len(header):
-            continue  # a row still being written
-        values = dict(zip(header, row))
-        points.append(Point(
-            {n: values[n] for n in names if values[n] != ""}, values["status"],
-            values["stable"] == "true", float(values["error"]), float(values["wall_seconds"]),
-            float(values["iterations_per_step"]), float(values["do_steps_per_fmu_step"]),
-            int(values["lambda_refreshes"]), int(values["steps"]),
-            json.loads(values["message"]) if values["message"] else ""))
+    names, kpis, points = read_table(path)
     mark_pareto(points)
-    return names, points
+    return names, kpis, points
 
 
 def png(csv_path: Path, title: str) -> bytes:

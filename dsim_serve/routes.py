@@ -36,7 +36,11 @@ api = APIRouter(prefix="/api")
 DOWNLOADS = {"results.csv": ("results.csv", "text/csv"),
              "stats.json": ("results.stats.json", "application/json"),
              "sweep.csv": ("sweep.csv", "text/csv"), "sweep.md": ("sweep.md", "text/markdown"),
-             "sweep.png": ("sweep.png", "image/png")}
+             "sweep.png": ("sweep.png", "image/png"), "kpis.png": ("kpis.png", "image/png"),
+             "scatter.png": ("scatter.png", "image/png"),
+             "sensitivity.csv": ("sensitivity.csv", "text/csv"),
+             "sensitivity.md": ("sensitivity.md", "text/markdown"),
+             "design.json": ("design.json", "application/json")}
 
 
 # --- helpers -------------------------------------------------------------------------
@@ -456,7 +460,15 @@ def _run_context(request: Request, run_id: int) -> dict:
 def run_page(request: Request, run_id: int, target: str = ""):
     context = _run_context(request, run_id)
     if context["run"]["kind"] == "sweep":
-        names, points = results.sweep_points(_store(request).run_folder(run_id))
+        from master.sensitivity import Index, ranking
+        from master.sweep_folder import read_sensitivity
+
+        folder = _store(request).run_folder(run_id)
+        names, kpis, points = results.sweep_table(folder)
+        sensitivity = read_sensitivity(folder)
+        indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
+                   for r in sensitivity]
+        rankings = {k: ranking(indices, k) for k in dict.fromkeys(i.kpi for i in indices)}
         chosen, problem = None, None
         if target.strip():
             try:
@@ -464,7 +476,9 @@ def run_page(request: Request, run_id: int, target: str = ""):
             except ValueError:
                 problem = f"target error '{target}' is not a number"
         return _render(request, "sweep.html", names=names, points=points, target=target,
-                       chosen=chosen, problem=problem, **context)
+                       chosen=chosen, problem=problem, kpis=kpis, sensitivity=sensitivity,
+                       rankings=rankings, measured=any(p.error == p.error for p in points),
+                       **context)
     return _render(request, "run.html", **context)
 
 

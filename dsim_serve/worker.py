@@ -161,13 +161,13 @@ def run_scene(job: dict, folder: Path) -> dict:
 
 
 def run_sweep_job(job: dict, folder: Path) -> dict:
-    """A ``dsim sweep`` of the scene; its outcome (points as ``sample`` lines)."""
-    from master.sweep import TIGHTEST, Sweep, run_sweep
+    """A ``dsim sweep`` of the scene; its outcome (points as ``point`` lines).  A sweep
+    whose points all ran is completed, also when some of them failed: its message says
+    how many failed and why (the first reasons); it fails only when no point ran."""
+    from dsim_serve.forms import job_sweep
+    from master.sweep import run_sweep
 
-    reference = job.get("reference")
-    sweep = Sweep(grid=job["grid"], fixed=job.get("fixed", {}),
-                  reference=Path(reference) if reference and reference != TIGHTEST
-                  else reference)
+    sweep = job_sweep(job)
     (folder / "inputs.json").write_text(json.dumps({"scene.ssp": job["scene_sha256"]}))
     with open(folder / "live.jsonl", "a") as live:
         def progress(done, total, point):
@@ -177,11 +177,12 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
                                    else None, "wall": point.wall_seconds}) + "\n")
             live.flush()
         points, interrupted = run_sweep(folder / "scene.ssp", sweep, folder, progress)
-    failed = [p for p in points if p.status == "bad input"]
-    status = "interrupted" if interrupted else "failed" if failed and len(failed) == len(
-        points) else "completed"
+    failed = [p for p in points if p.status not in ("completed", "interrupted")]
+    status = ("interrupted" if interrupted else
+              "failed" if not points or len(failed) == len(points) else "completed")
+    reasons = "; ".join(f"point {p.index}: {p.message or p.status}" for p in failed[:3])
     message = (f"interrupted after {len(points)} points" if interrupted else
-               "; ".join(p.message for p in failed[:3]) if status == "failed" else "")
+               f"{len(failed)} of {len(points)} points failed: {reasons}" if failed else "")
     return {"status": status, "message": message,
             "exit_code": 128 + interrupted if interrupted else int(status == "failed"),
             "steps": len(points), "time": None, "warnings": []}
