@@ -10,6 +10,7 @@ from pathlib import Path
 from master.errors import InputError
 from master.execution import Execution
 from master.observers import CsvRecorder, MatWriter, PlotWriter, ProgressBar, StatisticsWriter
+from master.parameters import require_mapping, with_parameters
 from master.plan import make_plan
 from master.results import RunResult
 from master.scene import Scene
@@ -17,7 +18,8 @@ from master.settings import BACKEND_OPTIONS, resolve
 from master.ssp import load_scene
 
 
-def prepare(scene, *, load_libraries: bool = True, strict: bool = False, **settings):
+def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
+            outputs=None, output_interval=None, **settings):
     """The checked :class:`~master.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -27,7 +29,15 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, **setti
     library as bytes without loading it (no code of the FMU runs: what ``dsim
     validate`` and ``dsim serve``'s uploads do).  ``strict``: refuse what would
     otherwise be a warning (a rule the files break that does not change the results).
+    ``parameters``: start values of the components' variables and joint law
+    coefficients for this run, on top of every binding and the parameter set: a
+    mapping of full names (``"left.k_ground[1]"``, ``"sub.inner.m"``, ``"j1.k0"``) to
+    Python values or text read by the variable's type (docs/parameters.md).
+    ``outputs``: glob patterns of the columns to record (default: every one);
+    ``output_interval``: record every this many seconds, a whole multiple of the
+    macro step (default: every step; docs/results.md).
     Raises :class:`~master.errors.InputError` listing every problem."""
+    parameters = require_mapping(parameters)
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
         scene = load_scene(scene, [chosen] if chosen else (), strict=False,
@@ -35,6 +45,7 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, **setti
     elif chosen or settings.get("ssd"):
         raise InputError("settings parameter_set and ssd: give the scene's file, not a "
                          "loaded scene")
+    scene = with_parameters(scene, parameters)
     try:
         master, options = resolve(scene.master, settings)
     except InputError as error:
@@ -46,7 +57,8 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, **setti
     if settings.get("step") is not None:  # said by dsim info and validate
         scene = replace(scene, step_from="the step setting (--step)")
     return make_plan(replace(scene, master=master), options.get("backend", "in-process"),
-                     {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries, strict)
+                     {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries, strict,
+                     outputs, output_interval)
 
 
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,
@@ -62,8 +74,8 @@ def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress:
     SIGTERM end the run after the current step (main thread only); a second one ends
     the process at once, files kept (:mod:`master.interrupts`).  ``force``: run
     even when the CSV would not fit the free disk space (else refused before the
-    run, as bad input).  Other keywords
-    are settings (see :func:`prepare`).  Raises InputError for bad input, before
+    run, as bad input).  ``parameters``, ``outputs``, ``output_interval`` and the other
+    keywords are as :func:`prepare` takes them.  Raises InputError for bad input, before
     anything runs.
     """
     plan = prepare(scene, **settings)

@@ -61,7 +61,7 @@ def _cmd_run(args) -> int:
         settings["backend"] = "isolated"
     progress = ProgressBar(Path(args.scene).stem)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
-                      force=args.force, strict=args.strict, **settings)
+                      force=args.force, strict=args.strict, **_run_choices(args), **settings)
     if result.status != "completed":
         label = "simulation failed" if result.status == "failed" else "interrupted"
         print(f"dsim: {label}: {result.message}", file=sys.stderr)
@@ -94,9 +94,49 @@ def port_summary(ports: dict) -> str:
         for key, numbers in sorted(slots.items()))
 
 
+def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> list[str]:
+    """``dsim info``'s table of what a run may set in component ``index`` of ``plan``
+    (name, type, unit, start, min..max, causality and variability, description);
+    inputs the master writes itself (glued port forces, connected inputs) are left
+    out, and past ``shown`` inputs the rest is counted unless ``every``."""
+    from master.parameters import master_writes, settable_variables
+
+    spec = plan.specs[index]
+    written = master_writes(spec, plan.scene.component(spec.name).source)
+    found = [v for v in settable_variables(spec.path, spec.name) if v.name not in written]
+    inputs = [v for v in found if v.causality == "input"]
+    listed = [v for v in found if v.causality != "input"] + (
+        inputs if every else inputs[:shown])
+    if not listed:
+        return ["can be set: nothing"]
+    bound = plan.scene.component(spec.name).parameters
+    width = max(len(v.name) for v in listed)
+
+    def short(value) -> str:
+        text = "-" if value in (None, "") else str(value)
+        return text if len(text) <= 16 else text[:13] + "..."
+
+    lines = [f"can be set (--set {spec.name}.NAME=VALUE; start: the FMU's, scene: what the "
+             "scene binds):"]
+    for v in listed:
+        limits = f" [{v.min or '-inf'}, {v.max or 'inf'}]" if v.min or v.max else ""
+        if v.items:
+            limits = " {" + ", ".join(f"{name}={value}" for name, value in v.items) + "}"
+        scene = f" scene {short(bound[v.name][1])}" if v.name in bound else ""
+        lines.append(f"  {v.name:<{width}}  {v.type:<7} {v.unit or '-':<6} "
+                     f"{v.causality}/{v.variability}  start {short(v.start)}{scene}{limits}"
+                     + (f"  ({v.description})" if v.description else ""))
+    if len(inputs) > len(listed) - (len(found) - len(inputs)):
+        hidden = len(inputs) - (len(listed) - (len(found) - len(inputs)))
+        lines.append(f"  ... {hidden} more inputs no joint or connection writes "
+                     "(dsim info --all lists them)")
+    return lines
+
+
 def _cmd_info(args) -> int:
     from master.api import prepare
     from master.fmu import can_save_state
+    from master.parameters import joint_coefficients
     from master.ports import model_description
 
     from master.ssp import ssd_files
@@ -137,13 +177,20 @@ def _cmd_info(args) -> int:
                   f"({file.stat().st_size} bytes)")
         records = [name for path, name in checked.recorded if path == component.path]
         print(f"      records: {', '.join(records) or 'nothing'}")
+        for line in settable_lines(checked, index, args.all):
+            print(f"      {line}")
     print(f"joints ({len(scene.joints)}):")
     for joint in scene.joints:
         law = ""
         if joint.kind == "flexible":
             law = f" k0={joint.k0} k1={joint.k1} c0={joint.c0} c1={joint.c1}"
+        if joint.measure == "penalized":
+            law += f" xi={joint.xi} omega={joint.omega}"
+        settable = joint_coefficients(joint)
         print(f"  {joint.name}: {'.'.join(joint.a)} -> {'.'.join(joint.b)} dofs "
-              f"{' '.join(joint.dofs)}, {joint.kind}, {joint.measure}{law}")
+              f"{' '.join(joint.dofs)}, {joint.kind}, {joint.measure}{law}"
+              + (f" (--set {joint.name}.{settable[0]}=VALUE: {' '.join(settable)})"
+                 if settable else ""))
     print(f"causal connections: {len(scene.connections)}")
     return 0
 
@@ -152,7 +199,7 @@ def _cmd_validate(args) -> int:
     from master.validate import validate
 
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
-    found = validate(args.scene, strict=args.strict, **settings)
+    found = validate(args.scene, strict=args.strict, **_run_choices(args), **settings)
     for problem in found.errors:
         print(f"dsim: error: {problem}", file=sys.stderr)
     for warning in found.warnings:
@@ -370,6 +417,36 @@ def _cmd_regress(args) -> int:
     return 1 if bad else 0
 
 
+def _run_choices(args) -> dict:
+    """The keywords of :func:`master.api.prepare` that ``--set``, ``--set-file``,
+    ``--outputs`` and ``--output-interval`` give."""
+    from master.parameter_input import given_parameters
+
+    return {"parameters": given_parameters(args.set_file, args.set),
+            "outputs": args.outputs, "output_interval": args.output_interval}
+
+
+def _add_run_choices(run_parser) -> None:
+    """Options that choose a run's model parameters and what it records (run,
+    validate): docs/parameters.md, docs/results.md."""
+    run_parser.add_argument("--set", action="append", metavar="NAME=VALUE",
+                            help="a start value for this run, on top of the scene's "
+                            "bindings and --parameter-set: COMPONENT.VARIABLE=VALUE "
+                            "(nested components by their dotted path) or JOINT.k0=VALUE "
+                            "(k0 k1 c0 c1 xi omega); again for more (`dsim info` lists what "
+                            "can be set)")
+    run_parser.add_argument("--set-file", action="append", metavar="FILE",
+                            help="start values from a file: an SSP parameter set (.ssv), "
+                            "name,value rows (.csv) or a JSON object (.json); --set wins "
+                            "over it")
+    run_parser.add_argument("--outputs", action="append", metavar="PATTERN",
+                            help="record only the columns matching this glob (right.x*, "
+                            "'j1.*'); again for more (default: every recorded column)")
+    run_parser.add_argument("--output-interval", metavar="DT",
+                            help="record a row every DT seconds, a whole multiple of the "
+                            "macro step, and the last step (default: every step)")
+
+
 def _add_settings(run_parser) -> None:
     """One option per setting of :mod:`master.settings` (checked there, not here)."""
     for keyword, setting in SETTINGS.items():
@@ -395,6 +472,7 @@ def parser() -> argparse.ArgumentParser:
     run_parser = commands.add_parser("run", help="run a scene (.ssp, folder or .ssd)")
     run_parser.add_argument("scene")
     _add_settings(run_parser)
+    _add_run_choices(run_parser)
     run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here); the "
                             "statistics JSON goes beside it")
     run_parser.add_argument("--plot", help="write a PNG plot of the results")
@@ -413,6 +491,7 @@ def parser() -> argparse.ArgumentParser:
         "exit 2 when the scene cannot run")
     validate_parser.add_argument("scene")
     _add_settings(validate_parser)
+    _add_run_choices(validate_parser)
     validate_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
     validate_parser.set_defaults(handler=_cmd_validate)
     plot_parser = commands.add_parser(
@@ -488,6 +567,8 @@ def parser() -> argparse.ArgumentParser:
                                       "joints and master settings of a scene")
     info_parser.add_argument("scene")
     info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
+    info_parser.add_argument("--all", action="store_true", help="list every input that "
+                             "can be set (default: the first 12 of each component)")
     info_parser.set_defaults(handler=_cmd_info)
     compare_parser = commands.add_parser(
         "compare", help="compare a results CSV with a reference CSV (exit 1 if it differs)")

@@ -78,6 +78,7 @@ class Execution:
         self._phases = {"setup": 0.0, "steps": 0.0, "observers": 0.0, "finish": 0.0}
         self._wall_start = None
         self._columns: tuple[str, ...] = ()
+        self._held = None
 
     # --- time --------------------------------------------------------------------
     def step_time(self, index: int) -> float:
@@ -123,9 +124,15 @@ class Execution:
         self._columns = tuple(plan.columns) + tuple(layout.labels)
         self._record_all = np.array_equal(plan.record_index, np.arange(sum(
             len(spec.reads) for spec in plan.specs)))
-        info = RunInfo(self.scene.name, self.scene.file, self._columns, self.scene.start_time,
+        self._selected = plan.selected
+        self._record_every = plan.record_every
+        self._held = None  # the last converged step, when it is not on the output grid
+        shown = self._columns if self._selected is None else tuple(
+            self._columns[i] for i in self._selected)
+        info = RunInfo(self.scene.name, self.scene.file, shown, self.scene.start_time,
                        self.scene.stop_time, self.settings.step, self.planned_steps,
-                       plan.coupling, plan.backend, tuple(plan.inputs), plan.text_columns)
+                       plan.coupling, plan.backend, tuple(plan.inputs), plan.text_columns,
+                       plan.record_every)
         started = []
         try:
             for observer in self.observers:
@@ -151,7 +158,8 @@ class Execution:
             self._read_texts()
             row = self._row()
             self._check_finite(row)
-            self._notify("stepped", StepRecord(0, self.time, row, texts=self._recorded_texts()))
+            self._notify("stepped", StepRecord(0, self.time, self._chosen(row),
+                                               texts=self._recorded_texts()))
         except SimulationError as error:
             self._fail(error.located(0, self.time))
         except OutputError as error:
@@ -244,6 +252,10 @@ class Execution:
             return outputs  # the coupling makes a new output array every step
         return np.concatenate((outputs, self.coupling.forces))
 
+    def _chosen(self, row: np.ndarray) -> np.ndarray:
+        """The recorded columns of a full row (``outputs``)."""
+        return row if self._selected is None else row[self._selected]
+
     def _check_finite(self, row: np.ndarray) -> None:
         # a sum is finite exactly when every term is (or, rarely, when it overflows: then
         # the full check below runs); for a short row it is the cheapest test there is
@@ -290,10 +302,15 @@ class Execution:
             self._check_finite(row)
             self._phases["steps"] += clock.perf_counter() - started
             self._iterations.append(report.iterations)
-            record = StepRecord(self.index, end, row, report.iterations, report.refreshed,
-                                report.residual, self._recorded_texts())
-            for stepped in self._stepped:
-                stepped(record)
+            record = StepRecord(self.index, end, self._chosen(row), report.iterations,
+                                report.refreshed, report.residual, self._recorded_texts())
+            # off the output grid a step is held, and recorded only if the run ends there
+            if self.index % self._record_every and self.index < self.planned_steps:
+                self._held = record
+            else:
+                self._held = None
+                for stepped in self._stepped:
+                    stepped(record)
         except SimulationError as error:
             self._fail(error.located(index + 1, end))
             return False
@@ -337,6 +354,13 @@ class Execution:
         if self.status == "running":
             self.status = "interrupted"
             self._stop_requested = self._stop_requested or "stopped before the stop time"
+        if self._held is not None:  # the last converged step, off the output grid
+            held, self._held = self._held, None
+            try:
+                for stepped in self._stepped:
+                    stepped(held)
+            except OutputError as error:
+                self.warnings.append(str(error))
         if self.backend is not None:  # said after how the run ended, not before
             self.warnings += [f"releasing the subsystems: {error}"
                               for error in self.backend.close()]

@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from master.output_files import OutputError, OutputFile, check_fits
+from master.recording import recorded_rows
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,9 @@ class RunInfo:
     inputs: tuple = ()
     #: columns of the recorded String outputs (``StepRecord.texts``), after ``columns``
     text_columns: tuple[str, ...] = ()
+    #: steps are recorded (and reach the observers) every this many macro steps, and
+    #: at the last converged one (``output_interval``, master.recording)
+    record_every: int = 1
 
 
 class StepRecord(NamedTuple):
@@ -128,7 +132,7 @@ class CsvRecorder(Observer):
 
     def started(self, info: RunInfo) -> None:
         if not self.force:
-            check_fits(self.path, info.planned_steps + 1,
+            check_fits(self.path, recorded_rows(info.planned_steps, info.record_every),
                        1 + len(info.columns) + len(info.text_columns))
         self.output = OutputFile(self.path, info.inputs)
         self.output.open()

@@ -20,9 +20,11 @@ from master.connections import (Transfer, build_text_transfer, build_transfer,
 from master.errors import InputError
 from master.fmu import SubsystemSpec, can_save_state
 from master.fmu_archive import fmu_problem
+from master.parameters import written_by_master
 from master.ports import (NEEDED, component_ports, description_warning, joint_port_dofs,
                           model_description, variables_by_name)
 from master.scene import Scene
+from master.recording import record_every, select_columns
 from master.settings import check_span
 from master.ssp_values import TYPES
 from master.timeline import is_whole
@@ -68,6 +70,15 @@ class Plan:
     variable_steps: bool = False
     #: what the backend is given besides the specs (``address`` of a Ray cluster)
     backend_options: dict = None
+    #: the recorded numeric columns (outputs, then joint forces) chosen by ``outputs``,
+    #: as indices into the full row; None: every one (master.recording)
+    selected: np.ndarray | None = None
+    #: rows are recorded every this many macro steps (``output_interval``), and at
+    #: the last converged step
+    record_every: int = 1
+    #: what the run was asked to record (the statistics say it)
+    outputs: tuple[str, ...] = ()
+    output_interval: float | None = None
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -301,17 +312,22 @@ def _passes(paths: list[str], links) -> int:
 
 
 def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
-              load_libraries: bool = True, strict: bool = False) -> Plan:
+              load_libraries: bool = True, strict: bool = False, outputs=None,
+              output_interval=None) -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem.  ``load_libraries=False``: no FMU library is
     loaded, not even in a child process (its bytes are checked).  ``strict``: every
-    warning is a problem too."""
+    warning is a problem too.  ``outputs``, ``output_interval``: what to record
+    (:mod:`master.recording`)."""
     from master.backends import BACKENDS
 
     backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
     problems = list(scene.problems) + check_span(
         scene.start_time, scene.stop_time, scene.master.step, f"{scene.file}: DefaultExperiment")
     problems += BACKENDS[backend].problems(**backend_options)
+    every, problem = record_every(output_interval, scene.master.step)
+    if problem:
+        problems.append(problem)
     coupling = scene.master.coupling
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
@@ -344,7 +360,7 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         error.warnings = warnings
         raise error
     paths = [c.path for c in scene.components]
-    _, _, interfaces = assemble(paths, list(scene.joints), sides)
+    layout, _, interfaces = assemble(paths, list(scene.joints), sides)
     numbers = [link for link in links if link.kind != "String"]
     texts = [link for link in links if link.kind == "String"]
     reads = {p: list(records[p]) for p in paths}
@@ -374,6 +390,17 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
     text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
                   text_reads[p].index(n) for p, n in text_recorded]
+    columns = [f"{path}.{name}" for path, name in recorded] + list(layout.labels)
+    selected, text_selected, problems = select_columns(
+        outputs, columns, [f"{path}.{name}" for path, name in text_recorded])
+    problems += written_by_master(scene, specs, usable)
+    if problems:
+        error = InputError(problems)
+        error.warnings = warnings
+        raise error
+    if text_selected is not None:
+        text_recorded = tuple(text_recorded[i] for i in text_selected)
+        text_index = [text_index[i] for i in text_selected]
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
     return Plan(scene, coupling if scene.joints else "causal", backend, specs,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
@@ -383,4 +410,6 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                 text_recorded, tuple(text_index), text_transfer,
                 all(model_description(scene.components[i].source).coSimulation
                     .canHandleVariableCommunicationStepSize for i in glued),
-                backend_options)
+                backend_options, selected, every,
+                tuple([outputs] if isinstance(outputs, str) else outputs or ()),
+                None if output_interval is None else float(output_interval))

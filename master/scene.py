@@ -173,6 +173,11 @@ class Scene:
     #: where the macro step came from: the step setting, glue:Master, another tool's
     #: annotation (master.ssp_tools) or dsim's default (dsim info and validate say it)
     step_from: str = "dsim's default"
+    #: the parameter sets chosen on top of the scene's bindings (``parameter_set``)
+    parameter_sets: tuple[str, ...] = ()
+    #: values given for this run on top of every binding (``parameters=``, ``--set``):
+    #: full name -> the value applied (master.parameters)
+    overrides: dict = field(default_factory=dict)
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

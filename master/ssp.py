@@ -21,6 +21,7 @@ from pathlib import Path
 from lxml import etree
 
 from master.errors import InputError
+from master.parameters import scene_file
 from master.scene import Component, Connector, MasterSettings, Scene
 from master.settings import settings_from_annotation
 from master.ssp_gluing import floats, read_joint, read_placement, read_port_map
@@ -372,14 +373,9 @@ class _Reader:
         for name, (kind, value) in parameters.items():
             if kind != "String" or not value.startswith(SCENE_RESOURCES):
                 continue
-            file = (self.base / value).resolve()
-            where = origins.get(name, location)
-            if not file.is_relative_to(self.base.resolve() / SCENE_RESOURCES):
-                self.problems.append(f"{where}: parameter '{name}' = '{value}' leaves the "
-                                     "scene's resources folder")
-            elif not file.is_file():
-                self.problems.append(f"{where}: parameter '{name}' = '{value}': the scene has "
-                                     "no such file")
+            file, problem = scene_file(self.base, name, value, origins.get(name, location))
+            if problem:
+                self.problems.append(problem)
             else:
                 files[name] = file
                 self.files.append(file)
@@ -463,7 +459,8 @@ def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
                  scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
                  reference if reference and reference.is_file() else None,
                  {path: resource for path, resource, _ in reader.placements},
-                 tuple(dict.fromkeys(reader.warnings)), root.get("version", ""), step_from)
+                 tuple(dict.fromkeys(reader.warnings)), root.get("version", ""), step_from,
+                 tuple(parameter_sets))
 
 
 def _check_references(reader: _Reader, components, connections) -> None:

@@ -83,4 +83,11 @@ def run_statistics(execution, wall_seconds: float, components: dict | None = Non
         "do_steps_per_step": do_steps / steps if steps else 0.0,
         "components": components,
         "warnings": list(execution.warnings),
+        # what repeats the run besides the scene and "master": the parameter sets
+        # chosen, the values given on top (docs/parameters.md) and what was recorded
+        "parameter_sets": list(scene.parameter_sets),
+        "parameters": dict(scene.overrides),
+        "recording": {"outputs": list(execution.plan.outputs),
+                      "output_interval": execution.plan.output_interval,
+                      "every_steps": execution.plan.record_every},
     }
