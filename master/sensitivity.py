@@ -34,6 +34,9 @@ from master.design import Design
 #: RBD-FAST harmonics: SALib's default of 10 needs far more points than a sweep has;
 #: 4 keeps its bias correction meaningful from about 30 points on
 RBD_HARMONICS = 4
+#: fewest points RBD-FAST is asked about: its bootstrap draws subsamples, and below
+#: this its bias correction divides by about zero
+RBD_LEAST = 32
 #: bootstrap resamples of SALib's confidence intervals, and their seed
 RESAMPLES = 200
 SEED = 0
@@ -134,16 +137,20 @@ def _by_design(design, names, x, y, keep, label, note) -> list[Index]:
         return [Index(label, n, "main effect (ANOVA)", "main_effect", float(e), note=note)
                 for n, e in zip(names, main_effects(x[keep], y[keep]))]
     if design.kind in ("lhs", "sobol", "halton"):
-        if keep.sum() < 2 * RBD_HARMONICS + 2:
+        if keep.sum() < RBD_LEAST:
             return [Index(label, "", "RBD-FAST", "S1", math.nan,
-                          note=f"{int(keep.sum())} points: too few for RBD-FAST")]
+                          note=f"{int(keep.sum())} points: RBD-FAST needs {RBD_LEAST}")]
         import warnings
 
         from SALib.analyze import rbd_fast
         with warnings.catch_warnings():  # a factor with no harmonic content: nan, said
             warnings.simplefilter("ignore", RuntimeWarning)
-            found = rbd_fast.analyze(design.salib_problem(), x[keep], y[keep],
-                                     M=RBD_HARMONICS, num_resamples=RESAMPLES, seed=SEED)
+            try:
+                found = rbd_fast.analyze(design.salib_problem(), x[keep], y[keep],
+                                         M=RBD_HARMONICS, num_resamples=RESAMPLES, seed=SEED)
+            except (ZeroDivisionError, ValueError, FloatingPointError) as error:
+                return [Index(label, "", "RBD-FAST", "S1", math.nan,
+                              note=f"RBD-FAST failed on these points: {error}")]
         return [Index(label, n, "RBD-FAST", "S1", float(s), float(c), note)
                 for n, s, c in zip(names, found["S1"], found["S1_conf"])]
     if missing_any(keep):
