@@ -67,8 +67,10 @@ class Factor:
             return list(self.values)
         if self.kind == "linear":
             return [float(v) for v in np.linspace(self.low, self.high, self.count)]
-        return [float(v) for v in np.logspace(math.log10(self.low), math.log10(self.high),
-                                              self.count)]
+        values = [float(v) for v in np.logspace(math.log10(self.low), math.log10(self.high),
+                                                self.count)]
+        values[0], values[-1] = self.low, self.high  # the ends as written, no round-off
+        return values
 
     def value_at(self, unit: float):
         """The value at ``unit`` in [0, 1] of the factor's range (a list: the entry whose

@@ -20,16 +20,35 @@ import numpy as np
 from master.design import Design, describe, same_json
 from master.errors import InputError
 from master.output_files import finish_dead_partial, write_whole
+from master.settings import SETTINGS, convert
 from master.sweep_table import Point, markdown, read_table
 
 DESIGN_FILE = "design.json"
 TABLE_FILE = "sweep.csv"
 
 
+#: settings that say where the points run, not what they compute: a sweep killed on
+#: Ray may be finished in-process, and the other way round
+WHERE = ("backend", "address", "call_timeout")
+
+
+def _typed(name: str, value):
+    """A setting's value as its type (``"0.01"`` from a command line is 0.01 from
+    Python), a parameter's as given."""
+    if name in SETTINGS:
+        converted, problem = convert(SETTINGS[name], value, name)
+        return value if problem else converted
+    return value
+
+
 def spec(scene, sweep, kpis) -> dict:
     """What makes two sweeps the same sweep (JSON-ready)."""
-    return {"scene": Path(scene).name, "design": sweep.plan().record(),
-            "points": sweep.points, "settings": sweep.fixed,
+    design = sweep.plan().record()
+    for factor in design["factors"]:
+        factor["values"] = [_typed(factor["name"], v) for v in factor["values"]]
+    return {"scene": Path(scene).name, "design": design,
+            "points": [{k: _typed(k, v) for k, v in p.items()} for p in sweep.points],
+            "settings": {k: _typed(k, v) for k, v in sweep.fixed.items() if k not in WHERE},
             "kpis": [k.label for k in kpis],
             "reference": None if sweep.reference is None else str(sweep.reference),
             "columns": sweep.columns}
