@@ -96,11 +96,6 @@ def finished(out: Path, configurations: list[dict]) -> dict[int, Point]:
     return kept
 
 
-def kpi_values(points: list[Point], labels: list[str]) -> dict:
-    """label -> values in the order of ``points`` (nan where a point has none)."""
-    return {label: [p.kpis.get(label, math.nan) for p in points] for label in labels}
-
-
 def write_outputs(out: Path, points: list[Point], sweep, names: list[str], labels: list[str],
                   reference_label: str, title: str, inputs, total: int) -> list[str]:
     """``sweep.md``, ``sweep.png`` (where errors were measured), and for KPIs

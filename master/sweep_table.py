@@ -45,7 +45,9 @@ class Point:
 
     @property
     def label(self) -> str:
-        return " ".join(f"{k}={v}" for k, v in self.settings.items())
+        """``name=value ...``, numbers drawn by a design to 6 digits (the table and
+        design.json keep every digit)."""
+        return " ".join(f"{k}={_short(v)}" for k, v in self.settings.items())
 
     @property
     def finished(self) -> bool:
