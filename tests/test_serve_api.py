@@ -514,3 +514,37 @@ def test_a_sweep_with_a_failed_point_shows_it_and_the_run_list_says_so(server, b
                if tr.find(".//a") is not None and tr.find(".//a").text == f"#{run_id}")
     assert "1 of 2 points failed" in " ".join(row.itertext())
     assert message  # something was written for the failed point
+
+
+def test_a_parameter_sweep_from_the_form_shows_kpis_sensitivity_and_plots(server):
+    client, store, scene_id = server
+    answer = client.post(f"/scenes/{scene_id}/sweeps", follow_redirects=False, data={
+        "vary": "right.k[1]=100:400:log\nright.m[2]=5:20", "design": "lhs", "samples": "6",
+        "seed": "3", "kpis": "max(right.x[2])\nargmax(right.x[2])", "stop": "1"})
+    assert answer.status_code == 303, answer.text
+    run_id = int(answer.headers["location"].rsplit("/", 1)[1])
+    sweep = wait_run(client, run_id)
+    assert sweep["status"] == "completed" and not sweep["message"], sweep
+    tree = etree.HTML(client.get(f"/runs/{run_id}").text)
+    table = tree.find(".//table[@id='sweep-table']")
+    heads = [" ".join(th.itertext()) for th in table.iter("th")]
+    assert heads[:5] == ["point", "right.k[1]", "right.m[2]", "max(right.x[2])",
+                         "argmax(right.x[2])"] and "error" not in heads
+    rows = store.run_folder(run_id) / "sweep.csv"
+    peaks = [float(line.split(",")[3]) for line in rows.read_text().splitlines()[1:]]
+    shown = [float(tr.findall("td")[3].text) for tr in table.iter("tr") if tr.findall("td")]
+    assert sorted(shown) == pytest.approx(sorted(peaks), rel=1e-4) and len(shown) == 6
+    sensitivity = tree.find(".//table[@id='sensitivity-table']")
+    measures = {(tds[1].text, tds[3].text) for tds in
+                (tr.findall("td") for tr in sensitivity.iter("tr")) if tds}
+    assert ("right.k[1]", "SRC") in measures and ("right.m[2]", "SRC") in measures
+    for name in ("kpis.png", "scatter.png"):
+        assert client.get(f"/runs/{run_id}/{name}").content[:4] == b"\x89PNG"
+    design = client.get(f"/runs/{run_id}/design.json").json()
+    assert len(design["configurations"]) == 6 and design["spec"]["design"]["seed"] == 3
+    bad = client.post(f"/scenes/{scene_id}/sweeps", data={
+        "vary": "right.k[1]=100:400:5\nnot a line", "design": "lhs", "samples": "6"})
+    assert bad.status_code == 400
+    problems = [" ".join(li.itertext()) for li in etree.HTML(bad.text).iter("li")]
+    assert any("without a count" in p for p in problems) and \
+        any("NAME=SPEC" in p for p in problems), problems
