@@ -74,8 +74,10 @@ class Sweep:
 
     @property
     def varies_parameters(self) -> bool:
-        return any("." in name for c in [self.fixed] + self.points + [
-            {f.name: 0 for f in self.vary}] for name in c)
+        """Whether any point sets a model parameter (a dotted name)."""
+        names = [*self.fixed, *self.grid, *(f.name for f in self.vary),
+                 *(name for point in self.points for name in point)]
+        return any("." in name for name in names)
 
 
 def read_sweep_file(path) -> Sweep:
