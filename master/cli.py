@@ -527,7 +527,7 @@ def parser() -> argparse.ArgumentParser:
                               "sobol, halton (scipy.stats.qmc), saltelli (Sobol' indices) or "
                               "morris (elementary effects)")
     sweep_parser.add_argument("--samples", type=int, help="points of a sampled design (sobol "
-                              "and saltelli: a power of 2; saltelli runs N (2 d + 2) points, "
+                              "and saltelli: a power of 2; saltelli runs N (d + 2) points, "
                               "morris N (d + 1))")
     sweep_parser.add_argument("--seed", type=int, help="seed of a sampled design (default 0: "
                               "the same points every time)")

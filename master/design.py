@@ -13,7 +13,7 @@ is a setting.  ``--vary NAME=SPEC`` gives its values:
 A **grid** design is the full-factorial product of every factor's values.  A sampled
 design draws ``--samples N`` points from scipy.stats.qmc (``lhs``: Latin hypercube,
 ``sobol``: scrambled Sobol', ``halton``: scrambled Halton) or from SALib's samplers
-(``saltelli``: the points Sobol' indices need, N (2 d + 2) runs; ``morris``: N
+(``saltelli``: the points Sobol' indices need, N (d + 2) runs, first-order and total indices; ``morris``: N
 trajectories of d + 1 runs); there a range has no count (``lo:hi`` or ``lo:hi:log``: the
 design chooses the values, uniform or log-uniform) and a list is drawn from with equal
 weight.  ``--seed`` makes the draw reproducible: the same spec gives the same points.
@@ -225,7 +225,7 @@ class Design:
         elif self.kind == "saltelli" and self.samples & (self.samples - 1):
             below = 1 << (self.samples.bit_length() - 1)
             problems.append(f"--samples {self.samples}: the Saltelli design takes a power "
-                            f"of 2 base samples (each costs 2 d + 2 runs): give {below} or "
+                            f"of 2 base samples (each costs d + 2 runs): give {below} or "
                             f"{below * 2}")
         if self.kind in SALIB:
             lists = [f.name for f in self.factors if f.kind == "list"]

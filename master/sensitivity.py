@@ -14,8 +14,9 @@
   computes from given samples (Latin hypercube recommended), with a bootstrap
   confidence interval; few points make it noisy (the interval says how much).
 * ``saltelli``: SALib's **Sobol'** first-order and total indices (S1, ST).
-* ``morris``: SALib's **Morris** elementary effects (mu*, sigma), in the KPI's unit per
-  unit of the factor's analysed coordinate.
+* ``morris``: SALib's **Morris** elementary effects (mu*, sigma): the KPI's change per
+  step over the factor's whole range taken as 1 (SALib's scaled effects), in the
+  KPI's unit, so factors of different units compare directly.
 
 Factors on a log range are analysed in log10 of their value (the coordinate the design
 is uniform in).  Points without a KPI value (failed runs) are left out of SRC, the
