@@ -16,7 +16,8 @@ design draws ``--samples N`` points from scipy.stats.qmc (``lhs``: Latin hypercu
 (``saltelli``: the N (d + 2) runs that first-order and total Sobol' indices need;
 ``morris``: N trajectories of d + 1 runs); there a range has no count (``lo:hi`` or
 ``lo:hi:log``: the design chooses the values, uniform or log-uniform) and a list is
-drawn from with equal weight.  ``--seed`` makes the draw reproducible: the same spec gives the same points.
+drawn from with equal weight.  ``--seed`` makes the draw reproducible: the same spec
+gives the same points.
 """
 from __future__ import annotations
 
