@@ -190,3 +190,18 @@ def _scenario(page, url: str, built, shots) -> None:
     page.click("#target-form button")
     expect(page.locator("#cheapest")).to_contain_text("Cheapest for error ≤ 0.01")
     shots(page, "sweep")
+
+    # a design of experiments over two model parameters: KPIs, sensitivity, plots
+    page.goto(f"{url}/scenes/{scene}")
+    page.fill("#sweep-form textarea[name=vary]", "right.k[1]=100:400:log\nright.m[2]=5:20")
+    page.select_option("#sweep-form select[name=design]", "lhs")
+    page.fill("#sweep-form input[name=samples]", "8")
+    page.fill("#sweep-form textarea[name=kpis]", "max(right.x[2])\nargmax(right.x[2])")
+    page.fill("#sweep-form input[name=stop]", "2")
+    page.click("#sweep-form button")
+    page.wait_for_url(re.compile(r"/runs/\d+$"))
+    page.wait_for_selector("#sensitivity-table", timeout=120_000)  # written at the end
+    expect(page.locator("#sweep-table tbody tr")).to_have_count(8)
+    expect(page.locator(".ranking").first).to_contain_text("right.m[2]")
+    page.wait_for_function("document.getElementById('kpi-plot').naturalWidth > 0")
+    shots(page, "doe_sweep")
