@@ -65,7 +65,7 @@ def checked(store, scene: dict, values: dict, max_unpacked: int) -> dict:
 def form_groups(scene: dict, models: dict) -> list[dict]:
     """The form's rows, one group per component and one per flexible or penalized
     joint: ``{"title", "rows": [{"field", "name", "type", "unit", "value",
-    "placeholder", "limits", "items", "description"}]}``.  A scene stored before
+    "placeholder", "limits", "choices", "description"}]}``.  A scene stored before
     the description listed what can be set shows its FMUs' parameters."""
     d = scene["description"]
     groups = []

@@ -295,10 +295,10 @@ def with_parameters(scene, parameters: dict):
                 applied[name] = list(converted) if isinstance(converted, tuple) else converted
             continue
         if owner is None:
-            head = name.split(".")[0] if "." in name else name
-            problems.append(f"{where}: no component or joint of the scene is named "
-                            f"'{head}'" + (" (give COMPONENT.VARIABLE)" if "." not in name
-                                           else "") + _closest(head, list(components) + list(joints)))
+            head = name.split(".")[0]
+            hint = "" if "." in name else " (give COMPONENT.VARIABLE)"
+            problems.append(f"{where}: no component or joint of the scene is named '{head}'"
+                            + hint + _closest(head, list(components) + list(joints)))
             continue
         path, variable_name = owner
         component = components[path]
