@@ -6,6 +6,7 @@ import json
 import shutil
 import zipfile
 
+import numpy as np
 import pytest
 
 import dsim
@@ -294,3 +295,17 @@ def test_values_of_every_type_reach_the_fmu(block_fmus, tmp_path):
         dsim.prepare(folder, parameters={"b2.u": 1.0})
     assert raised.value.problems == ["parameter 'b2.u': a connection feeds this input, and "
                                      "would replace the value before the first step"]
+
+
+def test_a_load_set_for_the_run_scales_a_linear_frame(built):
+    """frame_split is linear elastic: twice the sine load's amplitude (a parameter of the
+    cross member's FE FMU, set with parameters=) gives twice the load point's motion."""
+    scene = built["ssp"] / "frame_split.ssp"
+    amplitude = dsim.prepare(scene).scene.component("cross_front").parameters["load.F_x"][1]
+    base = dsim.simulate(scene, stop=0.002, outputs="*.load.u_x")
+    twice = dsim.simulate(scene, stop=0.002, outputs="*.load.u_x",
+                          parameters={"cross_front.load.F_x": 2 * amplitude})
+    assert list(twice.signals) == ["time", "cross_front.load.u_x"]
+    moved = base["cross_front.load.u_x"][1:]
+    assert abs(moved).max() > 0
+    assert np.allclose(twice["cross_front.load.u_x"][1:], 2 * moved, rtol=1e-8, atol=0)
