@@ -1,7 +1,10 @@
 """Checks an uploaded FMU or .ssp with dsim's own checks and describes it, in a
 child process: ``python -m dsim_serve.inspect fmu|ssp FILE`` prints one JSON
 object, ``{"ok": true, "description": {...}}`` or ``{"ok": false, "problems":
-[...]}``.
+[...]}``.  ``python -m dsim_serve.inspect parameters FILE`` checks the model
+parameters a run form gives (a JSON object on standard input) against a stored
+scene, by ``dsim run --set``'s rules (:mod:`master.parameters`), and answers the
+values as the run will apply them.
 
 An uploaded FMU's shared library is never loaded here, nor anywhere in the
 server: loading a library runs its constructors, so a page that got a file
@@ -100,10 +103,35 @@ def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
 
 
 def _joint(joint) -> dict:
+    from master.parameters import joint_coefficients
+
     return {"name": joint.name, "a": ".".join(joint.a), "b": ".".join(joint.b),
             "dofs": list(joint.dofs), "kind": joint.kind, "measure": joint.measure,
             "k0": list(joint.k0), "k1": list(joint.k1), "c0": list(joint.c0),
-            "c1": list(joint.c1), "xi": joint.xi, "omega": joint.omega}
+            "c1": list(joint.c1), "xi": joint.xi, "omega": joint.omega,
+            "settable": list(joint_coefficients(joint))}
+
+
+def _settable(plan, index: int) -> list[dict]:
+    """What a run may set in component ``index`` (``dsim info``'s list): the
+    parameters, and the inputs that no joint or connection writes, with the value
+    the scene binds."""
+    from master.parameters import master_writes, settable_variables
+
+    spec = plan.specs[index]
+    component = plan.scene.components[index]
+    written = master_writes(spec, component.source)
+    rows = []
+    for v in settable_variables(spec.path, spec.name):
+        if v.name in written:
+            continue
+        bound = component.parameters.get(v.name)
+        rows.append({"name": v.name, "type": v.type, "causality": v.causality,
+                     "variability": v.variability, "unit": v.unit, "start": v.start,
+                     "min": v.min, "max": v.max, "description": v.description,
+                     "items": [list(item) for item in v.items],
+                     "value": None if bound is None else bound[1]})
+    return rows
 
 
 def _port_map(port_map) -> dict:
@@ -191,6 +219,7 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
                             for c in scene.connections],
             "joints": [_joint(j) for j in scene.joints],
             "port_maps": [_port_map(p) for p in scene.port_maps],
+            "settable": {c.path: _settable(plan, i) for i, c in enumerate(scene.components)},
             "scene_files": sorted({f"{c.path}.{name}" for c in scene.components
                                    for name in c.files}),
             "columns": list(plan.columns) + list(layout.labels) + list(plan.text_columns),
@@ -199,6 +228,30 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
             "summary": found.summary.replace(str(folder), scene.name),
             "warnings": [w.replace(str(folder), "scene") for w in found.warnings],
         }
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def check_parameters(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -> dict:
+    """The model parameters ``given`` (name -> value, from a run form) as a run of the
+    stored scene at ``path`` applies them, after every check of ``dsim run --set``
+    (an InputError lists what is wrong); no library is loaded."""
+    from master.api import prepare
+    from master.errors import InputError
+
+    if not isinstance(given, dict):
+        raise Refused("give the parameters as a JSON object of name: value")
+    check_archive(path, "SSP", max_unpacked)
+    folder = Path(tempfile.mkdtemp(prefix="dsim-serve-"))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(folder)
+        try:
+            plan = prepare(folder, load_libraries=False, parameters=given)
+        except InputError as error:
+            raise InputError([p.replace(str(folder), "scene") for p in error.problems]) \
+                from None
+        return {"parameters": plan.scene.overrides}
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
@@ -217,8 +270,12 @@ def main(argv=None) -> int:
     kind, path = argv[0], Path(argv[1])
     max_unpacked = int(argv[2]) if len(argv) > 2 else MAX_UNPACKED
     try:
-        describe = describe_fmu if kind == "fmu" else describe_scene
-        answer = {"ok": True, "description": describe(path, max_unpacked)}
+        if kind == "parameters":
+            given = json.loads(sys.stdin.read() or "null")
+            answer = {"ok": True, "description": check_parameters(path, max_unpacked, given)}
+        else:
+            describe = describe_fmu if kind == "fmu" else describe_scene
+            answer = {"ok": True, "description": describe(path, max_unpacked)}
     except Refused as refused:
         answer = {"ok": False, "problems": str(refused).splitlines()}
     except InputError as error:

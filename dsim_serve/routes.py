@@ -25,6 +25,7 @@ from fastapi.responses import (FileResponse, HTMLResponse, JSONResponse, Redirec
 from dsim_serve import diagram, results
 from dsim_serve.forms import (FormError, parameter_edits, run_settings, scene_form,
                               scene_spec, sweep_spec)
+from dsim_serve.run_parameters import checked, command_options, form_groups, form_values
 from dsim_serve.store import ACTIVE, Store
 from dsim_serve.uploads import UploadError, store_scene, store_upload
 from master.sweep import TIGHTEST
@@ -50,6 +51,7 @@ def add_filters(env) -> None:
         format(v, f) if isinstance(v, (int, float)) and math.isfinite(v) else str(v))
     env.filters["when"] = lambda t: time.strftime("%Y-%m-%d %H:%M:%S",
                                                   time.localtime(t)) if t else ""
+    env.filters["command_options"] = command_options
     env.globals["row_value"] = lambda fields, name, k: (
         str(fields[name][k]) if k is not None and k < len(fields.get(name, ())) else "")
 
@@ -326,7 +328,7 @@ def scene_page(request: Request, scene_id: int, parameter_set: str = ""):
                 for k, s in SETTINGS.items() if k not in ("parameter_set", "ssd")]
     models = scene_models(store, scene)
     return _render(request, "scene.html", scene=scene, d=d, models=models,
-                   svg=diagram.scene_svg(d, models),
+                   svg=diagram.scene_svg(d, models), groups=form_groups(scene, models),
                    runs=_runs_of(store, [scene_id]), sweeps=_runs_of(store, [scene_id], "sweep"),
                    settings=settings, chosen_set=parameter_set,
                    baseline=root_scene["baseline_run_id"],
@@ -411,11 +413,26 @@ def launch(request: Request, scene_id: int, settings: dict, signals: list,
     return run_id
 
 
+async def _with_parameters(request: Request, scene_id: int, settings: dict,
+                           values: dict) -> dict:
+    """``settings`` with the model parameters ``values`` as the run will apply them,
+    checked by ``dsim run --set``'s rules over the stored scene (FormError)."""
+    if not values:
+        return settings
+    store = _store(request)
+    scene = _get(store, "scenes", scene_id)
+    applied = await run_in_threadpool(checked, store, scene, values,
+                                      request.app.state.max_upload * 4)
+    return {**settings, "parameters": applied}
+
+
 @router.post("/scenes/{scene_id}/runs")
 async def run_form(request: Request, scene_id: int):
     fields = await _fields(request)
     try:
         settings = run_settings(_first(fields))
+        settings = await _with_parameters(request, scene_id, settings,
+                                          form_values(_first(fields)))
     except FormError as error:
         return _render(request, "error.html", 400, status=400, problems=error.problems,
                        back=f"/scenes/{scene_id}")
@@ -603,12 +620,16 @@ def run_download(request: Request, run_id: int, name: str):
 
 @api.post("/scenes/{scene_id}/runs")
 async def run_api(request: Request, scene_id: int):
-    """Launch a run: JSON body ``{"settings": {...}, "signals": [...]}`` (settings as
-    ``dsim.simulate``'s keywords); ``{"id": N}`` or 400 with ``problems``."""
+    """Launch a run: JSON body ``{"settings": {...}, "signals": [...], "parameters":
+    {...}}`` (settings as ``dsim.simulate``'s keywords, parameters as its
+    ``parameters``: name -> value); ``{"id": N}`` or 400 with ``problems``."""
     body = await _json_object(request)
     settings, signals = body.get("settings") or {}, body.get("signals") or []
+    parameters = body.get("parameters") or {}
     if not isinstance(settings, dict):
         raise HTTPException(400, '"settings" must be a JSON object of setting: value')
+    if not isinstance(parameters, dict):
+        raise HTTPException(400, '"parameters" must be a JSON object of name: value')
     if not isinstance(signals, list) or not all(isinstance(s, str) for s in signals):
         raise HTTPException(400, '"signals" must be a JSON list of column names')
     from master.settings import SETTINGS
@@ -619,6 +640,7 @@ async def run_api(request: Request, scene_id: int):
                                  f"(known: {', '.join(SETTINGS)})")
     try:
         settings = run_settings(settings)
+        settings = await _with_parameters(request, scene_id, settings, parameters)
     except FormError as error:
         return JSONResponse({"problems": error.problems}, status_code=400)
     return {"id": launch(request, scene_id, settings, signals)}

@@ -35,15 +35,18 @@ class UploadError(Exception):
         super().__init__("\n".join(self.problems))
 
 
-def inspect_file(kind: str, path: Path, max_unpacked: int, shown: str) -> dict:
+def inspect_file(kind: str, path: Path, max_unpacked: int, shown: str,
+                 given: str | None = None) -> dict:
     """The description :mod:`dsim_serve.inspect` makes of a file in a child process
-    (``kind``: fmu or ssp); UploadError with its problems, the temporary path in
-    them replaced by ``shown``."""
+    (``kind``: fmu, ssp, or parameters with ``given``, JSON text, on its standard
+    input); UploadError with its problems, the temporary path in them replaced by
+    ``shown``."""
     try:
         with INSPECTIONS:
             child = subprocess.run([sys.executable, "-m", "dsim_serve.inspect", kind,
                                     str(path), str(max_unpacked)], capture_output=True,
-                                   text=True, timeout=INSPECT_TIMEOUT, env=child_env())
+                                   text=True, timeout=INSPECT_TIMEOUT, env=child_env(),
+                                   input=given)
     except subprocess.TimeoutExpired:
         raise UploadError(f"{shown}: checking it took longer than {INSPECT_TIMEOUT} s") from None
     if child.returncode < 0:

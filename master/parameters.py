@@ -195,9 +195,9 @@ def _limits(variable, value) -> str | None:
     low, high = _declared(variable, "min"), _declared(variable, "max")
     try:
         if low not in (None, "") and value < float(low):
-            return f"{value!r} is below its min {low}"
+            return f"is {value!r}, below its min {low}"
         if high not in (None, "") and value > float(high):
-            return f"{value!r} is above its max {high}"
+            return f"is {value!r}, above its max {high}"
     except ValueError:  # a min the description writes oddly: fmpy's checks say so
         return None
     return None
@@ -266,7 +266,7 @@ def with_parameters(scene, parameters: dict):
     """``scene`` with ``parameters`` (full name -> Python value or text) applied on
     top of every binding; what is wrong with them is added to ``scene.problems`` (one
     line each), so that the plan reports them with its own findings."""
-    from master.ports import model_description, variables_by_name
+    from master.ports import variables_by_name
     from master.ssp import SCENE_RESOURCES
 
     if not parameters:
@@ -279,6 +279,7 @@ def with_parameters(scene, parameters: dict):
     new_files = {path: dict(c.files) for path, c in components.items()}
     joint_changes: dict[str, dict] = {}
     applied, inputs = {}, []
+    described: dict = {}  # FMU file -> its variables by name (None: unreadable)
     base = Path(scene.inputs[0]).parent if scene.inputs else Path(scene.file).parent
     for name, value in parameters.items():
         name = str(name).strip()
@@ -294,17 +295,20 @@ def with_parameters(scene, parameters: dict):
                 applied[name] = list(converted) if isinstance(converted, tuple) else converted
             continue
         if owner is None:
-            head = name.split(".")[0] if "." in name else name
-            problems.append(f"{where}: no component or joint of the scene is named "
-                            f"'{head}'" + (" (give COMPONENT.VARIABLE)" if "." not in name
-                                           else "") + _closest(head, list(components) + list(joints)))
+            head = name.split(".")[0]
+            hint = "" if "." in name else " (give COMPONENT.VARIABLE)"
+            problems.append(f"{where}: no component or joint of the scene is named '{head}'"
+                            + hint + _closest(head, list(components) + list(joints)))
             continue
         path, variable_name = owner
         component = components[path]
-        try:
-            variables = variables_by_name(component.source)
-            model_description(component.source)
-        except Exception:  # a missing or broken FMU: the plan says what is wrong with it
+        if component.source not in described:
+            try:
+                described[component.source] = variables_by_name(component.source)
+            except Exception:  # a missing or broken FMU: the plan says what is wrong with it
+                described[component.source] = None
+        variables = described[component.source]
+        if variables is None:
             continue
         variable = variables.get(variable_name)
         if variable is None:

@@ -1,6 +1,6 @@
 """The documentation's examples are tests: every python block of docs/api.md,
-docs/sweep.md and docs/doe.md runs, in
-order, in the repository folder (as a reader would run them after `make fmus`)."""
+docs/sweep.md, docs/doe.md and docs/parameters.md runs, in order, in the repository
+folder (as a reader would run them after `make fmus`)."""
 import os
 import re
 from pathlib import Path
@@ -14,7 +14,8 @@ def python_blocks(page: Path) -> list[str]:
     return re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)
 
 
-@pytest.mark.parametrize("page, count", [("api.md", 4), ("sweep.md", 1), ("doe.md", 1)])
+@pytest.mark.parametrize("page, count", [("api.md", 4), ("sweep.md", 1), ("doe.md", 1),
+                                         ("parameters.md", 3)])
 def test_every_example_of_the_page_runs(built, page, count, monkeypatch):
     blocks = python_blocks(ROOT / "docs" / page)
     assert len(blocks) >= count

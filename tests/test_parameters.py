@@ -6,6 +6,7 @@ import json
 import shutil
 import zipfile
 
+import numpy as np
 import pytest
 
 import dsim
@@ -203,3 +204,108 @@ def test_info_lists_what_can_be_set(built, capsys):
     assert " Q.f_x " in left and " P.f_x " not in left  # the joint writes left.P's force
     assert " x[1] " not in left  # outputs are the FMU's
     assert "(--set j1.k0=VALUE: k0 k1 c0 c1)" in out
+
+
+# --- types, limits and variabilities, on a plain-C FMU -------------------------------
+EXTRA_TYPES = """  <TypeDefinitions>
+    <SimpleType name="Mode"><Enumeration><Item name="slow" value="1"/>
+      <Item name="fast" value="2"/></Enumeration></SimpleType>
+  </TypeDefinitions>
+  <ModelVariables>"""
+EXTRA_VARIABLES = """
+    <ScalarVariable name="mode" valueReference="10" causality="parameter" variability="fixed"><Enumeration declaredType="Mode" start="1"/></ScalarVariable>
+    <ScalarVariable name="g" valueReference="20" causality="local" variability="constant" initial="exact"><Real start="9.81"/></ScalarVariable>
+    <ScalarVariable name="gain2" valueReference="21" causality="calculatedParameter" variability="fixed" initial="calculated"><Real/></ScalarVariable>
+  </ModelVariables>"""
+
+
+def _described_block(block_fmus, tmp_path):
+    """The block FMU with limits on gain and tau, an Enumeration parameter, a constant
+    and a calculated parameter in its modelDescription (the checks read only that)."""
+    path = tmp_path / "block_described.fmu"
+    with zipfile.ZipFile(block_fmus["state"]) as old, zipfile.ZipFile(path, "w") as new:
+        for name in old.namelist():
+            data = old.read(name)
+            if name == "modelDescription.xml":
+                text = data.decode()
+                text = text.replace('<Real start="0.9"/>', '<Real start="0.9" min="0" max="10"/>')
+                text = text.replace('<Real start="0.1"/>', '<Real start="0.1" min="1e-6"/>', 1)
+                text = text.replace("  <ModelVariables>", EXTRA_TYPES, 1)
+                text = text.replace("\n  </ModelVariables>", EXTRA_VARIABLES, 1)
+                data = text.encode()
+            new.writestr(name, data)
+    return path
+
+
+def _blocks(tmp_path, fmu):
+    """Two blocks, b1.y feeding b2.u, 0.1 s in steps of 0.01 s."""
+    from tests.scene_files import component, scene_folder, ssd
+
+    text = ssd("blocks", [component("b1", "resources/block.fmu"),
+                          component("b2", "resources/block.fmu", outputs=["y"], inputs=["u"])],
+               [("b1", "y", "b2", "u")], stop=0.1)
+    return scene_folder(tmp_path / "blocks", text, {"block.fmu": fmu})
+
+
+def test_types_limits_and_variabilities(block_fmus, tmp_path):
+    folder = _blocks(tmp_path, _described_block(block_fmus, tmp_path))
+    problems = {
+        "b1.gain": (11, "variable 'gain' of component 'b1' is 11.0, above its max 10"),
+        "b1.tau": ("0", "variable 'tau' of component 'b1' is 0.0, below its min 1e-6"),
+        "b1.failure": ("yes", "is Integer: 'yes' is not an integer"),
+        "b1.enable": ("maybe", "is Boolean: 'maybe' is not true or false"),
+        "b1.label": (3, "is String: '3' is not text"),
+        "b1.mode": ("medium", "is Enumeration: 'medium' is not one of slow (1), fast (2)"),
+        "b2.mode": (3, "is Enumeration: '3' is not one of slow (1), fast (2)"),
+        "b1.g": (9.8, "variable 'g' of component 'b1' is a constant: FMI 2.0 lets no "
+                      "master set it"),
+        "b1.gain2": (1.0, "variable 'gain2' of component 'b1' is a calculated parameter"),
+        "b1.count": (1, "is calculated by the FMU (causality output"),
+    }
+    with pytest.raises(dsim.InputError) as raised:
+        dsim.prepare(folder, load_libraries=False,
+                     parameters={name: value for name, (value, _) in problems.items()})
+    assert len(raised.value.problems) == len(problems)
+    for line, (name, (_, expected)) in zip(raised.value.problems, problems.items()):
+        assert line.startswith(f"parameter '{name}': ") and expected in line, (line, expected)
+    plan = dsim.prepare(folder, load_libraries=False, parameters={
+        "b1.mode": "fast", "b2.mode": "1", "b1.enable": "False", "b2.enable": 1,
+        "b1.failure": "0", "b1.gain": "1e1", "b1.label": "x"})
+    values = plan.scene.component("b1").parameters
+    assert values["mode"] == ("Integer", 2) and values["enable"] == ("Boolean", False)
+    assert values["gain"] == ("Real", 10.0) and values["failure"] == ("Integer", 0)
+    assert plan.scene.component("b2").parameters["enable"] == ("Boolean", True)
+
+
+def test_values_of_every_type_reach_the_fmu(block_fmus, tmp_path):
+    """Integer, Boolean and String inputs and parameters set for a run change what the
+    block computes; an input a connection feeds is refused."""
+    folder = _blocks(tmp_path, block_fmus["state"])
+    plain = dsim.simulate(folder)
+    given = dsim.simulate(folder, parameters={
+        "b1.extra": "2", "b1.label": "first", "b1.note": "set", "b2.enable": "false",
+        "b2.y0": -1.5, "b1.gain": 0.5})
+    assert plain.status == given.status == "completed"
+    # b1: tau dy/dt = 0.5 (0 + 2) - y from y0 = 1: stays at 1 exactly; b2 holds y0
+    assert given["b1.y"] == pytest.approx(1.0, abs=1e-12)
+    assert abs(plain["b1.y"][-1] - 1.0) > 0.05  # the scene's own gain 0.9, u 0: decays
+    assert list(set(given["b2.y"])) == [-1.5]
+    assert given["b1.status"][-1] == "first:set:10"
+    with pytest.raises(dsim.InputError) as raised:
+        dsim.prepare(folder, parameters={"b2.u": 1.0})
+    assert raised.value.problems == ["parameter 'b2.u': a connection feeds this input, and "
+                                     "would replace the value before the first step"]
+
+
+def test_a_load_set_for_the_run_scales_a_linear_frame(built):
+    """frame_split is linear elastic: twice the sine load's amplitude (a parameter of the
+    cross member's FE FMU, set with parameters=) gives twice the load point's motion."""
+    scene = built["ssp"] / "frame_split.ssp"
+    amplitude = dsim.prepare(scene).scene.component("cross_front").parameters["load.F_x"][1]
+    base = dsim.simulate(scene, stop=0.002, outputs="*.load.u_x")
+    twice = dsim.simulate(scene, stop=0.002, outputs="*.load.u_x",
+                          parameters={"cross_front.load.F_x": 2 * amplitude})
+    assert list(twice.signals) == ["time", "cross_front.load.u_x"]
+    moved = base["cross_front.load.u_x"][1:]
+    assert abs(moved).max() > 0
+    assert np.allclose(twice["cross_front.load.u_x"][1:], 2 * moved, rtol=1e-8, atol=0)

@@ -187,6 +187,59 @@ def test_bad_settings_are_refused_before_anything_runs(server):
     assert page.status_code == 400 and "setting step &#39;zero&#39; is not a number" in page.text
 
 
+def test_a_run_takes_model_parameters_from_the_scene_form(server, tmp_path):
+    """The scene page's form lists what can be set (from the modelDescriptions and the
+    joints); what it sends is checked by dsim run --set's rules before anything is
+    queued, stored with the run, and gives dsim's own numbers."""
+    client, store, scene_id = server
+    page = html.unescape(client.get(f"/scenes/{scene_id}").text)
+    for expected in ('name="parameter:left.m[1]" placeholder="10.0"',
+                     'name="parameter:right.F0[2]" placeholder="10.0"',
+                     'name="parameter:j1.k0" placeholder="100.0"', "spring to ground k0, N/m",
+                     'name="parameter:right.P.f_x"'):  # a free port's force: a load
+        assert expected in page, expected
+    for written in ("left.P.f_x", "right.Q.f_x"):  # the joint sets these every step
+        assert f'name="parameter:{written}"' not in page
+    answer = client.post(f"/scenes/{scene_id}/runs", follow_redirects=False, data={
+        "stop": "1", "signal": "right.x[2]", "parameter:right.m[2]": "12.5",
+        "parameter:j1.c0": "20", "parameter:left.k_ground[1]": " "})
+    assert answer.status_code == 303, answer.text
+    run = wait_run(client, int(answer.headers["location"].rsplit("/", 1)[1]))
+    assert run["status"] == "completed", run
+    given = {"right.m[2]": 12.5, "j1.c0": [20.0]}
+    assert run["settings"]["parameters"] == given
+    assert run["statistics"]["parameters"] == given
+    scene = client.get(f"/api/scenes/{scene_id}").json()
+    expected = dsim.simulate(store.blob_path(scene["sha256"]), stop=1.0, out=tmp_path / "e.csv",
+                             parameters={"right.m[2]": "12.5", "j1.c0": 20})
+    assert (store.run_folder(run["id"]) / "results.csv").read_bytes() == \
+        (tmp_path / "e.csv").read_bytes()
+    status = client.get(f"/runs/{run['id']}").text
+    assert "--set &#39;right.m[2]=12.5&#39; --set j1.c0=20.0" in status
+    # every bad field is one line, and nothing is queued
+    before = len(client.get("/runs").text)
+    answer = client.post(f"/scenes/{scene_id}/runs", data={
+        "parameter:right.mm[2]": "1", "parameter:left.n": "1.5",
+        'parameter:<b>x</b>.y': "2", "parameter:j1.k0": "-1"})
+    assert answer.status_code == 400
+    text = html.unescape(answer.text)
+    for line in ("parameter 'right.mm[2]': component 'right' (SpringMass.fmu) has no variable "
+                 "'mm[2]' (closest: m[2]", "parameter 'left.n': variable 'n' of component "
+                 "'left' is Integer: '1.5' is not an integer",
+                 "parameter '<b>x</b>.y': no component or joint of the scene is named '<b>x</b>'",
+                 "parameter 'j1.k0': -1 is negative"):
+        assert line in text, line
+    assert "<b>x</b>" not in answer.text  # shown as text, never as markup
+    assert len(client.get("/runs").text) == before
+    bad = client.post(f"/api/scenes/{scene_id}/runs", json={"parameters": {"left.n": True}})
+    assert bad.status_code == 400
+    assert bad.json()["problems"] == ["spring_mass_linear.ssp: parameter 'left.n': variable "
+                                      "'n' of component 'left' is Integer: 'True' is not an "
+                                      "integer"]
+    assert client.post(f"/api/scenes/{scene_id}/runs",
+                       json={"parameters": ["left.n"]}).status_code == 400
+
+
 def test_a_cancelled_run_stops_after_a_step_and_keeps_its_results(server):
     client, store, scene_id = server
     run_id = launch(client, scene_id, stop="100000")

@@ -178,6 +178,20 @@ def _scenario(page, url: str, built, shots) -> None:
     page.wait_for_url(re.compile(r"parameter_set=resources/parameters_1.ssv"))
     expect(page.locator("#parameter-sets")).to_contain_text("heavy")
 
+    # a run with a model parameter set in the scene page's form (dsim run --set)
+    page.goto(f"{url}/scenes/{scene}")
+    page.click("#run-parameters summary:has-text('component right')")
+    field = page.locator("#run-parameters input[name='parameter:right.F0[2]']")
+    expect(field).to_have_attribute("placeholder", "10.0")
+    field.fill("20")
+    page.fill("#run-form input[name=stop]", "2")
+    shots(page, "run-parameters", whole=False)
+    page.click("#run-button")
+    page.wait_for_url(re.compile(r"/runs/\d+$"))
+    page.wait_for_selector("#live[data-finished='1']", timeout=120_000)
+    expect(page.locator("#status-text")).to_have_text("completed")
+    expect(page.locator("#inputs")).to_contain_text("--set 'right.F0[2]=20.0'")
+
     # a sweep of the step, and the cheapest configuration for an error
     page.goto(f"{url}/scenes/{scene}")
     page.fill("#sweep-form input[name=step]", "0.04 0.02 0.01")

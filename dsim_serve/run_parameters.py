@@ -1,0 +1,124 @@
+"""Model parameters for one run of a stored scene, from the scene page's form or the
+JSON API: what the form shows (built from the FMUs' modelDescriptions: name, type,
+unit, start, limits), and the server-side check of what it sends.
+
+Form fields are untrusted (docs/security.md): their names and values are only text
+handed to dsim's own checks (``dsim run --set``'s, :mod:`master.parameters`), which
+run in a child process over the stored scene, as an upload's inspection does; the
+values a run stores are the ones those checks answer.
+"""
+from __future__ import annotations
+
+import json
+
+from dsim_serve.forms import FormError
+
+#: the prefix of a form field that sets a parameter (``parameter:left.m[1]``)
+FIELD = "parameter:"
+#: at most this many parameters per run, names and values at most this long: a form
+#: is for people, and a field of megabytes is not a value
+MOST, LONGEST_NAME, LONGEST_VALUE = 2000, 400, 4000
+
+
+def _limited(values: dict) -> dict:
+    problems = []
+    if len(values) > MOST:
+        problems.append(f"{len(values)} parameters: at most {MOST} per run")
+    for name, value in values.items():
+        if not isinstance(name, str) or not name.strip() or len(name) > LONGEST_NAME:
+            problems.append(f"parameter name {str(name)[:60]!r}: give COMPONENT.VARIABLE "
+                            f"(at most {LONGEST_NAME} characters)")
+        elif isinstance(value, (dict, type(None))) or len(json.dumps(value)) > LONGEST_VALUE:
+            problems.append(f"parameter '{name}': a value is a number, true/false or text "
+                            f"of at most {LONGEST_VALUE} characters")
+    if problems:
+        raise FormError(problems)
+    return values
+
+
+def form_values(fields: dict) -> dict:
+    """name -> text of the form's non-empty ``parameter:NAME`` fields (an empty one
+    keeps the scene's value)."""
+    values = {}
+    for key, value in fields.items():
+        if key.startswith(FIELD) and str(value).strip():
+            values[key[len(FIELD):]] = str(value).strip()
+    return _limited(values)
+
+
+def checked(store, scene: dict, values: dict, max_unpacked: int) -> dict:
+    """``values`` (name -> text or JSON value) as a run of ``scene`` applies them, after
+    every check of ``dsim run --set``; FormError listing what is wrong."""
+    from dsim_serve.uploads import UploadError, inspect_file
+
+    if not values:
+        return {}
+    _limited(values)
+    try:
+        answer = inspect_file("parameters", store.blob_path(scene["sha256"]), max_unpacked,
+                              scene["filename"], json.dumps(values))
+    except UploadError as error:
+        raise FormError(error.problems) from None
+    return answer["parameters"]
+
+
+def form_groups(scene: dict, models: dict) -> list[dict]:
+    """The form's rows, one group per component and one per flexible or penalized
+    joint: ``{"title", "rows": [{"field", "name", "type", "unit", "value",
+    "placeholder", "limits", "choices", "description"}]}``.  A scene stored before
+    the description listed what can be set shows its FMUs' parameters."""
+    d = scene["description"]
+    groups = []
+    for component in d["components"]:
+        rows = d.get("settable", {}).get(component["path"])
+        if rows is None:  # an older description: the parameters of the stored model
+            variables = models.get(component.get("model_id"), {}).get("variables", ())
+            given = component["parameters"]
+            rows = [{**v, "min": None, "max": None, "items": [],
+                     "value": given[v["name"]][1] if v["name"] in given else None}
+                    for v in variables if v["causality"] == "parameter"
+                    and v["variability"] != "constant"]
+        shown = []
+        for row in rows:
+            value = row["start"] if row.get("value") is None else row["value"]
+            if isinstance(value, bool):
+                value = str(value).lower()
+            limits = ""
+            if row.get("min") or row.get("max"):
+                limits = f"[{row.get('min') or '-inf'}, {row.get('max') or 'inf'}]"
+            shown.append({"field": f"{FIELD}{component['path']}.{row['name']}",
+                          "name": row["name"], "type": row["type"], "unit": row["unit"] or "",
+                          "placeholder": "" if value is None else str(value),
+                          "limits": limits, "choices": row.get("items") or [],
+                          "causality": row["causality"],
+                          "description": row.get("description") or ""})
+        groups.append({"title": f"component {component['path']}", "rows": shown})
+    for joint in d["joints"]:
+        rows = [{"field": f"{FIELD}{joint['name']}.{key}", "name": key, "type": "Real",
+                 "unit": "", "placeholder": " ".join(repr(v) for v in joint[key])
+                 if isinstance(joint[key], list) else repr(joint[key]), "limits": ">= 0"
+                 if key in ("k0", "c0", "xi", "omega") else "", "choices": [],
+                 "causality": "joint law", "description": "one value for every dof, or one "
+                 "per dof" if isinstance(joint[key], list) else ""}
+                for key in joint.get("settable", ())]
+        if rows:
+            groups.append({"title": f"joint {joint['name']}", "rows": rows})
+    return groups
+
+
+def command_options(settings: dict) -> str:
+    """The ``dsim run`` options of a run's stored settings (its parameters as
+    ``--set NAME=VALUE``), quoted for a POSIX shell."""
+    import shlex
+
+    words = []
+    for key, value in settings.items():
+        if key == "parameters" and isinstance(value, dict):
+            for name, given in value.items():
+                text = " ".join(map(repr, given)) if isinstance(given, list) else (
+                    str(given).lower() if isinstance(given, bool) else
+                    repr(given) if isinstance(given, float) else str(given))
+                words += ["--set", shlex.quote(f"{name}={text}")]
+        else:
+            words += [f"--{key.replace('_', '-')}", shlex.quote(str(value))]
+    return " ".join(words)
