@@ -451,10 +451,33 @@ async def sweep_form(request: Request, scene_id: int):
         reference = str(_found(_csv(store, run), "results of that run"))
     try:
         spec = sweep_spec(fields, reference)
+        await _check_sweep_parameters(request, scene_id, spec)
     except FormError as error:
         return _render(request, "error.html", 400, status=400, problems=error.problems,
                        back=f"/scenes/{scene_id}")
     return _redirect(f"/runs/{launch(request, scene_id, spec, [], 'sweep')}")
+
+
+async def _check_sweep_parameters(request: Request, scene_id: int, spec: dict) -> None:
+    """Every value a sweep's model parameters take at the ends of their ranges (every
+    entry of a list), checked as ``dsim run --set`` checks them, over the stored scene
+    in a child process, before the sweep is queued (FormError listing the problems)."""
+    from dsim_serve.forms import job_sweep
+
+    factors = [f for f in job_sweep(spec).plan().factors if f.is_parameter]
+    if not factors:
+        return
+    ends = [{f.name: f.values[0] if f.kind == "list" else f.low for f in factors},
+            {f.name: f.values[-1] if f.kind == "list" else f.high for f in factors}]
+    ends += [{**ends[0], f.name: v} for f in factors if f.kind == "list" for v in f.values]
+    problems = []
+    for trial in {json.dumps(t, sort_keys=True): t for t in ends}.values():
+        try:
+            await _with_parameters(request, scene_id, {}, trial)
+        except FormError as error:
+            problems += error.problems
+    if problems:
+        raise FormError(list(dict.fromkeys(problems)))
 
 
 @router.get("/runs", response_class=HTMLResponse)

@@ -601,3 +601,11 @@ def test_a_parameter_sweep_from_the_form_shows_kpis_sensitivity_and_plots(server
     problems = [" ".join(li.itertext()) for li in etree.HTML(bad.text).iter("li")]
     assert any("without a count" in p for p in problems) and \
         any("NAME=SPEC" in p for p in problems), problems
+    # parameters are checked against the FMUs before the sweep is queued
+    before = store.one("SELECT COUNT(*) AS n FROM runs")["n"]
+    bad = client.post(f"/scenes/{scene_id}/sweeps", data={
+        "vary": "left.nope=1:2\nright.k[1]=100:400", "design": "lhs", "samples": "4"})
+    assert bad.status_code == 400
+    problems = [" ".join(li.itertext()) for li in etree.HTML(bad.text).iter("li")]
+    assert len(problems) == 1 and "'nope'" in problems[0], problems
+    assert store.one("SELECT COUNT(*) AS n FROM runs")["n"] == before  # nothing queued
