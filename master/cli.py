@@ -511,14 +511,17 @@ def parser() -> argparse.ArgumentParser:
         sweep_parser.add_argument(setting.option, dest=keyword, metavar="V1,V2",
                                   help=f"{setting.help} (comma-separated values to sweep)")
     sweep_parser.add_argument("--sweep", help="a sweep file (JSON: grid, points, settings, "
-                              "reference, columns)")
+                              "reference, columns, vary, design, samples, seed, kpis)")
     sweep_parser.add_argument("--reference", help="results CSV to measure the error against, "
                               "or 'tightest' (default: the monolithic twin the scene ships as "
-                              "resources/reference.csv, else the sweep's tightest point)")
+                              "resources/reference.csv, else the sweep's tightest point; no "
+                              "error where model parameters vary)")
     sweep_parser.add_argument("--columns", help="comma-separated columns to compare "
                               "(default: every common column)")
-    sweep_parser.add_argument("--out", help="folder for sweep.csv, sweep.md, sweep.png and "
-                              "each point's results (default: SCENE_sweep)")
+    sweep_parser.add_argument("--out", help="folder for sweep.csv, sweep.md, the plots, the "
+                              "sensitivity and each point's results (default: SCENE_sweep); "
+                              "the same sweep into the same folder runs only the points "
+                              "missing there")
     sweep_parser.add_argument("--vary", action="append", metavar="NAME=SPEC",
                               help="vary a setting or a model parameter (COMPONENT.VARIABLE): "
                               "a list a,b,c, a range lo:hi:N or lo:hi:log:N on a grid, lo:hi "
