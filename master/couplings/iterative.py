@@ -28,6 +28,7 @@ from scipy.linalg.lapack import dgecon
 from scipy.sparse.linalg import splu
 
 from master.couplings.base import Coupling, StepReport
+from master.couplings.convergence import CONVERGENCE_TESTS
 from master.couplings.divergence import newton_diverging
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
@@ -117,6 +118,8 @@ class IterativeCoupling(Coupling):
         self._measured: dict = {}  # step size -> the flexibility measured for it
         self._predict = PREDICTORS[settings.predictor]
         self._refresh_policy = REFRESH_POLICIES[settings.refresh]
+        self._converged = CONVERGENCE_TESTS[settings.convergence]
+        self._compliance = None  # the diagonal of the factored gluing matrix
         self._flexibility = None  # per glued subsystem [Gu, Gv, Ga]
         self._parts = None
         self._factor = None
@@ -157,6 +160,7 @@ class IterativeCoupling(Coupling):
             for kind, part in enumerate(self._dense_parts):
                 if np.any(weights[:, kind]):
                     jacobian += weights[:, kind, None] * part
+            compliance = np.diag(jacobian).copy()
             factor = DenseFactor(jacobian)
             if factor.rcond < RCOND_MIN and np.all(np.isfinite(jacobian)):
                 factor = LeastSquaresFactor(jacobian)
@@ -167,6 +171,7 @@ class IterativeCoupling(Coupling):
             for kind, part in enumerate(self._parts):
                 if np.any(weights[:, kind]):
                     jacobian = jacobian + sp.diags(weights[:, kind]) @ part
+            compliance = jacobian.diagonal()
             try:
                 factor, singular = splu(jacobian.tocsc()), False
             except RuntimeError:
@@ -176,6 +181,7 @@ class IterativeCoupling(Coupling):
                                   "is singular (a singular configuration of the mechanism, "
                                   "or a joint dof that no subsystem can move)")
         self._factor = factor
+        self._compliance = compliance
         self._factored_with = (weights, diagonal)
         self.factorizations += 1
 
@@ -334,14 +340,14 @@ class IterativeCoupling(Coupling):
         forces = self.predict()
         self._begin_step(step_size, save)
         refreshed = 0
-        history = []  # max |R| / tolerance per iteration
+        history = []  # max |R| / tolerance per iteration (the convergence test's measure)
         end = time + step_size
         for iteration in range(1, settings.max_iterations + 1):
             local = self.layout.local_forces(forces)
             kinematics = self.glued.trial_step(local, time, step_size)
             r, tolerance, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
             self._check_finite(r, end, step_index, iteration)
-            history.append(float(np.max(np.abs(r) / tolerance, initial=0.0)))
+            history.append(self._converged(r, tolerance, self._factor, self._compliance))
             if iteration == 1:
                 first = float(np.max(np.abs(r), initial=0.0))
             lost = self._lost_residual(r, tolerance, first) if history[-1] > 1.0 else 0.0
@@ -370,10 +376,17 @@ class IterativeCoupling(Coupling):
             self._ensure_factor(weights, diagonal, end, step_index)
             forces = forces - self._factor.solve(r)
         worst = int(np.argmax(np.abs(r) - tolerance))
+        if np.all(np.abs(r) <= tolerance):  # the forces test failed, not the residual
+            correction = np.abs(self._factor.solve(r)) * np.abs(self._compliance)
+            worst = int(np.argmax(correction / tolerance))
+            what = (f"residual within the tolerance, but Newton would still change its "
+                    f"force by a correction worth {correction[worst]:.3e} of its own dof > "
+                    f"tolerance {tolerance[worst]:.3e}")
+        else:
+            what = f"residual {abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}"
         raise StepFailure(
             f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}) did not "
-            f"converge in {settings.max_iterations} iterations: residual "
-            f"{abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}{self._ill_posed()}",
+            f"converge in {settings.max_iterations} iterations: {what}{self._ill_posed()}",
             time=end, step=step_index, iterations=settings.max_iterations)
 
     def _ill_posed(self) -> str:
