@@ -333,6 +333,18 @@ class IterativeCoupling(Coupling):
                 law, np.abs(forces) / self.joints.reference_stiffness(step_size), 0.0)
         return ROUNDOFF_ULPS * EPS * terms
 
+    def _at_floor(self, r, residual, tolerance, kinematics, forces, weights,
+                  step_size) -> bool:
+        """Whether a stalled step's residual can get no smaller: above the tolerance, each
+        dof within its round-off floor or tolerance; within the tolerance (the forces test
+        is what stalled), each dof at its round-off floor, so that the correction still
+        to come is round-off amplified by a near-singular gluing matrix, not a force error
+        a fresher Lambda would remove."""
+        floor = self._roundoff_floor(kinematics, forces, weights, step_size)
+        if residual > 1.0:
+            floor = np.maximum(tolerance, floor)
+        return bool(np.all(np.abs(r) <= floor))
+
     def _newton(self, time, step_size, step_index, save: bool = True) -> StepReport:
         """Newton on the joint forces over one step; StepFailure if it does not
         converge (iteration limit, non-finite or diverging residual)."""
@@ -347,14 +359,16 @@ class IterativeCoupling(Coupling):
             kinematics = self.glued.trial_step(local, time, step_size)
             r, tolerance, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
             self._check_finite(r, end, step_index, iteration)
+            residual = float(np.max(np.abs(r) / tolerance, initial=0.0))
+            # the convergence test's measure: the residual's, or more (convergence.py)
             history.append(self._converged(r, tolerance, self._factor, self._compliance))
             if iteration == 1:
                 first = float(np.max(np.abs(r), initial=0.0))
-            lost = self._lost_residual(r, tolerance, first) if history[-1] > 1.0 else 0.0
+            lost = self._lost_residual(r, tolerance, first) if residual > 1.0 else 0.0
             floor = (iteration > 1 and history[-1] > 1.0 and not lost
                      and history[-1] > STALLING * history[-2]
-                     and np.all(np.abs(r) <= np.maximum(tolerance, self._roundoff_floor(
-                         kinematics, forces, weights, step_size))))
+                     and self._at_floor(r, residual, tolerance, kinematics, forces, weights,
+                                        step_size))
             if history[-1] <= 1.0 or lost or floor:
                 self.least_squares_steps += lost > 0
                 self.roundoff_steps += bool(floor)
