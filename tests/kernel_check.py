@@ -2,8 +2,8 @@
 the four bar's monolithic twins and ``dsim regress`` of the singular-point scenes.
 
 ``python -m tests.kernel_check OUT`` writes OUT/twin_fixed.csv, OUT/twin_penalized.csv,
-OUT/twin_flexible.csv and the regress results into OUT/regress/, prints the kernel numpy runs on, and exits
-with regress's code (0: every scene within its band)."""
+OUT/twin_flexible.csv and the regress results into OUT/regress/, prints the kernel numpy
+runs on, and exits with regress's code (0: every scene within its band)."""
 from __future__ import annotations
 
 import sys

@@ -40,7 +40,7 @@ def test_the_forces_test_sees_the_force_error_a_small_residual_hides():
     matrix of compliances 1e-5 m/N with a 1e-6 relative gap between its rows, a four
     bar's axial loop near collinear): a residual within 1e-8 m leaves a force correction
     of 500 N to come, which the forces test counts and the residual test does not."""
-    from master.couplings.convergence import CONVERGENCE_TESTS
+    from master.couplings.convergence import CONVERGENCE_TESTS, what_is_left
     from master.couplings.iterative import DenseFactor
 
     jacobian = 1e-5 * np.array([[1.0, 1.0], [1.0, 1.0 + 1e-6]])
@@ -52,6 +52,8 @@ def test_the_forces_test_sees_the_force_error_a_small_residual_hides():
     assert CONVERGENCE_TESTS["residual"](residual, tolerance, factor, compliance) == 0.5
     assert CONVERGENCE_TESTS["forces"](residual, tolerance, factor, compliance) == \
         pytest.approx(500.0 * 1e-5 / 1e-8, rel=1e-3)
+    _, left = what_is_left(residual, tolerance, factor, compliance)   # what a failure says
+    assert "residual within the tolerance" in left and "worth 5.00" in left
     # a well-conditioned matrix: the two tests agree on what is converged
     diagonal = 1e-5 * np.eye(2)
     factor = DenseFactor(diagonal)

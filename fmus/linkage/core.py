@@ -12,21 +12,22 @@ integrated by the trapezoidal rule (Newmark average acceleration)
 with Newton on (a1, lambda1) at t + h; or, with ``spectral_radius`` rho < 1, by the
 generalized-alpha rule of which the trapezoidal rule is the rho = 1 member
 (:mod:`fmus.generalized_alpha`: equilibrium and constraints still hold at t + h, a
-pseudo-acceleration carries numerical damping of the modes above 1/h).  The default constraint row is Baumgarte's
-(c_a, c_v, c_d) = (1, 2 xi w, w^2): the acceleration-level constraint with position
-and velocity feedback.  ``formulation="index3"`` uses (0, 0, 1), the position-level
-(index-3) form.  Why Baumgarte is the default (docs/linkage.md): the trapezoidal rule
-on the index-3 form has an undamped period-2 mode (eigenvalue -1, twice) that turns
-O(h^2) velocity defects into O(1) oscillation of accelerations and multipliers; the
-stabilised form keeps positions, velocities and accelerations consistent.  The same
+pseudo-acceleration carries numerical damping of the modes above 1/h).  The default
+constraint row is Baumgarte's (c_a, c_v, c_d) = (1, 2 xi w, w^2): the acceleration-level
+constraint with position and velocity feedback.  ``formulation="index3"`` uses (0, 0, 1),
+the position-level (index-3) form.  Why Baumgarte is the default (docs/linkage.md): the
+trapezoidal rule on the index-3 form has an undamped period-2 mode (eigenvalue -1, twice)
+that turns O(h^2) velocity defects into O(1) oscillation of accelerations and multipliers;
+the stabilised form keeps positions, velocities and accelerations consistent.  The same
 row is the seed's penalized gluing measure (eq. 5.28), so a mechanism cut into parts
 and glued with that measure solves exactly the monolithic discrete equations.
 ``index3_joints`` names joints (revolutes, prismatics, drivers) whose rows are
 position-level whatever the formulation: the whole-mechanism twin of parts glued by
 fixed joints on the displacement measure, which are position-level rows.
 
-Rows are divided by c_a + c_v h/2 + c_d h^2/4 (their derivative with respect to a1,
-up to Phi_q), which keeps Newton's matrix well scaled for any step size.
+Rows are divided by c_a + c_v g h + c_d b h^2 (their derivative with respect to a1, up
+to Phi_q; g = dv1/da1 / h and b = dq1/da1 / h^2 are 1/2 and 1/4 under the trapezoidal
+rule), which keeps Newton's matrix well scaled for any step size.
 """
 from __future__ import annotations
 
@@ -278,7 +279,8 @@ class Linkage(InterfaceCore):
 
     def get_state(self) -> dict:
         return {"time": self.time, "q": self.q.copy(), "v": self.v.copy(), "a": self.a.copy(),
-                "pseudo": self.pseudo.copy(), "lam": self.lam.copy(), "port_forces": self.port_forces.copy(),
+                "pseudo": self.pseudo.copy(), "lam": self.lam.copy(),
+                "port_forces": self.port_forces.copy(),
                 "newton_iterations": self.newton_iterations,
                 "newton_roundoff_steps": self.newton.roundoff_steps}
 

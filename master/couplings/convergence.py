@@ -38,3 +38,17 @@ def forces(r, tolerance, factor, compliance) -> float:
 
 
 CONVERGENCE_TESTS = {"residual": residual, "forces": forces}
+
+
+def what_is_left(r, tolerance, factor, compliance) -> tuple[int, str]:
+    """The dof furthest from converged after the last iteration and what is left there
+    (for the failure message): its residual, or, when every residual is within the
+    tolerance (the forces test is what failed), its remaining force correction."""
+    if factor is None or np.any(np.abs(r) > tolerance):
+        worst = int(np.argmax(np.abs(r) - tolerance))
+        return worst, f"residual {abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}"
+    correction = np.abs(factor.solve(r)) * np.abs(compliance)
+    worst = int(np.argmax(correction / tolerance))
+    return worst, (f"residual within the tolerance, but Newton would still change its force "
+                   f"by a correction worth {correction[worst]:.3e} of its own dof > "
+                   f"tolerance {tolerance[worst]:.3e}")

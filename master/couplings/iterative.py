@@ -28,7 +28,7 @@ from scipy.linalg.lapack import dgecon
 from scipy.sparse.linalg import splu
 
 from master.couplings.base import Coupling, StepReport
-from master.couplings.convergence import CONVERGENCE_TESTS
+from master.couplings.convergence import CONVERGENCE_TESTS, what_is_left
 from master.couplings.divergence import newton_diverging
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
@@ -389,15 +389,7 @@ class IterativeCoupling(Coupling):
                 refreshed += 1
             self._ensure_factor(weights, diagonal, end, step_index)
             forces = forces - self._factor.solve(r)
-        worst = int(np.argmax(np.abs(r) - tolerance))
-        if np.all(np.abs(r) <= tolerance):  # the forces test failed, not the residual
-            correction = np.abs(self._factor.solve(r)) * np.abs(self._compliance)
-            worst = int(np.argmax(correction / tolerance))
-            what = (f"residual within the tolerance, but Newton would still change its "
-                    f"force by a correction worth {correction[worst]:.3e} of its own dof > "
-                    f"tolerance {tolerance[worst]:.3e}")
-        else:
-            what = f"residual {abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}"
+        worst, what = what_is_left(r, tolerance, self._factor, self._compliance)
         raise StepFailure(
             f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}) did not "
             f"converge in {settings.max_iterations} iterations: {what}{self._ill_posed()}",
