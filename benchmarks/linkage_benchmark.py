@@ -54,8 +54,11 @@ def measure(scene: str, out_dir: Path, stop: float | None) -> dict:
         else:
             reference = "rigid monolithic (one Linkage)"
     else:
-        accuracy = four_bar.compare(csv_path, scene.rsplit("_", 1)[1])
-        reference = f"monolithic, {scene.rsplit('_', 1)[1]} joints"
+        joints = scene.rsplit("_", 1)[1]
+        accuracy = four_bar.compare(csv_path, joints)
+        reference = {"fixed": "monolithic, A and B index-3 rows, the parts' generalized-alpha",
+                     "penalized": "monolithic, fixed joints (Baumgarte rows)"}.get(
+                         joints, f"monolithic, {joints} joints")
     components = statistics["components"]
     return {"scene": scene, "steps": statistics["steps"], "planned": statistics["planned_steps"],
             "wall": statistics["wall_seconds"], "mono": mono_seconds,

@@ -78,14 +78,15 @@ def table(title: str, label: str, cases, folder: Path, extra=()) -> list[str]:
 
 def four_bar_rows() -> list[str]:
     """The four bar's scenes, both couplings, against their twins at the same step
-    (the one-model four bar with the parts' Baumgarte row for fixed joints, with the
-    bushings for flexible ones)."""
+    (the one-model four bar with index-3 rows at A and B and the parts' generalized-alpha
+    rule for the fixed scene, with the parts' Baumgarte rows for the penalized one, with
+    the bushings for the flexible one: examples/four_bar.py)."""
     lines = ["### The four bar through its singular points (0 to 2 s, H = 0.01 s)", "",
              "| joints | coupling | result | force at A vs monolithic / peak | iterations "
              "per step | steps cut | least-squares steps |", "|" + "---|" * 7]
     for joints in ("fixed", "penalized", "flexible"):
         scene = ROOT / "build" / "ssp" / f"four_bar_singular_{joints}.ssp"
-        twin = four_bar_twin("flexible" if joints == "flexible" else "fixed", 1)
+        twin = four_bar_twin(joints, 1)
         for coupling in COUPLINGS:
             result = simulate(scene, coupling=coupling)
             stats = result.statistics

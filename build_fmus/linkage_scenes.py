@@ -17,10 +17,15 @@ Measures and tolerances (docs/linkages.md explains the choice):
   default linear predictor and refreshAfter 10).
 * four bar: ``displacement`` (Table 5.1's setting), H = 0.01, tolerance chosen
   on the command line (``dsim run ... --tol 1e-9``); the scene's default 1e-8.
+  Fixed joints on the displacement measure are position-level (index-3) rows, whose
+  forces the trapezoidal rule leaves an undamped period-2 mode that grows towards the
+  singular point: four_bar_singular_fixed's parts integrate with generalized-alpha
+  (``spectral_radius`` FOUR_BAR["spectral_radius"]), the master re-measures the
+  interface flexibility at every step (``refresh="step"``) and also asks the joint
+  forces to have converged (``convergence="forces"``); the parameter set
+  ``trapezoidal`` gives the parts today's rule back (docs/linkages.md measures each).
   four_bar_singular_penalized: the fixed joints on ``penalized`` (xi = 1, omega =
-  1000, the Linkage parts' row): on the displacement measure fixed joints are the
-  index-3 form, whose forces oscillate with period 2H and grow towards the singular
-  point (docs/linkages.md); on the penalized one they pass it.
+  1000, the Linkage parts' row), trapezoidal parts.
 * crank_slider_penalized: the flexible crank slider glued on ``acceleration``
   only (crank_slider_penalized_acceleration) versus ``penalized``; both record
   the port kinematics of joint A on both sides, for the drift figures.
@@ -29,17 +34,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from build_fmus.scenes import SceneWriter
+from build_fmus.scenes import SceneWriter, write_parameter_sets
 
 ROOT = Path(__file__).resolve().parent.parent
+FOUR_BAR_PARTS = ("crank", "coupler", "rocker")
 
 #: Crank slider (seed section 4.2.1): 0..5 s, H = 1e-3, penalized xi = 1, omega = 1000.
 CRANK_SLIDER = {"stop": 5.0, "step": 1e-3, "tolerance": 1e-7, "xi": 1.0, "omega": 1000.0,
                 "max_iterations": 20, "predictor": "quadratic", "refresh_after": 3}
 #: Four bar (seed section 5.3.2): H = 0.01, bushings k = 1e6 N/m, c = 2 0.707 1e3 N.s/m;
 #: two crank turns from 45 degrees: four collinear (singular) passes.
+#: Its fixed joints on the displacement measure: the parts' generalized-alpha spectral
+#: radius (chosen by the measurements of docs/four_bar_table.md) and the master's refresh
+#: policy and convergence test.
 FOUR_BAR = {"stop": 2.0, "step": 0.01, "tolerance": 1e-8, "k": 1e6, "c": 2 * 0.707 * 1e3,
-            "max_iterations": 50, "tolerances": (1e-7, 1e-8, 1e-9, 1e-10)}
+            "max_iterations": 50, "tolerances": (1e-7, 1e-8, 1e-9, 1e-10),
+            "spectral_radius": 0.3, "fixed_refresh": "step", "fixed_convergence": "forces"}
 #: The seed's coupler as a flexible link (6 m steel 0.1 x 0.1, 6 elements) from x = 3 to 9 m.
 COUPLER = {"length": 6.0, "density": 7850.0, "area": 0.01, "young": 210e9,
            "second_moment": 0.1 ** 4 / 12.0, "elements": 6, "x0": 6.0}
@@ -47,14 +57,14 @@ COUPLER = {"length": 6.0, "density": 7850.0, "area": 0.01, "young": 210e9,
 PORT_RECORDS = ["A.u_x", "A.u_y", "A.v_x", "A.v_y", "A.a_x", "A.a_y"]
 
 
-def _part(scene: str, part: str) -> dict:
+def _part(scene: str, part: str, **parameters) -> dict:
     """The Linkage2D parameters of a shipped part: its mechanism's description (what a
-    user writes for a linkage of their own; docs/linkages.md)."""
+    user writes for a linkage of their own; docs/linkages.md), and ``parameters``."""
     from fmus.linkage.description import mechanism_to_text
     from fmus.linkage.scenes import crank_slider_part, four_bar_part
 
     build = crank_slider_part if scene == "crank_slider" else four_bar_part
-    return {"mechanism": mechanism_to_text(build(part))}
+    return {"mechanism": mechanism_to_text(build(part)), **parameters}
 
 
 def crank_slider(name: str, coupler: str = "rigid", measure: str = "penalized",
@@ -98,8 +108,11 @@ def four_bar_singular(joints: str) -> SceneWriter:
                         f"singular (collinear) configuration, {kind}")
     outputs = {"crank": ["theta", "omega", "torque"], "coupler": ["theta", "omega"],
                "rocker": ["theta", "omega"]}
-    for part in ("crank", "coupler", "rocker"):
-        scene.component(part, "Linkage2D", _part("four_bar", part), outputs=outputs[part])
+    # fixed joints on the displacement measure are index-3 rows: damped integrator
+    rule = {"spectral_radius": p["spectral_radius"]} if joints == "fixed" else {}
+    for part in FOUR_BAR_PARTS:
+        scene.component(part, "Linkage2D", _part("four_bar", part, **rule),
+                        outputs=outputs[part])
     law = dict(kind="flexible", spring={"k0": p["k"], "k1": 0.0},
                damper={"c0": p["c"], "c1": 0.0}) if joints == "flexible" else {}
     if joints == "penalized":
@@ -129,7 +142,8 @@ def scenes() -> list[tuple[SceneWriter, dict]]:
         # the crank turns at full speed from t = 0: fixed joints carry centripetal
         # forces at once, which the master's consistent start finds (master/start.py)
         (four_bar_singular("fixed"), dict(stop=fb["stop"], start="consistent",
-                                          **four_master)),
+                                          **four_master, refresh=fb["fixed_refresh"],
+                                          convergence=fb["fixed_convergence"])),
         (four_bar_singular("flexible"), dict(stop=fb["stop"], **four_master)),
         (four_bar_singular("penalized"), dict(stop=fb["stop"], start="consistent",
                                               **four_master)),
@@ -144,6 +158,10 @@ def write_all(root: Path = ROOT) -> list[Path]:
         stop = settings.pop("stop")
         folder = root / "ssp" / scene.name
         scene.write(folder, 0.0, stop, **settings)
+        if scene.name == "four_bar_singular_fixed":
+            # today's rule back: dsim run ... --parameter-set trapezoidal
+            write_parameter_sets(folder, {"trapezoidal": {
+                f"{part}.spectral_radius": 1.0 for part in FOUR_BAR_PARTS}})
         folders.append(folder)
     return folders
 

@@ -12,6 +12,7 @@ from master import __version__
 from master.api import prepare, simulate
 from master.backends import BACKENDS, Backend
 from master.couplings import COUPLINGS, Coupling, StepReport
+from master.couplings.convergence import CONVERGENCE_TESTS
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
 from master.errors import InputError, SimulationError
@@ -22,8 +23,8 @@ from master.plan import Plan
 from master.results import RunResult, read_columns, read_csv
 from master.ssp import load_scene
 
-__all__ = ["BACKENDS", "Backend", "COUPLINGS", "Coupling", "CsvRecorder", "Execution",
-           "InputError", "MemoryRecorder", "Observer", "PREDICTORS", "Plan", "PlotWriter",
-           "ProgressBar", "REFRESH_POLICIES", "RunInfo", "RunResult", "SimulationError",
-           "StatisticsWriter", "StepRecord", "StepReport", "load_scene", "prepare",
-           "read_columns", "read_csv", "simulate", "__version__"]
+__all__ = ["BACKENDS", "Backend", "COUPLINGS", "CONVERGENCE_TESTS", "Coupling", "CsvRecorder",
+           "Execution", "InputError", "MemoryRecorder", "Observer", "PREDICTORS", "Plan",
+           "PlotWriter", "ProgressBar", "REFRESH_POLICIES", "RunInfo", "RunResult",
+           "SimulationError", "StatisticsWriter", "StepRecord", "StepReport", "load_scene",
+           "prepare", "read_columns", "read_csv", "simulate", "__version__"]

@@ -2,15 +2,20 @@
 its singular (collinear) configurations, against the whole mechanism in one
 :class:`~fmus.linkage.core.Linkage`.
 
-Monolithic references: ``fixed`` -- revolutes A and B; ``flexible`` -- A and B
-as Kelvin-Voigt bushings (k = 1e6 N/m, c = 2 0.707 1e3 N.s/m), the monolithic
-twin of the flexible glue joints, started with the fixed mechanism's velocities
-(the glued parts start from them too).  Same trapezoidal rule and H = 0.01 s.
-Reactions / bushing forces on the coupler at A compare with the CSV's ``A.f_x``,
-``A.f_y`` (port b of joint A is coupler.A).
+Monolithic references, one per scene (``TWINS``): ``fixed`` -- revolutes A and B as
+position-level (index-3) rows, which is what fixed glue joints on the displacement
+measure are, and the generalized-alpha rule of the scene's parts (spectral radius
+``FOUR_BAR["spectral_radius"]``); ``penalized`` -- revolutes A and B as the parts'
+own Baumgarte rows (the penalized measure), trapezoidal rule; ``flexible`` -- A and B
+as Kelvin-Voigt bushings (k = 1e6 N/m, c = 2 0.707 1e3 N.s/m), the monolithic twin
+of the flexible glue joints, started with the fixed mechanism's velocities (the
+glued parts start from them too), trapezoidal rule.  H = 0.01 s.  Each twin solves
+the discrete equations its glued scene solves, so glued minus twin is the gluing's
+error.  Reactions / bushing forces on the coupler at A compare with the CSV's
+``A.f_x``, ``A.f_y`` (port b of joint A is coupler.A).
 
-``python -m examples.four_bar [--joints fixed|flexible] [--tol 1e-8]`` runs the
-glued scene, prints the differences and writes a PNG into results/; a fixed run
+``python -m examples.four_bar [--joints fixed|penalized|flexible] [--tol 1e-8]`` runs
+the glued scene, prints the differences and writes a PNG into results/; a fixed run
 that fails at the singular point is reported with its converged part.
 """
 from __future__ import annotations
@@ -29,9 +34,20 @@ from fmus.linkage.scenes import four_bar, four_bar_mechanism
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def whole_model(joints: str) -> Linkage:
-    """The initialized whole four bar with ``fixed`` or ``flexible`` joints."""
-    fixed = four_bar("whole")
+#: scene (four_bar_singular_<scene>) -> its twin: the mechanism's joints, the joints whose
+#: rows are position-level, the integrator's spectral radius (1: trapezoidal)
+TWINS = {"fixed": dict(joints="fixed", index3_joints=("A", "B"),
+                       spectral_radius=FOUR_BAR["spectral_radius"]),
+         "penalized": dict(joints="fixed"),
+         "flexible": dict(joints="flexible")}
+
+
+def whole_model(joints: str, spectral_radius: float = 1.0, index3_joints=()) -> Linkage:
+    """The initialized whole four bar with ``fixed`` or ``flexible`` joints, integrated
+    with ``spectral_radius`` (1: the trapezoidal rule), the rows of ``index3_joints``
+    (of the fixed joints A, B) at position level."""
+    options = dict(spectral_radius=spectral_radius)
+    fixed = four_bar("whole", index3_joints=tuple(index3_joints), **options)
     fixed.initialize(0.0)
     if joints == "fixed":
         return fixed
@@ -39,15 +55,21 @@ def whole_model(joints: str) -> Linkage:
     for body, q, v in zip(mech.bodies, fixed.q, fixed.v):
         body.x, body.y, body.theta = (float(x) for x in q)
         body.vx, body.vy, body.omega = (float(x) for x in v)
-    whole = Linkage(copy.deepcopy(mech))
+    whole = Linkage(copy.deepcopy(mech), **options)
     whole.initialize(0.0)
     return whole
 
 
-def monolithic(joints: str, stop: float = FOUR_BAR["stop"], step: float = FOUR_BAR["step"]):
-    """Times, force on the coupler at A (N), crank and rocker angular velocities
-    (rad/s), one row per step; ``seconds`` the integration's wall time."""
-    whole = whole_model(joints)
+def monolithic(scene: str, stop: float = FOUR_BAR["stop"], step: float = FOUR_BAR["step"],
+               spectral_radius: float | None = None):
+    """The twin of four_bar_singular_<scene> (``TWINS``; ``spectral_radius`` overrides
+    its rule's): times, force on the coupler at A (N), crank and rocker angular
+    velocities (rad/s), one row per step; ``seconds`` the integration's wall time."""
+    twin = dict(TWINS[scene])
+    if spectral_radius is not None:
+        twin["spectral_radius"] = spectral_radius
+    joints = twin.pop("joints")
+    whole = whole_model(joints, **twin)
     count = round(stop / step)
     force, omega = np.zeros((count + 1, 2)), np.zeros((count + 1, 2))
 
@@ -73,15 +95,15 @@ def monolithic(joints: str, stop: float = FOUR_BAR["stop"], step: float = FOUR_B
             "seconds": time.perf_counter() - start}
 
 
-def compare(csv_path, joints: str) -> dict:
-    """Glued (CSV rows, possibly a failed run's converged part) against the
-    monolithic model of the same joints: largest force difference at A (N) and
-    its ratio to the peak, rocker angular velocity difference (rad/s)."""
+def compare(csv_path, scene: str) -> dict:
+    """Glued (CSV rows of four_bar_singular_<scene>, possibly a failed run's converged
+    part) against its twin: largest force difference at A (N) and its ratio to the
+    peak, rocker angular velocity difference (rad/s)."""
     from master.results import read_csv
 
     header, data = read_csv(csv_path)
     times = data[:, 0]
-    reference = monolithic(joints, stop=max(times[-1], FOUR_BAR["step"]))
+    reference = monolithic(scene, stop=max(times[-1], FOUR_BAR["step"]))
     count = len(times)
     force = np.column_stack((data[:, header.index("A.f_x")], data[:, header.index("A.f_y")]))
     ref_force = reference["force"][:count]
@@ -137,7 +159,7 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--joints", choices=["fixed", "flexible"], default="flexible")
+    parser.add_argument("--joints", choices=sorted(TWINS), default="flexible")
     parser.add_argument("--tol", type=float, help="interface tolerance, m")
     parser.add_argument("--stop", type=float)
     args = parser.parse_args()

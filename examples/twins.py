@@ -37,12 +37,15 @@ def _chain(n: int) -> dict:
     return {"time": times, **{f"m{i}.x[1]": x for i in range(1, n + 1)}}
 
 
-def four_bar_twin(joints: str, refinement: int = REFINEMENT) -> dict:
-    """The four bar's twin (``fixed`` or ``flexible`` joints) at the scene's step
-    divided by ``refinement``: the columns a glued run records."""
+def four_bar_twin(scene: str, refinement: int = REFINEMENT,
+                  spectral_radius: float | None = None) -> dict:
+    """The twin of four_bar_singular_<scene> (``fixed``, ``penalized`` or ``flexible``;
+    examples/four_bar.py) at the scene's step divided by ``refinement``, its rule's
+    spectral radius overridden by ``spectral_radius``: the columns a glued run records."""
     from examples.four_bar import monolithic
 
-    r = monolithic(joints, step=FOUR_BAR["step"] / refinement)
+    r = monolithic(scene, step=FOUR_BAR["step"] / refinement,
+                   spectral_radius=spectral_radius)
     return {"time": r["times"], "crank.omega": r["omega"][:, 0], "rocker.omega": r["omega"][:, 1],
             "A.f_x": r["force"][:, 0], "A.f_y": r["force"][:, 1]}
 
@@ -66,7 +69,7 @@ TWINS = {
     # the whole four bar's own Newton loses the singular point at smaller steps (docs/
     # linkages.md): its twin stays at the scene's step
     "four_bar_singular_fixed": lambda: four_bar_twin("fixed", 1),
-    "four_bar_singular_penalized": lambda: four_bar_twin("fixed", 1),
+    "four_bar_singular_penalized": lambda: four_bar_twin("penalized", 1),
     "frame_split": _frame,
 }
 

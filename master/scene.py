@@ -132,6 +132,7 @@ class MasterSettings:
     predictor: str = "linear"
     refresh_after: int = 10
     refresh: str = "adaptive"
+    convergence: str = "residual"
     coupling: str = "iterative"
     start: str = "auto"
     perturbation: float = 1e-3

@@ -5,7 +5,7 @@ the Python API (``dsim.simulate(scene, tolerance=...)``) all pass through
 :func:`resolve`, so a value is valid in one exactly when it is valid in the others,
 and an invalid one is bad input (:class:`~master.errors.InputError`) that says which
 values are valid.  The names that choose an implementation (coupling, predictor,
-refresh policy, start, backend) are checked against the registries that hold the
+refresh policy, convergence test, start, backend) are checked against the registries that hold the
 implementations, so a new entry in a registry is a valid setting at once.
 """
 from __future__ import annotations
@@ -26,6 +26,8 @@ def _choices(setting: str) -> tuple[str, ...]:
         from master.couplings.predictors import PREDICTORS as registry
     elif setting == "refresh":
         from master.couplings.refresh import REFRESH_POLICIES as registry
+    elif setting == "convergence":
+        from master.couplings.convergence import CONVERGENCE_TESTS as registry
     elif setting == "start":
         from master.start import START_MODES as registry
     else:
@@ -71,6 +73,10 @@ SETTINGS = {s.keyword: s for s in (
             "first guess of the joint forces from past steps"),
     Setting("refresh", "refresh", str, "choice",
             "when to re-measure the interface flexibility"),
+    Setting("convergence", "convergence", str, "choice",
+            "when Newton may stop: residual (within the tolerance) or forces (the "
+            "residual, and the force correction still to come, times each dof's own "
+            "compliance)"),
     Setting("coupling", "coupling", str, "choice",
             "iterative: T-T Newton with rollback; explicit: one trial per step (a "
             "baseline); causal: no joints, causal connections only"),

@@ -1,9 +1,9 @@
 """What tests/test_kernels.py runs in a process of its own under one OpenBLAS kernel:
 the four bar's monolithic twins and ``dsim regress`` of the singular-point scenes.
 
-``python -m tests.kernel_check OUT`` writes OUT/twin_fixed.csv, OUT/twin_flexible.csv
-and the regress results into OUT/regress/, prints the kernel numpy runs on, and exits
-with regress's code (0: every scene within its band)."""
+``python -m tests.kernel_check OUT`` writes OUT/twin_fixed.csv, OUT/twin_penalized.csv,
+OUT/twin_flexible.csv and the regress results into OUT/regress/, prints the kernel numpy
+runs on, and exits with regress's code (0: every scene within its band)."""
 from __future__ import annotations
 
 import sys
@@ -18,7 +18,7 @@ def main(out: Path) -> int:
     from master.cli import main as dsim
 
     out.mkdir(parents=True, exist_ok=True)
-    for joints in ("fixed", "flexible"):
+    for joints in ("fixed", "penalized", "flexible"):
         scene = f"four_bar_singular_{joints}"
         assert scene in TWINS
         (out / f"twin_{joints}.csv").write_bytes(twin_csv(scene))

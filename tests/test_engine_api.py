@@ -58,7 +58,9 @@ def test_a_failed_run_is_a_result_too(built, tmp_path):
      "setting coupling 'sideways' is not one of: iterative, explicit, causal"),
     (dict(predictor="cubic"),
      "setting predictor 'cubic' is not one of: none, constant, linear, quadratic"),
-    (dict(refresh="sometimes"), "setting refresh 'sometimes' is not one of: adaptive, iterations"),
+    (dict(refresh="sometimes"),
+     "setting refresh 'sometimes' is not one of: adaptive, iterations, step"),
+    (dict(convergence="soon"), "setting convergence 'soon' is not one of: residual, forces"),
     (dict(start="moving"), "setting start 'moving' is not one of: auto, consistent, rest"),
     (dict(backend="cloud"), "setting backend 'cloud' is not one of: in-process, ray, isolated"),
     (dict(tolerence=1e-9), "unknown setting 'tolerence'"),
@@ -150,7 +152,8 @@ def test_an_observer_can_stop_the_run(built):
 def test_registries_name_the_implementations():
     assert set(dsim.COUPLINGS) == {"iterative", "explicit", "causal"}
     assert set(dsim.PREDICTORS) == {"none", "constant", "linear", "quadratic"}
-    assert set(dsim.REFRESH_POLICIES) == {"adaptive", "iterations"}
+    assert set(dsim.REFRESH_POLICIES) == {"adaptive", "iterations", "step"}
+    assert set(dsim.CONVERGENCE_TESTS) == {"residual", "forces"}
     assert set(dsim.BACKENDS) == {"in-process", "ray", "isolated"}
     for coupling in dsim.COUPLINGS.values():
         assert issubclass(coupling, dsim.Coupling)

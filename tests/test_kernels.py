@@ -55,7 +55,7 @@ def test_singular_scenes_pass_and_agree_under_every_kernel(built, tmp_path):
         assert "Traceback" not in text
     _, _, default = done[None]
     for kernel in kernels:
-        for joints in ("fixed", "flexible"):
+        for joints in ("fixed", "penalized", "flexible"):
             ours = read_columns(done[kernel][2] / f"twin_{joints}.csv")
             theirs = read_columns(default / f"twin_{joints}.csv")
             for column in list(theirs)[1:]:

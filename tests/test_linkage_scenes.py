@@ -124,10 +124,15 @@ def test_four_bar_flexible_passes_the_singular_point(built, tmp_path):
     assert result["force_relative"] < 0.05
 
 
-def test_four_bar_fixed_fails_cleanly_at_the_singular_point(built, tmp_path, capsys):
+def test_four_bar_fixed_fails_cleanly_at_the_singular_point_under_the_trapezoidal_rule(
+        built, tmp_path, capsys):
+    """The fixed scene as it was (trapezoidal parts: its parameter set, dsim's default
+    refresh and convergence test): the index-3 glue's period-2 force oscillation grows
+    towards the collinear position and the run stops there, cleanly."""
     out = tmp_path / "four_bar_fixed.csv"
     code = dsim(["run", str(built["ssp"] / "four_bar_singular_fixed.ssp"), "--out", str(out),
-                 "--tol", "1e-8", "--stop", "0.5", "--quiet"])
+                 "--tol", "1e-8", "--stop", "0.5", "--quiet", "--parameter-set", "trapezoidal",
+                 "--refresh", "adaptive", "--convergence", "residual"])
     message = capsys.readouterr().err
     assert code == 1
     assert "step 38" in message and "joint '" in message and "t = 0.38" in message
@@ -135,6 +140,50 @@ def test_four_bar_fixed_fails_cleanly_at_the_singular_point(built, tmp_path, cap
     header, data = read_csv(out)
     assert data.shape[0] == 38 and data[-1, 0] == pytest.approx(0.37)
     assert np.all(np.isfinite(data))
+
+
+@pytest.mark.parametrize("tolerance, bound", [(1e-8, 1e-5), (1e-10, 1e-6)])
+def test_four_bar_fixed_passes_the_singular_point_on_the_displacement_measure(
+        built, tolerance, bound):
+    """Fixed joints on the displacement measure through the first collinear position
+    (t = 0.375 s) with the scene's means (generalized-alpha parts, a fresh Lambda every
+    step, the forces test): the joint force at A equals the twin's, the whole four bar
+    with index-3 rows at A and B under the same rule, closer than the flexible joints
+    equal theirs, in fewer iterations per step."""
+    from examples.twins import four_bar_twin
+    from master.sweep import error_against
+
+    runs = {joints: simulate(built["ssp"] / f"four_bar_singular_{joints}.ssp",
+                             tolerance=tolerance, stop=0.5)
+            for joints in ("fixed", "flexible")}
+    errors = {joints: error_against(run.signals, four_bar_twin(joints, 1), ["A.f_x", "A.f_y"])
+              for joints, run in runs.items()}
+    fixed = runs["fixed"]
+    assert fixed.status == "completed" and fixed.steps == 50
+    assert fixed.statistics["master"]["refresh"] == "step"
+    crank, rocker = fixed["crank.theta"], fixed["rocker.theta"]
+    assert crank[-1] > np.pi > crank[0]                       # through the collinear pass
+    assert np.max(np.abs(rocker - crank)) < 1e-6              # parallelogram kept (rad)
+    assert errors["fixed"] < bound        # measured 2.7e-6 (1e-8 m), 1.4e-7 (1e-10 m)
+    assert errors["fixed"] <= errors["flexible"]      # measured 4.9e-5, 1.9e-7 there
+    iterations = {joints: run.statistics["iterations"]["mean_per_step"]
+                  for joints, run in runs.items()}
+    assert iterations["fixed"] <= iterations["flexible"]      # measured 2.1, 2.2 against 5.3, 5.0
+
+
+def test_four_bar_penalized_passes_at_1e10(built):
+    """Fixed joints on the penalized measure at 1e-10 m/s^2, below most of its steps'
+    round-off floor: those steps end on the round-off test, counted, and the run
+    passes the singular point as close to its twin as at 1e-8."""
+    from examples.twins import four_bar_twin
+    from master.sweep import error_against
+
+    run = simulate(built["ssp"] / "four_bar_singular_penalized.ssp", tolerance=1e-10,
+                   stop=0.5)
+    assert run.status == "completed" and run.steps == 50
+    assert run.statistics["roundoff_steps"] > 10                # measured 38
+    assert error_against(run.signals, four_bar_twin("penalized", 1),
+                         ["A.f_x", "A.f_y"]) < 1e-8             # measured 2.9e-10
 
 
 def _joint_a_errors(csv_path):

@@ -35,6 +35,34 @@ def test_newton_divergence_needs_a_fresh_flexibility_to_be_called():
     assert not newton_diverging([50.0, 3.0, 2.0e4], refreshed=1)
 
 
+def test_the_forces_test_sees_the_force_error_a_small_residual_hides():
+    """Two joint dofs whose forces, pulled together, barely move anything (a gluing
+    matrix of compliances 1e-5 m/N with a 1e-6 relative gap between its rows, a four
+    bar's axial loop near collinear): a residual within 1e-8 m leaves a force correction
+    of 500 N to come, which the forces test counts and the residual test does not."""
+    from master.couplings.convergence import CONVERGENCE_TESTS, what_is_left
+    from master.couplings.iterative import DenseFactor
+
+    jacobian = 1e-5 * np.array([[1.0, 1.0], [1.0, 1.0 + 1e-6]])
+    residual = np.array([0.0, 5e-9])                   # m, within the tolerance
+    tolerance = np.full(2, 1e-8)
+    factor, compliance = DenseFactor(jacobian), np.diag(jacobian)
+    correction = factor.solve(residual)
+    assert np.max(np.abs(correction)) == pytest.approx(500.0, rel=1e-3)   # N
+    assert CONVERGENCE_TESTS["residual"](residual, tolerance, factor, compliance) == 0.5
+    assert CONVERGENCE_TESTS["forces"](residual, tolerance, factor, compliance) == \
+        pytest.approx(500.0 * 1e-5 / 1e-8, rel=1e-3)
+    _, left = what_is_left(residual, tolerance, factor, compliance)   # what a failure says
+    assert "residual within the tolerance" in left and "worth 5.00" in left
+    # a well-conditioned matrix: the two tests agree on what is converged
+    diagonal = 1e-5 * np.eye(2)
+    factor = DenseFactor(diagonal)
+    assert CONVERGENCE_TESTS["forces"](residual, tolerance, factor, np.diag(diagonal)) == \
+        pytest.approx(0.5)
+    # before the first factor there is no correction to judge
+    assert CONVERGENCE_TESTS["forces"](residual, tolerance, None, None) == 0.5
+
+
 def test_an_unstable_explicit_run_stops_before_its_values_overflow(built):
     result = dsim.simulate(built["ssp"] / "frame_split.ssp", coupling="explicit", stop=0.05)
     assert result.status == "failed" and result.exit_code == 1
@@ -67,9 +95,9 @@ def test_a_step_newton_cannot_finish_is_cut_and_the_run_passes(built):
 
 
 def test_fixed_joints_pass_the_four_bar_singular_points_on_the_penalized_measure(built):
-    """Table 5.1's fixed four bar fails on the displacement measure (tests/
-    test_linkage_scenes.py); on the penalized one it passes all four collinear
-    positions and equals the monolithic four bar; at H = 0.005 s steps land exactly
+    """Table 5.1's fixed four bar fails on the displacement measure under the
+    trapezoidal rule (tests/test_linkage_scenes.py); on the penalized one it passes all
+    four collinear positions and equals the monolithic four bar; at H = 0.005 s steps land exactly
     on them, where the gluing matrix loses rank and Newton solves in the
     least-squares sense."""
     scene = built["ssp"] / "four_bar_singular_penalized.ssp"

@@ -20,6 +20,9 @@ decides how many nodes a port has):
 Node sets are strings (:func:`node_set_spec`): ``box x0 y0 x1 y1`` (3-D: ``box x0 y0 z0
 x1 y1 z1``), ``point x y [z]`` (the nearest node), or the name of a boundary stored in the
 mesh file; ``;`` joins several into one set. Units SI: m, s, kg, N, Pa, Hz.
+
+Without a mesh file (``mesh_file`` empty, the FMU's default) the body is a built-in
+beam, ``DEFAULT_BEAM``, so that the FMU simulates alone in any FMI tool.
 """
 from __future__ import annotations
 
@@ -33,7 +36,7 @@ import numpy as np
 from ..interface import InterfaceCore
 from .assembly import Material
 from .core import ElasticBody, PointLoad
-from .geometry import in_box, load_mesh
+from .geometry import in_box, load_mesh, rectangle
 
 NODE_PORTS = ("port1", "port2", "port3", "port4")
 #: Node slots per node-set port (an edge of 1 m at 0.025 m has 41 nodes).
@@ -43,6 +46,9 @@ PROBES = ("probe1", "probe2", "probe3", "probe4")
 DOFS = ("x", "y", "z")
 RIGID_DOFS = ("x", "y", "z", "rx", "ry", "rz")
 FIDELITIES = ("full", "craig_bampton", "rigid")
+#: The body of an empty ``mesh_file``: a 1 m x 0.1 m plane-stress beam of 20 x 2 bilinear
+#: quadrilaterals (arguments of :func:`~fmus.elastic.geometry.rectangle`, m)
+DEFAULT_BEAM = dict(x0=0.0, x1=1.0, y0=0.0, y1=0.1, element_size=0.05)
 
 
 @dataclass
@@ -77,7 +83,8 @@ def _parameters() -> dict[str, tuple[str, str, tuple]]:
     (attribute, key))."""
     table = {
         "mesh_file": ("String", "mesh file (meshio formats), relative to the FMU's "
-                      "resources folder, or an absolute path or file: URI", ("mesh_file",)),
+                      "resources folder, or an absolute path or file: URI (empty: a "
+                      "built-in 1 m x 0.1 m beam of 20 x 2 quadrilaterals)", ("mesh_file",)),
         "order": ("Integer", "element order: 1 linear, 2 quadratic (mid-side nodes)",
                   ("order",)),
         "thickness": ("Real", "thickness of a 2-D (plane stress) body, m", ("thickness",)),
@@ -193,9 +200,6 @@ def node_set_spec(text: str, dim: int, extent: float):
 def mesh_path(mesh_file: str, resources: Optional[Path]) -> Path:
     """The mesh file: an absolute path, a ``file:`` URI, or a path relative to the FMU's
     resources folder."""
-    if not mesh_file:
-        raise ValueError("parameter mesh_file is empty: name a mesh file (in the FMU's "
-                         "resources folder, or an absolute path)")
     if mesh_file.startswith("file:"):
         return Path(unquote(urlparse(mesh_file).path))
     path = Path(mesh_file)
@@ -230,11 +234,14 @@ def build_body(spec: BodySpec, resources: Optional[Path] = None,
     (``check_counts``: also a node-set port whose ``S.nodes`` differs from its set's size).
     """
     _check(spec)
-    path = mesh_path(spec.mesh_file, resources)
-    try:
-        mesh = load_mesh(path)
-    except ValueError as error:  # name the file as the scene does, not the unzip folder
-        raise ValueError(str(error).replace(str(path), f"'{spec.mesh_file}'")) from None
+    if spec.mesh_file:
+        path = mesh_path(spec.mesh_file, resources)
+        try:
+            mesh = load_mesh(path)
+        except ValueError as error:  # name the file as the scene does, not the unzip folder
+            raise ValueError(str(error).replace(str(path), f"'{spec.mesh_file}'")) from None
+    else:  # no mesh file: the built-in beam, so that the FMU runs alone
+        mesh = rectangle(**DEFAULT_BEAM)
     dim = mesh.dim()
     extent = float(np.ptp(mesh.p, axis=1).max()) or 1.0
     ports = [port for port in NODE_PORTS if spec.nodes[port] > 0]
@@ -264,7 +271,7 @@ def build_body(spec: BodySpec, resources: Optional[Path] = None,
                        clamped=clamped, ports=ports, rigid_ports=rigid_ports, loads=loads,
                        probes=probes, order=spec.order, rigid=spec.fidelity == "rigid",
                        modes=spec.modes if spec.fidelity == "craig_bampton" else None,
-                       name=Path(spec.mesh_file).name)
+                       name=Path(spec.mesh_file).name or "built-in beam")
     for port in ports if check_counts else ():
         count = len(body.node_sets[port])
         if count != spec.nodes[port]:

@@ -9,23 +9,31 @@ integrated by the trapezoidal rule (Newmark average acceleration)
 
     q1 = q + h v + h^2/4 (a + a1),   v1 = v + h/2 (a + a1)
 
-with Newton on (a1, lambda1) at t + h.  The default constraint row is Baumgarte's
-(c_a, c_v, c_d) = (1, 2 xi w, w^2): the acceleration-level constraint with position
-and velocity feedback.  ``formulation="index3"`` uses (0, 0, 1), the position-level
-(index-3) form.  Why Baumgarte is the default (docs/linkage.md): the trapezoidal rule
-on the index-3 form has an undamped period-2 mode (eigenvalue -1, twice) that turns
-O(h^2) velocity defects into O(1) oscillation of accelerations and multipliers; the
-stabilised form keeps positions, velocities and accelerations consistent.  The same
+with Newton on (a1, lambda1) at t + h; or, with ``spectral_radius`` rho < 1, by the
+generalized-alpha rule of which the trapezoidal rule is the rho = 1 member
+(:mod:`fmus.generalized_alpha`: equilibrium and constraints still hold at t + h, a
+pseudo-acceleration carries numerical damping of the modes above 1/h).  The default
+constraint row is Baumgarte's (c_a, c_v, c_d) = (1, 2 xi w, w^2): the acceleration-level
+constraint with position and velocity feedback.  ``formulation="index3"`` uses (0, 0, 1),
+the position-level (index-3) form.  Why Baumgarte is the default (docs/linkage.md): the
+trapezoidal rule on the index-3 form has an undamped period-2 mode (eigenvalue -1, twice)
+that turns O(h^2) velocity defects into O(1) oscillation of accelerations and multipliers;
+the stabilised form keeps positions, velocities and accelerations consistent.  The same
 row is the seed's penalized gluing measure (eq. 5.28), so a mechanism cut into parts
 and glued with that measure solves exactly the monolithic discrete equations.
+``index3_joints`` names joints (revolutes, prismatics, drivers) whose rows are
+position-level whatever the formulation: the whole-mechanism twin of parts glued by
+fixed joints on the displacement measure, which are position-level rows.
 
-Rows are divided by c_a + c_v h/2 + c_d h^2/4 (their derivative with respect to a1,
-up to Phi_q), which keeps Newton's matrix well scaled for any step size.
+Rows are divided by c_a + c_v g h + c_d b h^2 (their derivative with respect to a1, up
+to Phi_q; g = dv1/da1 / h and b = dq1/da1 / h^2 are 1/2 and 1/4 under the trapezoidal
+rule), which keeps Newton's matrix well scaled for any step size.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from fmus.generalized_alpha import TRAPEZOIDAL, GeneralizedAlpha
 from fmus.interface import InterfaceCore
 from fmus.newton import NewtonCount, at_roundoff, failure_message, roundoff_floor
 
@@ -54,11 +62,16 @@ class Linkage(InterfaceCore):
         w (rad/s) and xi of the stabilised constraint row.
     newton_tolerance:
         Relative size of the last Newton increment that ends the iteration.
+    spectral_radius:
+        rho_inf of the generalized-alpha rule, 0..1; 1 (default) is the trapezoidal rule.
+    index3_joints:
+        Names of joints whose rows are position-level (index-3) whatever the formulation.
     """
 
     def __init__(self, mechanism: Mechanism, formulation: str = "baumgarte",
                  baumgarte_frequency: float = 1000.0, baumgarte_damping: float = 1.0,
-                 newton_tolerance: float = 1e-11, max_newton: int = 30):
+                 newton_tolerance: float = 1e-11, max_newton: int = 30,
+                 spectral_radius: float = TRAPEZOIDAL, index3_joints=()):
         mechanism.validate()
         self.mechanism = mechanism
         self.body_names = [b.name for b in mechanism.bodies]
@@ -79,6 +92,20 @@ class Linkage(InterfaceCore):
         else:
             raise ValueError(f"formulation must be 'baumgarte' or 'index3', not {formulation!r}")
         self.formulation = formulation
+        self.rule = GeneralizedAlpha(spectral_radius)
+        # per constraint row (c_a, c_v, c_d): the formulation's, or (0, 0, 1) on the rows
+        # of the joints named index-3
+        m = self.constraints.m
+        self._row_ca, self._row_cv, self._row_cd = (np.full(m, c) for c in self.row_coefficients)
+        named = {name for _, name, _ in self.constraints.groups}
+        unknown = sorted(set(index3_joints) - named)
+        if unknown:
+            raise ValueError(f"index3_joints: no joint named {', '.join(unknown)}")
+        self.index3_joints = tuple(index3_joints)
+        bounds = [r0 for _, _, r0 in self.constraints.groups] + [m]
+        for (_, name, r0), r1 in zip(self.constraints.groups, bounds[1:]):
+            if name in self.index3_joints:
+                self._row_ca[r0:r1], self._row_cv[r0:r1], self._row_cd[r0:r1] = 0.0, 0.0, 1.0
         self.newton_tolerance = float(newton_tolerance)
         self.max_newton = int(max_newton)
         ports = mechanism.ports
@@ -93,6 +120,8 @@ class Linkage(InterfaceCore):
         self.q = np.array([[b.x, b.y, b.theta] for b in mechanism.bodies], dtype=float)
         self.v = np.array([[b.vx, b.vy, b.omega] for b in mechanism.bodies], dtype=float)
         self.a = np.zeros((self.nb, 3))
+        #: the generalized-alpha pseudo-acceleration (= a under the trapezoidal rule)
+        self.pseudo = np.zeros((self.nb, 3))
         self.lam = np.zeros(self.constraints.m)
         self.port_forces = np.zeros((len(ports), 3))
         self.newton_iterations = 0
@@ -114,8 +143,9 @@ class Linkage(InterfaceCore):
     def _residual(self, q1, v1, a1, lam, t1, h):
         """Newton residual and matrix for unknowns (a1, lambda) at t1 = t + h, and the
         size of the terms each residual row sums (its round-off scale)."""
-        ca, cv, cd = self.row_coefficients
-        beta_h2, gamma_h = 0.25 * h * h, 0.5 * h
+        ca, cv, cd = self._row_ca, self._row_cv, self._row_cd
+        beta_h2 = self.rule.position_weight * h * h
+        gamma_h = self.rule.velocity_weight * h
         scale = ca + cv * gamma_h + cd * beta_h2
         c = self.constraints.evaluate(q1, v1, a1, lam, t1)
         Q, Qq, Qv = self._load(q1, v1, t1)
@@ -127,19 +157,22 @@ class Linkage(InterfaceCore):
         jac[: self.n, : self.n] = (np.diag(self.mass) + beta_h2 * (c["k_lambda"] - Qq)
                                    - gamma_h * Qv)
         jac[: self.n, self.n:] = c["phi_q"].T
+        ca, cv, cd, scale = ca[:, None], cv[:, None], cd[:, None], scale[:, None]
         jac[self.n:, : self.n] = (ca * (c["phi_q"] + beta_h2 * c["phi_dd_q"]
                                         + gamma_h * c["phi_dd_v"])
                                   + cv * (gamma_h * c["phi_q"] + beta_h2 * c["phi_d_q"])
                                   + cd * beta_h2 * c["phi_q"]) / scale
         terms = np.concatenate((np.abs(self.mass * af) + np.abs(c["phi_q"].T) @ np.abs(lam)
-                                + np.abs(Q), np.full(m, self._constraint_scale(q1, v1, a1, h))))
+                                + np.abs(Q), self._constraint_scale(q1, v1, a1, h)[:m]))
         return np.concatenate((r_dyn, r_con)), jac, terms
 
-    def _constraint_scale(self, q1, v1, a1, h) -> float:
-        """Size of the terms of a scaled constraint row (m/s^2): positions, velocities
+    def _constraint_scale(self, q1, v1, a1, h) -> np.ndarray:
+        """Size of the terms of each scaled constraint row (m/s^2): positions, velocities
         and accelerations weighted as the row weighs them."""
-        ca, cv, cd = self.row_coefficients
-        scale = ca + cv * 0.5 * h + cd * 0.25 * h * h
+        ca, cv, cd = self._row_ca, self._row_cv, self._row_cd
+        if not ca.size:  # no constraint: the formulation's row sets the increments' floor
+            ca, cv, cd = (np.array([c]) for c in self.row_coefficients)
+        scale = ca + cv * self.rule.velocity_weight * h + cd * self.rule.position_weight * h * h
         return (cd * (1.0 + np.max(np.abs(q1))) + cv * (1.0 + np.max(np.abs(v1)))
                 + ca * (1.0 + np.max(np.abs(a1)))) / scale
 
@@ -148,7 +181,8 @@ class Linkage(InterfaceCore):
         tolerance plus the round-off floor of the constraint rows (their position and
         velocity terms carry factors w^2 and 2 xi w, which amplify the last bit of
         q and v; without the floor Newton would stall just above the tolerance)."""
-        floor = float(roundoff_floor(self._constraint_scale(q1, v1, a1, self._h)))
+        floor = float(np.max(roundoff_floor(self._constraint_scale(q1, v1, a1, self._h)),
+                             initial=0.0))
         tol_a = self.newton_tolerance * (1.0 + np.max(np.abs(a1))) + floor
         tol_l = (self.newton_tolerance * (1.0 + (np.max(np.abs(lam)) if lam.size else 0.0))
                  + floor * np.max(self.mass))
@@ -184,6 +218,7 @@ class Linkage(InterfaceCore):
         rhs = np.concatenate((Q, -c["phi_dd"]))
         sol = np.linalg.lstsq(kkt, rhs, rcond=None)[0]
         self.a = sol[: self.n].reshape(self.nb, 3)
+        self.pseudo = self.a.copy()  # p = qdd at the start: second order (Arnold & Bruls)
         self.lam = sol[self.n:]
 
     def set_interface_forces(self, forces: np.ndarray) -> None:
@@ -196,12 +231,12 @@ class Linkage(InterfaceCore):
         """Advance from ``time`` to ``time + step_size`` (s) with port forces held."""
         h = self._h = float(step_size)
         t1 = float(time) + h
-        q_pred = self.q + h * self.v + 0.25 * h * h * self.a
-        v_pred = self.v + 0.5 * h * self.a
+        q_pred, v_pred = self.rule.predict(self.q, self.v, self.a, self.pseudo, h)
+        beta, gamma = self.rule.position_weight, self.rule.velocity_weight
         a1, lam = self.a.copy(), self.lam.copy()
         for iteration in range(1, self.max_newton + 1):
-            q1 = q_pred + 0.25 * h * h * a1
-            v1 = v_pred + 0.5 * h * a1
+            q1 = q_pred + beta * h * h * a1
+            v1 = v_pred + gamma * h * a1
             r, jac, terms = self._residual(q1, v1, a1, lam, t1, h)
             delta = np.linalg.solve(jac, r)
             da, dl = delta[: self.n].reshape(self.nb, 3), delta[self.n:]
@@ -222,8 +257,9 @@ class Linkage(InterfaceCore):
                 "linkage Newton", t1, self.max_newton, delta, jac, r, terms))
         self.newton.ended(how)
         self.newton_iterations = iteration
-        self.q = q_pred + 0.25 * h * h * a1
-        self.v = v_pred + 0.5 * h * a1
+        self.q = q_pred + beta * h * h * a1
+        self.v = v_pred + gamma * h * a1
+        self.pseudo = self.rule.pseudo(self.a, self.pseudo, a1)
         self.a = a1
         self.lam = lam
         self.time = t1
@@ -243,7 +279,8 @@ class Linkage(InterfaceCore):
 
     def get_state(self) -> dict:
         return {"time": self.time, "q": self.q.copy(), "v": self.v.copy(), "a": self.a.copy(),
-                "lam": self.lam.copy(), "port_forces": self.port_forces.copy(),
+                "pseudo": self.pseudo.copy(), "lam": self.lam.copy(),
+                "port_forces": self.port_forces.copy(),
                 "newton_iterations": self.newton_iterations,
                 "newton_roundoff_steps": self.newton.roundoff_steps}
 
@@ -252,6 +289,7 @@ class Linkage(InterfaceCore):
         self.q = np.array(state["q"], dtype=float)
         self.v = np.array(state["v"], dtype=float)
         self.a = np.array(state["a"], dtype=float)
+        self.pseudo = np.array(state.get("pseudo", state["a"]), dtype=float)
         self.lam = np.array(state["lam"], dtype=float)
         self.port_forces = np.array(state["port_forces"], dtype=float)
         self.newton_iterations = int(state["newton_iterations"])

@@ -5,7 +5,9 @@ The String parameter ``mechanism`` describes it (JSON text or a file of the
 resources folder: bodies, pins, sliders, drivers, springs, bushings, ports,
 gravity; :mod:`fmus.linkage.description`), so one FMU serves any planar linkage
 (by default a pendulum, so that it runs alone).  The constraint stabilisation (``formulation``,
-``baumgarte_frequency`` w rad/s, ``baumgarte_damping`` xi) is a parameter too.  Ports A, B, P (dofs x y)
+``baumgarte_frequency`` w rad/s, ``baumgarte_damping`` xi) is a parameter too, and so is
+the integrator's ``spectral_radius`` rho_inf (1, the default: the trapezoidal rule;
+below 1: generalized-alpha, which damps the modes above 1/h).  Ports A, B, P (dofs x y)
 follow DESIGN.md; a port the part lacks takes no force and reports zero motion.
 Outputs: the part's body ``x y theta vx vy omega ax ay alpha``, the driver
 ``torque``, ``constraint_violation``, ``newton_iterations`` and ``newton_roundoff_steps``.
@@ -29,6 +31,8 @@ DESCRIPTIONS = {
                  "a file holding one in the FMU's resources folder (default: a pendulum)",
     "formulation": "constraint rows: baumgarte or index3",
     "baumgarte_frequency": "Baumgarte w, rad/s", "baumgarte_damping": "Baumgarte xi",
+    "spectral_radius": "rho_inf of the generalized-alpha rule, 0..1: numerical damping of "
+                       "the modes above 1/h (1: the trapezoidal rule, no damping)",
 }
 
 
@@ -37,7 +41,8 @@ class Linkage2D(Fmi2Slave):
     """A planar rigid mechanism from its description, glueable at A, B, P."""
 
     author = "dsim"
-    description = "Planar rigid multibody part (trapezoidal rule, Baumgarte rows)"
+    description = ("Planar rigid multibody part (trapezoidal or generalized-alpha rule, "
+                   "Baumgarte rows)")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)

@@ -44,18 +44,23 @@ PENDULUM = ('{"bodies":[{"name":"bar","mass":1.0,"inertia":0.08333333333333333,"
 
 @dataclass
 class PartParameters:
-    """The mechanism (a description or a resources file) and the constraint rows'
-    stabilisation (w rad/s, xi)."""
+    """The mechanism (a description or a resources file), the constraint rows'
+    stabilisation (w rad/s, xi) and the integrator's spectral radius rho_inf
+    (1: the trapezoidal rule; below 1: generalized-alpha, fmus/generalized_alpha.py)."""
 
     mechanism: str = PENDULUM
     formulation: str = "baumgarte"
     baumgarte_frequency: float = 1000.0
     baumgarte_damping: float = 1.0
+    spectral_radius: float = 1.0
 
     def check(self) -> None:
         """Raise ValueError naming the parameter that is wrong."""
         if self.formulation not in ("baumgarte", "index3"):
             raise ValueError("parameter 'formulation' must be baumgarte or index3")
+        if not 0.0 <= self.spectral_radius <= 1.0:
+            raise ValueError(f"parameter 'spectral_radius' must be in [0, 1] (1: the "
+                             f"trapezoidal rule), not {self.spectral_radius:g}")
         if not self.mechanism.strip():
             raise ValueError("parameter 'mechanism' is empty: give a description (JSON "
                              "text) or a file of the FMU's resources folder")
@@ -85,7 +90,8 @@ def build_part(p: PartParameters, resources=None) -> Linkage:
     p.check()
     return Linkage(described(p.mechanism, resources), formulation=p.formulation,
                    baumgarte_frequency=p.baumgarte_frequency,
-                   baumgarte_damping=p.baumgarte_damping)
+                   baumgarte_damping=p.baumgarte_damping,
+                   spectral_radius=p.spectral_radius)
 
 
 class PartCore(InterfaceCore):

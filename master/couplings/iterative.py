@@ -28,6 +28,7 @@ from scipy.linalg.lapack import dgecon
 from scipy.sparse.linalg import splu
 
 from master.couplings.base import Coupling, StepReport
+from master.couplings.convergence import CONVERGENCE_TESTS, what_is_left
 from master.couplings.divergence import newton_diverging
 from master.couplings.predictors import PREDICTORS
 from master.couplings.refresh import REFRESH_POLICIES
@@ -117,6 +118,8 @@ class IterativeCoupling(Coupling):
         self._measured: dict = {}  # step size -> the flexibility measured for it
         self._predict = PREDICTORS[settings.predictor]
         self._refresh_policy = REFRESH_POLICIES[settings.refresh]
+        self._converged = CONVERGENCE_TESTS[settings.convergence]
+        self._compliance = None  # the diagonal of the factored gluing matrix
         self._flexibility = None  # per glued subsystem [Gu, Gv, Ga]
         self._parts = None
         self._factor = None
@@ -157,6 +160,7 @@ class IterativeCoupling(Coupling):
             for kind, part in enumerate(self._dense_parts):
                 if np.any(weights[:, kind]):
                     jacobian += weights[:, kind, None] * part
+            compliance = np.diag(jacobian).copy()
             factor = DenseFactor(jacobian)
             if factor.rcond < RCOND_MIN and np.all(np.isfinite(jacobian)):
                 factor = LeastSquaresFactor(jacobian)
@@ -167,6 +171,7 @@ class IterativeCoupling(Coupling):
             for kind, part in enumerate(self._parts):
                 if np.any(weights[:, kind]):
                     jacobian = jacobian + sp.diags(weights[:, kind]) @ part
+            compliance = jacobian.diagonal()
             try:
                 factor, singular = splu(jacobian.tocsc()), False
             except RuntimeError:
@@ -176,6 +181,7 @@ class IterativeCoupling(Coupling):
                                   "is singular (a singular configuration of the mechanism, "
                                   "or a joint dof that no subsystem can move)")
         self._factor = factor
+        self._compliance = compliance
         self._factored_with = (weights, diagonal)
         self.factorizations += 1
 
@@ -327,6 +333,18 @@ class IterativeCoupling(Coupling):
                 law, np.abs(forces) / self.joints.reference_stiffness(step_size), 0.0)
         return ROUNDOFF_ULPS * EPS * terms
 
+    def _at_floor(self, r, residual, tolerance, kinematics, forces, weights,
+                  step_size) -> bool:
+        """Whether a stalled step's residual can get no smaller: above the tolerance, each
+        dof within its round-off floor or tolerance; within the tolerance (the forces test
+        is what stalled), each dof at its round-off floor, so that the correction still
+        to come is round-off amplified by a near-singular gluing matrix, not a force error
+        a fresher Lambda would remove."""
+        floor = self._roundoff_floor(kinematics, forces, weights, step_size)
+        if residual > 1.0:
+            floor = np.maximum(tolerance, floor)
+        return bool(np.all(np.abs(r) <= floor))
+
     def _newton(self, time, step_size, step_index, save: bool = True) -> StepReport:
         """Newton on the joint forces over one step; StepFailure if it does not
         converge (iteration limit, non-finite or diverging residual)."""
@@ -334,21 +352,23 @@ class IterativeCoupling(Coupling):
         forces = self.predict()
         self._begin_step(step_size, save)
         refreshed = 0
-        history = []  # max |R| / tolerance per iteration
+        history = []  # max |R| / tolerance per iteration (the convergence test's measure)
         end = time + step_size
         for iteration in range(1, settings.max_iterations + 1):
             local = self.layout.local_forces(forces)
             kinematics = self.glued.trial_step(local, time, step_size)
             r, tolerance, weights, diagonal, trial = self.residual(kinematics, forces, step_size)
             self._check_finite(r, end, step_index, iteration)
-            history.append(float(np.max(np.abs(r) / tolerance, initial=0.0)))
+            residual = float(np.max(np.abs(r) / tolerance, initial=0.0))
+            # the convergence test's measure: the residual's, or more (convergence.py)
+            history.append(self._converged(r, tolerance, self._factor, self._compliance))
             if iteration == 1:
                 first = float(np.max(np.abs(r), initial=0.0))
-            lost = self._lost_residual(r, tolerance, first) if history[-1] > 1.0 else 0.0
+            lost = self._lost_residual(r, tolerance, first) if residual > 1.0 else 0.0
             floor = (iteration > 1 and history[-1] > 1.0 and not lost
                      and history[-1] > STALLING * history[-2]
-                     and np.all(np.abs(r) <= np.maximum(tolerance, self._roundoff_floor(
-                         kinematics, forces, weights, step_size))))
+                     and self._at_floor(r, residual, tolerance, kinematics, forces, weights,
+                                        step_size))
             if history[-1] <= 1.0 or lost or floor:
                 self.least_squares_steps += lost > 0
                 self.roundoff_steps += bool(floor)
@@ -369,11 +389,10 @@ class IterativeCoupling(Coupling):
                 refreshed += 1
             self._ensure_factor(weights, diagonal, end, step_index)
             forces = forces - self._factor.solve(r)
-        worst = int(np.argmax(np.abs(r) - tolerance))
+        worst, what = what_is_left(r, tolerance, self._factor, self._compliance)
         raise StepFailure(
             f"joint '{self.layout.joint_of[worst]}' ({self.layout.labels[worst]}) did not "
-            f"converge in {settings.max_iterations} iterations: residual "
-            f"{abs(r[worst]):.3e} > tolerance {tolerance[worst]:.3e}{self._ill_posed()}",
+            f"converge in {settings.max_iterations} iterations: {what}{self._ill_posed()}",
             time=end, step=step_index, iterations=settings.max_iterations)
 
     def _ill_posed(self) -> str:

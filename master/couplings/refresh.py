@@ -35,4 +35,15 @@ def adaptive(iteration: int, history, refreshed: bool, cost: int, settings) -> b
     return remaining > cost + 1
 
 
-REFRESH_POLICIES = {"adaptive": adaptive, "iterations": after_iterations}
+def every_step(iteration: int, history, refreshed: bool, cost: int, settings) -> bool:
+    """At the first iteration of every step that has not converged at once (before its
+    first correction), and the seed's rule after.  For interfaces whose flexibility
+    changes fast from step to step, as a mechanism's near a singular configuration:
+    measured around the step's own predicted forces, one Newton correction usually
+    ends the step (docs/four_bar_table.md), where an older Lambda contracts slowly or,
+    once the flexibility has grown past twice the held one, diverges."""
+    return (iteration == 1 and not refreshed) or after_iterations(
+        iteration, history, refreshed, cost, settings)
+
+
+REFRESH_POLICIES = {"adaptive": adaptive, "iterations": after_iterations, "step": every_step}
