@@ -24,8 +24,9 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     folder, an .ssd file, or a :class:`~master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
     options: stop, step, tolerance, relative_tolerance, max_iterations,
-    refresh_after, perturbation, predictor, refresh, coupling, start, backend,
-    address, call_timeout, parameter_set, ssd).  ``load_libraries=False`` checks each FMU's
+    refresh_after, perturbation, predictor, refresh, convergence, coupling, start,
+    backend, address, call_timeout, parameter_set, ssd; ``master.settings.SETTINGS``
+    holds them all).  ``load_libraries=False`` checks each FMU's
     library as bytes without loading it (no code of the FMU runs: what ``dsim
     validate`` and ``dsim serve``'s uploads do).  ``strict``: refuse what would
     otherwise be a warning (a rule the files break that does not change the results).
