@@ -32,7 +32,7 @@ def one_pair(folder: Path, samples: int) -> dict:
     """Wall seconds of the study serially and on Ray (and the sum of the Ray points'
     own wall times), the machine's ceiling just before, and their KPIs compared."""
     from benchmarks.ray_speedup import machine_ceiling
-    from master.sweep import run_sweep
+    from dsim.master.tools.sweep import run_sweep
 
     timings = {"ceiling": machine_ceiling(2)}
     kpis = {}
@@ -106,7 +106,7 @@ def main(argv=None) -> str:
     parser.add_argument("--repetitions", type=int, default=2)
     parser.add_argument("--docs", default=str(ROOT / "docs" / "doe_benchmark.md"))
     args = parser.parse_args(argv)
-    from master.ray_cluster import connect
+    from dsim.master.running.ray_cluster import connect
 
     started = time.perf_counter()
     connection = connect()  # one local instance; the Ray sweeps join it

@@ -31,11 +31,11 @@ from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
-from build_fmus.linkage_scenes import FOUR_BAR
+from dsim.build_fmus.linkage_scenes import FOUR_BAR
 from examples.twins import four_bar_twin
-from master.api import simulate
-from master.ssp import load_scene
-from master.sweep import error_against
+from dsim.master.api import simulate
+from dsim.master.reading.ssp import load_scene
+from dsim.master.tools.sweep import error_against
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The seed's Table 5.1 (refreshes, total iterations; None: failed at a singular point).

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.four_post_scenes import FIDELITY, FOUR_POST, MESH_SIZES, plate_mesh
+from dsim.build_fmus.four_post_scenes import FIDELITY, FOUR_POST, MESH_SIZES, plate_mesh
 from examples import four_post
 
 ROOT = Path(__file__).resolve().parent.parent

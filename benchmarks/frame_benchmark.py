@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.frame_scenes import part_parameters
-from fmus.elastic import craig_bampton_error, frame
-from fmus.elastic.body_spec import build_body, spec_from_parameters
+from dsim.build_fmus.frame_scenes import part_parameters
+from dsim.fmus.elastic import craig_bampton_error, frame
+from dsim.fmus.elastic.body_spec import build_body, spec_from_parameters
 
 ROOT = Path(__file__).resolve().parent.parent
 MODES = (5, 10, 20, 40, 60)
@@ -38,7 +38,7 @@ def glued_versus_monolithic(stop: float, repetitions: int = 3) -> dict:
     run in turn ``repetitions`` times; the least time of each is the one least
     disturbed by other work on a shared machine."""
     from examples.frame import compare
-    from master.api import simulate
+    from dsim.master.api import simulate
 
     scene = ROOT / "build" / "ssp" / "frame_split.ssp"
     with tempfile.TemporaryDirectory() as folder:
@@ -81,7 +81,7 @@ def bare_cores_twice(stop: float) -> float:
 
 def profile_glued(stop: float = 0.01, top: int = 14) -> str:
     """cProfile of a short glued run: the functions with most cumulative time."""
-    from master.api import simulate
+    from dsim.master.api import simulate
 
     profiler = cProfile.Profile()
     with tempfile.TemporaryDirectory() as folder:

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from examples import crank_slider, four_bar
-from master.api import simulate
-from master.results import read_csv
+from dsim.master.api import simulate
+from dsim.master.recording.results import read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 #: scene -> (reference description, function returning (reference, seconds))
@@ -126,7 +126,7 @@ def drift(out_dir: Path, stop: float | None, docs: Path) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from master.results import save_figure
+    from dsim.master.recording.results import save_figure
 
     for kind, name, unit in (("u", "displacement", "m"), ("a", "acceleration", "m/s^2")):
         figure, axis = plt.subplots(figsize=(8, 4))

@@ -38,8 +38,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def fine_frame(folder: Path, element_size: float) -> Path:
     """frame_split meshed at ``element_size`` (m), packed as folder/frame_fine.ssp."""
-    from build_fmus.build import pack_scene
-    from build_fmus.frame_scenes import FRAME, frame_split
+    from dsim.build_fmus.build import pack_scene
+    from dsim.build_fmus.frame_scenes import FRAME, frame_split
 
     scene = frame_split(element_size, name="frame_fine")  # its meshes in its resources
     scene.write(folder / "frame_fine", 0.0, FRAME["stop"], step=FRAME["step"],
@@ -123,7 +123,7 @@ def sweep_pair(scene, out: Path, repetitions: int, ceilings,
                calm: float = 0.0) -> list[tuple[float, float]]:
     """Wall seconds of one sweep, serial then one point per worker, per repetition (the
     machine's ceiling measured before each, appended to ``ceilings``)."""
-    from master.sweep import Sweep, run_sweep
+    from dsim.master.tools.sweep import Sweep, run_sweep
 
     grid = {"predictor": ["none", "constant", "linear", "quadratic"],
             "tolerance": ["1e-10", "1e-12"]}
@@ -155,7 +155,7 @@ def _worker_groups(statistics) -> list[list[str]]:
 
 def report(args, startup: float, heavy, light, sweep, ceilings, workers: int) -> str:
     """docs/ray_benchmark.md from the measurements."""
-    from build_fmus.frame_scenes import part_parameters
+    from dsim.build_fmus.frame_scenes import part_parameters
 
     here0, there0 = heavy[0]
     do_step = {name: 1e3 * c["functions"]["fmi2DoStep"]["seconds"]
@@ -266,7 +266,7 @@ def main(argv=None) -> str:
                         "ceiling is at least this (a shared machine: 1.8 of 2 cores)")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "ray_benchmark.md"))
     args = parser.parse_args(argv)
-    from master.ray_cluster import connect
+    from dsim.master.running.ray_cluster import connect
 
     started = time.perf_counter()
     connection = connect()  # one local instance, one CPU per core; the runs join it

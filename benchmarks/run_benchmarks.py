@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from examples import chain, spring_mass
-from master.api import simulate
+from dsim.master.api import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -24,8 +24,8 @@ import numpy as np
 
 from examples.testbed import Testbed, energy, monolithic, write_scene
 from examples.twins import four_bar_twin
-from master.api import simulate
-from master.sweep import error_against
+from dsim.master.api import simulate
+from dsim.master.tools.sweep import error_against
 
 ROOT = Path(__file__).resolve().parent.parent
 COUPLINGS = ("iterative", "explicit")

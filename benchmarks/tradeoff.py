@@ -16,9 +16,9 @@ from pathlib import Path
 
 from examples.frame import OUTPUT as FRAME_OUTPUT
 from examples.spring_mass import monolithic as spring_mass_monolithic
-from fmus.elastic.frame import STEP_SIZE, monolithic_frame
-from master.api import simulate
-from master.sweep import error_against
+from dsim.fmus.elastic.frame import STEP_SIZE, monolithic_frame
+from dsim.master.api import simulate
+from dsim.master.tools.sweep import error_against
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "results" / "tradeoff"

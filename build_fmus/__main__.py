@@ -1,6 +1,6 @@
-"""``python -m build_fmus``: same as ``dsim build-fmus``."""
+"""``python -m dsim.build_fmus``: same as ``dsim build-fmus``."""
 import sys
 
-from build_fmus.build import main
+from dsim.build_fmus.build import main
 
 sys.exit(main())

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from build_fmus.scenes import ROOT, SceneWriter, write_parameter_sets
+from dsim.build_fmus.scenes import ROOT, SceneWriter, write_parameter_sets
 
 FOUR_POST = {
     "length": 2.0, "width": 1.0, "thickness": 0.02, "pad": 0.1,

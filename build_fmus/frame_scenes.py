@@ -5,7 +5,7 @@ Every part is the generic ``ElasticBody`` FMU given a mesh file and parameters: 
 and cross members are rectangles meshed at 0.025 m (cross members at 0.0125 m in
 frame_nonmatching), files of the scene itself (resources/meshes/, named by the
 ``mesh_file`` values: dsim hands the FMU their paths); clamps, ports, the load and its
-probe are node-set strings and numbers in each part's .ssv. The geometry is :mod:`fmus.elastic.frame`'s, so the
+probe are node-set strings and numbers in each part's .ssv. The geometry is :mod:`dsim.fmus.elastic.frame`'s, so the
 glued scenes and the monolithic frame describe the same body.
 
 Port slots: a rail's ``port1``, ``port2``, ``port3`` are its front, mid and rear edges
@@ -20,8 +20,8 @@ from typing import Callable
 
 import numpy as np
 
-from build_fmus.scenes import ROOT, SceneWriter, write_parameter_sets
-from fmus.elastic import frame
+from dsim.build_fmus.scenes import ROOT, SceneWriter, write_parameter_sets
+from dsim.fmus.elastic import frame
 
 #: frame_split / frame_nested: Newmark, H = 1e-4 s, 0 to 0.2 s. The glued quantities are
 #: global positions (about 1 m) while the response is about 1e-5 m: the tolerance is
@@ -65,7 +65,7 @@ def _rectangle(part: str) -> tuple[float, float, float, float]:
 
 def _rectangle_mesh(bounds, element_size: float) -> Callable[[Path], None]:
     """What writes a rectangle x0, x1, y0, y1 (m) meshed at ``element_size`` (m)."""
-    from fmus.elastic.geometry import rectangle
+    from dsim.fmus.elastic.geometry import rectangle
 
     return lambda target: rectangle(*bounds, element_size).save(str(target))
 
@@ -82,7 +82,7 @@ def _edge(x0: float, x1: float, y: float) -> str:
 def _with_node_counts(values: dict, save: Callable[[Path], None]) -> dict:
     """``values`` plus ``S.nodes`` of every node-set port, counted on the mesh that
     ``save`` writes."""
-    from fmus.elastic.body_spec import BodySpec, port_node_counts
+    from dsim.fmus.elastic.body_spec import BodySpec, port_node_counts
 
     with tempfile.TemporaryDirectory() as folder:
         mesh = Path(folder) / Path(values["mesh_file"]).name

@@ -1,7 +1,7 @@
 """Write the linkage scene folders of ssp/ (SCENES.md: crank_slider_rigid,
 crank_slider_flexible, four_bar_singular_*, crank_slider_penalized*).
 
-``python -m build_fmus.linkage_scenes`` (re)writes them; ``python -m build_fmus``
+``python -m dsim.build_fmus.linkage_scenes`` (re)writes them; ``python -m dsim.build_fmus``
 then packs them with their FMUs (Linkage2D, FlexibleLink2D) into build/ssp.
 
 Measures and tolerances (docs/linkages.md explains the choice):
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from build_fmus.scenes import SceneWriter, write_parameter_sets
+from dsim.build_fmus.scenes import SceneWriter, write_parameter_sets
 
 ROOT = Path(__file__).resolve().parent.parent
 FOUR_BAR_PARTS = ("crank", "coupler", "rocker")
@@ -60,8 +60,8 @@ PORT_RECORDS = ["A.u_x", "A.u_y", "A.v_x", "A.v_y", "A.a_x", "A.a_y"]
 def _part(scene: str, part: str, **parameters) -> dict:
     """The Linkage2D parameters of a shipped part: its mechanism's description (what a
     user writes for a linkage of their own; docs/linkages.md), and ``parameters``."""
-    from fmus.linkage.description import mechanism_to_text
-    from fmus.linkage.scenes import crank_slider_part, four_bar_part
+    from dsim.fmus.linkage.description import mechanism_to_text
+    from dsim.fmus.linkage.scenes import crank_slider_part, four_bar_part
 
     build = crank_slider_part if scene == "crank_slider" else four_bar_part
     return {"mechanism": mechanism_to_text(build(part)), **parameters}
@@ -140,7 +140,7 @@ def scenes() -> list[tuple[SceneWriter, dict]]:
         (crank_slider("crank_slider_penalized_acceleration", "flexible", "acceleration",
                       True), dict(stop=cs["stop"], **crank_master)),
         # the crank turns at full speed from t = 0: fixed joints carry centripetal
-        # forces at once, which the master's consistent start finds (master/start.py)
+        # forces at once, which the master's consistent start finds (master/running/start.py)
         (four_bar_singular("fixed"), dict(stop=fb["stop"], start="consistent",
                                           **four_master, refresh=fb["fixed_refresh"],
                                           convergence=fb["fixed_convergence"])),

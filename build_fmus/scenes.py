@@ -2,7 +2,7 @@
 
 The folders are committed; this module is how they were made and how a scene
 family (chain_<n>) is regenerated at another size:
-``python -m build_fmus.scenes``.  Parameters are those of SCENES.md.
+``python -m dsim.build_fmus.scenes``.  Parameters are those of SCENES.md.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from typing import Callable
 
 from lxml import etree
 
-from master.ssp import SCENE_RESOURCES
+from dsim.master.reading.ssp import SCENE_RESOURCES
 
 ROOT = Path(__file__).resolve().parent.parent
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -219,9 +219,9 @@ def write_all(root: Path = ROOT) -> None:
         scene = chain(n)
         scene.write(root / "ssp" / scene.name, 0.0, CHAIN["stop"], step=CHAIN["step"],
                     tolerance=1e-13, maxIterations=20, predictor="linear", refreshAfter=10)
-    from build_fmus.four_post_scenes import write_four_post_scenes
-    from build_fmus.frame_scenes import write_frame_scenes
-    from build_fmus.linkage_scenes import write_all as write_linkage_scenes
+    from dsim.build_fmus.four_post_scenes import write_four_post_scenes
+    from dsim.build_fmus.frame_scenes import write_frame_scenes
+    from dsim.build_fmus.linkage_scenes import write_all as write_linkage_scenes
 
     write_frame_scenes(root)
     write_linkage_scenes(root)

@@ -8,20 +8,20 @@ SSP 1.0 systems, T-T gluing).
 See docs/api.md.  The implementation lives in the ``master`` package; this one is
 its public face.
 """
-from master import __version__
-from master.api import prepare, simulate
-from master.backends import BACKENDS, Backend
-from master.couplings import COUPLINGS, Coupling, StepReport
-from master.couplings.convergence import CONVERGENCE_TESTS
-from master.couplings.predictors import PREDICTORS
-from master.couplings.refresh import REFRESH_POLICIES
-from master.errors import InputError, SimulationError
-from master.execution import Execution
-from master.observers import (CsvRecorder, MemoryRecorder, Observer, PlotWriter, ProgressBar,
-                              RunInfo, StatisticsWriter, StepRecord)
-from master.plan import Plan
-from master.results import RunResult, read_columns, read_csv
-from master.ssp import load_scene
+from dsim.master import __version__
+from dsim.master.api import prepare, simulate
+from dsim.master.errors import InputError, SimulationError
+from dsim.master.planning.plan import Plan
+from dsim.master.reading.ssp import load_scene
+from dsim.master.recording.observers import (CsvRecorder, MemoryRecorder, Observer, PlotWriter,
+                                             ProgressBar, RunInfo, StatisticsWriter, StepRecord)
+from dsim.master.recording.results import RunResult, read_columns, read_csv
+from dsim.master.running.backends import BACKENDS, Backend
+from dsim.master.running.couplings import COUPLINGS, Coupling, StepReport
+from dsim.master.running.couplings.convergence import CONVERGENCE_TESTS
+from dsim.master.running.couplings.predictors import PREDICTORS
+from dsim.master.running.couplings.refresh import REFRESH_POLICIES
+from dsim.master.running.execution import Execution
 
 __all__ = ["BACKENDS", "Backend", "COUPLINGS", "CONVERGENCE_TESTS", "Coupling", "CsvRecorder",
            "Execution", "InputError", "MemoryRecorder", "Observer", "PREDICTORS", "Plan",

@@ -1,4 +1,4 @@
 """``python -m dsim``: the command line."""
-from master.cli import console
+from dsim.master.tools.cli import console
 
 console()

@@ -1,9 +1,9 @@
 """The web application of ``dsim serve``: FastAPI over the model database
-(:mod:`dsim_serve.store`), pages rendered with Jinja2 and made live with htmx,
+(:mod:`dsim.serve.store`), pages rendered with Jinja2 and made live with htmx,
 its server-sent-events extension and uPlot (all vendored in ``static/``).
 
 :func:`create_app` makes the application; the routes are in
-:mod:`dsim_serve.routes`.  The guard in front of them (:class:`Guard`) keeps
+:mod:`dsim.serve.routes`.  The guard in front of them (:class:`Guard`) keeps
 the server safe by default: only the host names it is bound to (no DNS
 rebinding), a token when it is reachable from elsewhere, no request that another
 web site's page makes on the user's behalf, and a limit on the size of what is
@@ -25,9 +25,9 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from dsim_serve.jobs import Jobs
-from dsim_serve.owner import lock_database, server_identity
-from dsim_serve.store import Store
+from dsim.serve.jobs import Jobs
+from dsim.serve.owner import lock_database, server_identity
+from dsim.serve.store import Store
 
 HERE = Path(__file__).parent
 COOKIE = "dsim_token"
@@ -157,7 +157,7 @@ def create_app(db_path, token: str | None = None, slots: int = 2,
     """The application over the database at ``db_path`` (created on first use);
     ``slots``: runs at once; ``max_upload``: largest upload in bytes; ``hosts``: the
     Host headers it answers (:class:`Guard`, :func:`accepted_hosts`)."""
-    from dsim_serve import routes
+    from dsim.serve import routes
 
     if hosts is None and not token:  # any Host and no token: open to DNS rebinding
         raise ValueError("a server that accepts any Host header needs a token")

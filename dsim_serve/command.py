@@ -8,7 +8,7 @@ import os
 import secrets
 import socket
 
-from master.errors import InputError
+from dsim.master.errors import InputError
 
 #: the packages of the ``serve`` extra, by import name
 NEEDED = ("fastapi", "uvicorn", "jinja2", "multipart")
@@ -59,7 +59,7 @@ def serve(args) -> int:
         token = secrets.token_urlsafe(24)
     import uvicorn
 
-    from dsim_serve.app import accepted_hosts, create_app
+    from dsim.serve.app import accepted_hosts, create_app
 
     listening = _bind(args.host, args.port)
     port = listening.getsockname()[1]  # the one the system chose for --port 0

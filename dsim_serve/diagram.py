@@ -46,7 +46,7 @@ def _text(x, y, text, size=12, weight="normal", anchor="middle", fill="#222") ->
 
 
 def scene_svg(scene: dict, models: dict) -> str:
-    """The diagram of a scene description (:func:`dsim_serve.inspect.describe_scene`);
+    """The diagram of a scene description (:func:`dsim.serve.inspect.describe_scene`);
     ``models``: model id -> its FMU description."""
     components = scene["components"]
     ports = _ports(scene, models)

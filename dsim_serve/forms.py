@@ -1,13 +1,13 @@
 """What the web forms send, read into dsim's terms: run settings (checked by
-dsim's own rules, :func:`master.settings.resolve`), sweep grids
-(:func:`master.sweep.check`), scenes to assemble and parameter edits.  Each reader
+dsim's own rules, :func:`dsim.master.settings.resolve`), sweep grids
+(:func:`dsim.master.tools.sweep.check`), scenes to assemble and parameter edits.  Each reader
 returns the value or raises :class:`FormError` listing every problem."""
 from __future__ import annotations
 
 import math
 
-from dsim_serve.assemble import ComponentSpec, SceneSpec, typed_value
-from dsim_serve.store import Store
+from dsim.serve.assemble import ComponentSpec, SceneSpec, typed_value
+from dsim.serve.store import Store
 
 
 class FormError(Exception):
@@ -21,9 +21,9 @@ class FormError(Exception):
 def run_settings(fields: dict) -> dict:
     """``dsim run``'s settings from form fields named as its keywords; an empty field
     keeps the scene's value."""
-    from master.errors import InputError
-    from master.scene import MasterSettings
-    from master.settings import SETTINGS, resolve
+    from dsim.master.errors import InputError
+    from dsim.master.scene import MasterSettings
+    from dsim.master.settings import SETTINGS, resolve
 
     # the scene a run reads is the one stored, described by its own SystemStructure.ssd
     settings = {k: str(fields[k]).strip() for k in SETTINGS if k != "ssd"
@@ -51,9 +51,9 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
     ``design``, ``samples``, ``seed``), its KPIs (``kpis``: one ``--kpi`` per line) and
     fixed settings (``stop``; ``backend``: ray runs the points side by side), checked
     as ``dsim sweep`` checks a sweep file."""
-    from master.design import DESIGNS, parse_vary
-    from master.errors import InputError
-    from master.sweep import Sweep, check
+    from dsim.master.errors import InputError
+    from dsim.master.tools.design import DESIGNS, parse_vary
+    from dsim.master.tools.sweep import Sweep, check
 
     grid = {name: _list(str(fields.get(name) or "")) for name in
             ("step", "tolerance", "coupling", "predictor")}
@@ -97,11 +97,11 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
 
 
 def job_sweep(spec: dict):
-    """The :class:`~master.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`)."""
+    """The :class:`~dsim.master.tools.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`)."""
     from pathlib import Path
 
-    from master.design import parse_vary
-    from master.sweep import TIGHTEST, Sweep
+    from dsim.master.tools.design import parse_vary
+    from dsim.master.tools.sweep import TIGHTEST, Sweep
 
     design = spec.get("design") or "grid"
     reference = spec.get("reference")
@@ -300,7 +300,7 @@ def _numbers(values) -> str:
 
 def scene_form(scene: dict) -> dict:
     """The assembly form's fields for a stored scene (``scene``: its row, with the
-    description :func:`dsim_serve.inspect.describe_scene` made), named "<name>_edited";
+    description :func:`dsim.serve.inspect.describe_scene` made), named "<name>_edited";
     FormError when the form cannot hold it (nested systems, files of the scene)."""
     d = scene["description"]
     problems = []

@@ -1,24 +1,24 @@
 """Checks an uploaded FMU or .ssp with dsim's own checks and describes it, in a
-child process: ``python -m dsim_serve.inspect fmu|ssp FILE`` prints one JSON
+child process: ``python -m dsim.serve.inspect fmu|ssp FILE`` prints one JSON
 object, ``{"ok": true, "description": {...}}`` or ``{"ok": false, "problems":
-[...]}``.  ``python -m dsim_serve.inspect parameters FILE`` checks the model
+[...]}``.  ``python -m dsim.serve.inspect parameters FILE`` checks the model
 parameters a run form gives (a JSON object on standard input) against a stored
-scene, by ``dsim run --set``'s rules (:mod:`master.parameters`), and answers the
+scene, by ``dsim run --set``'s rules (:mod:`dsim.master.planning.parameters`), and answers the
 values as the run will apply them.
 
 An uploaded FMU's shared library is never loaded here, nor anywhere in the
 server: loading a library runs its constructors, so a page that got a file
-uploaded (see :class:`dsim_serve.app.Guard`) would run code on this machine.
+uploaded (see :class:`dsim.serve.app.Guard`) would run code on this machine.
 Only modelDescription.xml is read, and the library for this platform is checked
 to be there and, on Linux, to be a whole ELF shared object for this machine
-(``master.fmu_archive.fmu_problem(path, load=False)``, reading bytes only; the
+(``dsim.master.reading.fmu_archive.fmu_problem(path, load=False)``, reading bytes only; the
 scene checks are ``dsim validate``'s, which load nothing either).  A library runs
 only in a run's own worker process, when a user starts a run.
 
 Why a child process besides: reading an upload unpacks archives into temporary
 folders and fills caches; all of that ends with the child, so a long-running
 server keeps none of it and a file that crashes the checker is only a message
-(:func:`dsim_serve.uploads.inspect_file`).
+(:func:`dsim.serve.uploads.inspect_file`).
 """
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from master.unpacking import MAX_UNPACKED
-from master.unpacking import check_archive as shared_check_archive
+from dsim.master.reading.unpacking import MAX_UNPACKED
+from dsim.master.reading.unpacking import check_archive as shared_check_archive
 
 #: capability flags of <CoSimulation> shown on a model's page
 CAPABILITIES = ("canGetAndSetFMUstate", "canSerializeFMUstate",
@@ -46,9 +46,9 @@ class Refused(Exception):
 
 def check_archive(path: Path, what: str, max_unpacked: int = MAX_UNPACKED) -> list[str]:
     """Member names of a zip archive, refused (:class:`Refused`) on the command line's
-    grounds (:func:`master.unpacking.check_archive`: not a zip, a zip bomb, a member
+    grounds (:func:`dsim.master.reading.unpacking.check_archive`: not a zip, a zip bomb, a member
     outside itself, a name that is not UTF-8)."""
-    from master.errors import InputError
+    from dsim.master.errors import InputError
 
     try:
         return shared_check_archive(path, what, max_unpacked)
@@ -65,9 +65,9 @@ def _start(variable):
 
 def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     """The summary of an FMU's modelDescription that a model's page shows, after
-    dsim's checks of an FMU (:func:`master.fmu_archive.fmu_problem`)."""
-    from master.fmu_archive import fmu_problem
-    from master.ports import conventional_ports, model_description
+    dsim's checks of an FMU (:func:`dsim.master.reading.fmu_archive.fmu_problem`)."""
+    from dsim.master.reading.fmu_archive import fmu_problem
+    from dsim.master.reading.ports import conventional_ports, model_description
 
     names = check_archive(path, "FMU", max_unpacked)
     problem = fmu_problem(path, load=False)
@@ -103,7 +103,7 @@ def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
 
 
 def _joint(joint) -> dict:
-    from master.parameters import joint_coefficients
+    from dsim.master.planning.parameters import joint_coefficients
 
     return {"name": joint.name, "a": ".".join(joint.a), "b": ".".join(joint.b),
             "dofs": list(joint.dofs), "kind": joint.kind, "measure": joint.measure,
@@ -116,7 +116,7 @@ def _settable(plan, index: int) -> list[dict]:
     """What a run may set in component ``index`` (``dsim info``'s list): the
     parameters, and the inputs that no joint or connection writes, with the value
     the scene binds."""
-    from master.parameters import master_writes, settable_variables
+    from dsim.master.planning.parameters import master_writes, settable_variables
 
     spec = plan.specs[index]
     component = plan.scene.components[index]
@@ -165,8 +165,8 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     checks (a scene that does not validate is refused with every problem)."""
     import hashlib
 
-    from master.api import prepare
-    from master.validate import validate
+    from dsim.master.api import prepare
+    from dsim.master.tools.validate import validate
 
     names = check_archive(path, "SSP", max_unpacked)
     if "SystemStructure.ssd" not in names:
@@ -236,8 +236,8 @@ def check_parameters(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -
     """The model parameters ``given`` (name -> value, from a run form) as a run of the
     stored scene at ``path`` applies them, after every check of ``dsim run --set``
     (an InputError lists what is wrong); no library is loaded."""
-    from master.api import prepare
-    from master.errors import InputError
+    from dsim.master.api import prepare
+    from dsim.master.errors import InputError
 
     if not isinstance(given, dict):
         raise Refused("give the parameters as a JSON object of name: value")
@@ -264,7 +264,7 @@ def _ssd_root(folder: Path):
 
 def main(argv=None) -> int:
     """Print the JSON answer for one file; exit 0 whatever the answer."""
-    from master.errors import InputError
+    from dsim.master.errors import InputError
 
     argv = sys.argv[1:] if argv is None else argv
     kind, path = argv[0], Path(argv[1])

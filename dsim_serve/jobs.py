@@ -2,7 +2,7 @@
 that starts queued jobs and reaps ended ones, cancelling, and putting the
 database right after a server that died (:meth:`Jobs.reconcile`).
 
-A job's process is :mod:`dsim_serve.worker`; whatever happens to it (an FMU that
+A job's process is :mod:`dsim.serve.worker`; whatever happens to it (an FMU that
 aborts or crashes it, a kill) ends that job, never the server: the server only
 ever sees a return code and the files the worker left.
 """
@@ -17,8 +17,8 @@ import threading
 import time
 from pathlib import Path
 
-from dsim_serve.owner import owner_alive
-from dsim_serve.store import ACTIVE, Store
+from dsim.serve.owner import owner_alive
+from dsim.serve.store import ACTIVE, Store
 
 #: seconds a worker gets to stop after SIGTERM when the server shuts down
 STOP_GRACE = 10.0
@@ -129,7 +129,7 @@ class Jobs:
                 cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
             except OSError:
                 return
-            if b"dsim_serve.worker" not in cmdline:
+            if b"dsim.serve.worker" not in cmdline:
                 return
             time.sleep(0.1)
 
@@ -213,7 +213,7 @@ class Jobs:
         (folder / "job.json").write_text(json.dumps(job))
         with open(folder / "worker.log", "ab") as log:
             process = subprocess.Popen(
-                [sys.executable, "-m", "dsim_serve.worker", str(folder)], cwd=folder,
+                [sys.executable, "-m", "dsim.serve.worker", str(folder)], cwd=folder,
                 stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                 env=child_env(), start_new_session=True)  # Ctrl-C of the server is not theirs
         with self.lock:
@@ -231,7 +231,7 @@ class Jobs:
         """Stop a run after its current step (SIGTERM); a queued run never starts.  A
         second cancel sends SIGTERM again, which ends the worker at once, also while an
         FMU hangs in its step, keeping its converged rows and statistics
-        (master/interrupts.py); if it has not ended :data:`KILL_GRACE` seconds later,
+        (master/running/interrupts.py); if it has not ended :data:`KILL_GRACE` seconds later,
         it is killed.  False when the run was not active."""
         run = self.store.run(run_id)
         if run is None or run["status"] not in ACTIVE:

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from master.compare import compare_files
-from master.errors import InputError
-from master.results import mat_bytes, plot_overlay, plot_signals, read_columns
-from master.sweep import mark_pareto
-from master.sweep_table import Point, read_table
+from dsim.master.errors import InputError
+from dsim.master.recording.results import mat_bytes, plot_overlay, plot_signals, read_columns
+from dsim.master.tools.compare import compare_files
+from dsim.master.tools.sweep import mark_pareto
+from dsim.master.tools.sweep_table import Point, read_table
 
 #: most points per curve sent to a browser chart
 MAX_POINTS = 4000
@@ -85,7 +85,7 @@ def sweep_points(folder: Path) -> tuple[list[str], list[Point]]:
 
 def sweep_table(folder: Path) -> tuple[list[str], list[str], list[Point]]:
     """(varied names, KPI labels, points) of a sweep's folder, Pareto front marked; read
-    by dsim's own reader (:func:`master.sweep_table.read_table`), which the writer's
+    by dsim's own reader (:func:`dsim.master.tools.sweep_table.read_table`), which the writer's
     quoting matches."""
     path = folder / "sweep.csv"
     if not path.exists():

@@ -22,13 +22,13 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import (FileResponse, HTMLResponse, JSONResponse, RedirectResponse,
                                Response, StreamingResponse)
 
-from dsim_serve import diagram, results
-from dsim_serve.forms import (FormError, parameter_edits, run_settings, scene_form,
-                              scene_spec, sweep_spec)
-from dsim_serve.run_parameters import checked, command_options, form_groups, form_values
-from dsim_serve.store import ACTIVE, Store
-from dsim_serve.uploads import UploadError, store_scene, store_upload
-from master.sweep import TIGHTEST
+from dsim.master.tools.sweep import TIGHTEST
+from dsim.serve import diagram, results
+from dsim.serve.forms import (FormError, parameter_edits, run_settings, scene_form, scene_spec,
+                              sweep_spec)
+from dsim.serve.run_parameters import checked, command_options, form_groups, form_values
+from dsim.serve.store import ACTIVE, Store
+from dsim.serve.uploads import UploadError, store_scene, store_upload
 
 router = APIRouter()
 api = APIRouter(prefix="/api")
@@ -301,7 +301,7 @@ async def assemble(request: Request):
 
 
 def _save_assembled(request: Request, spec, files) -> int:
-    from dsim_serve.assemble import write_scene
+    from dsim.serve.assemble import write_scene
 
     store = _store(request)
     path = write_scene(spec, files, store.temporary(".ssp"))
@@ -314,7 +314,7 @@ def _save_assembled(request: Request, spec, files) -> int:
 
 @router.get("/scenes/{scene_id}", response_class=HTMLResponse)
 def scene_page(request: Request, scene_id: int, parameter_set: str = ""):
-    from master.settings import SETTINGS, choices
+    from dsim.master.settings import SETTINGS, choices
 
     store = _store(request)
     scene = _get(store, "scenes", scene_id)
@@ -378,7 +378,7 @@ async def parameters_save(request: Request, scene_id: int):
 
 
 def _save_parameter_set(request: Request, scene: dict, name: str, values) -> tuple[int, str]:
-    from dsim_serve.assemble import add_parameter_set
+    from dsim.serve.assemble import add_parameter_set
 
     store = _store(request)
     path = store.temporary(".ssp")
@@ -462,7 +462,7 @@ async def _check_sweep_parameters(request: Request, scene_id: int, spec: dict) -
     """Every value a sweep's model parameters take at the ends of their ranges (every
     entry of a list), checked as ``dsim run --set`` checks them, over the stored scene
     in a child process, before the sweep is queued (FormError listing the problems)."""
-    from dsim_serve.forms import job_sweep
+    from dsim.serve.forms import job_sweep
 
     factors = [f for f in job_sweep(spec).plan().factors if f.is_parameter]
     if not factors:
@@ -500,8 +500,8 @@ def _run_context(request: Request, run_id: int) -> dict:
 def run_page(request: Request, run_id: int, target: str = ""):
     context = _run_context(request, run_id)
     if context["run"]["kind"] == "sweep":
-        from master.sensitivity import Index, ranking
-        from master.sweep_folder import read_sensitivity
+        from dsim.master.tools.sensitivity import Index, ranking
+        from dsim.master.tools.sweep_folder import read_sensitivity
 
         folder = _store(request).run_folder(run_id)
         names, kpis, points = results.sweep_table(folder)
@@ -523,7 +523,7 @@ def run_page(request: Request, run_id: int, target: str = ""):
 
 
 def _cheapest(points, target: float):
-    from master.sweep import cheapest
+    from dsim.master.tools.sweep import cheapest
     return cheapest(points, target)
 
 
@@ -655,7 +655,7 @@ async def run_api(request: Request, scene_id: int):
         raise HTTPException(400, '"parameters" must be a JSON object of name: value')
     if not isinstance(signals, list) or not all(isinstance(s, str) for s in signals):
         raise HTTPException(400, '"signals" must be a JSON list of column names')
-    from master.settings import SETTINGS
+    from dsim.master.settings import SETTINGS
 
     unknown = sorted(set(settings) - set(SETTINGS) | ({"ssd"} & set(settings)))
     if unknown:  # a form has other fields; a JSON body names settings only

@@ -3,7 +3,7 @@ JSON API: what the form shows (built from the FMUs' modelDescriptions: name, typ
 unit, start, limits), and the server-side check of what it sends.
 
 Form fields are untrusted (docs/security.md): their names and values are only text
-handed to dsim's own checks (``dsim run --set``'s, :mod:`master.parameters`), which
+handed to dsim's own checks (``dsim run --set``'s, :mod:`dsim.master.planning.parameters`), which
 run in a child process over the stored scene, as an upload's inspection does; the
 values a run stores are the ones those checks answer.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 
-from dsim_serve.forms import FormError
+from dsim.serve.forms import FormError
 
 #: the prefix of a form field that sets a parameter (``parameter:left.m[1]``)
 FIELD = "parameter:"
@@ -49,7 +49,7 @@ def form_values(fields: dict) -> dict:
 def checked(store, scene: dict, values: dict, max_unpacked: int) -> dict:
     """``values`` (name -> text or JSON value) as a run of ``scene`` applies them, after
     every check of ``dsim run --set``; FormError listing what is wrong."""
-    from dsim_serve.uploads import UploadError, inspect_file
+    from dsim.serve.uploads import UploadError, inspect_file
 
     if not values:
         return {}

@@ -9,8 +9,8 @@ user called them.
 
 The database survives a killed server: every change is one committed
 transaction, and a run in flight when the server died is marked interrupted
-when the next server opens the database (:meth:`dsim_serve.jobs.Jobs.reconcile`).
-Each run records the server that owns it (``owner``, :mod:`dsim_serve.owner`):
+when the next server opens the database (:meth:`dsim.serve.jobs.Jobs.reconcile`).
+Each run records the server that owns it (``owner``, :mod:`dsim.serve.owner`):
 only that server starts and finalises it.
 """
 from __future__ import annotations
@@ -67,7 +67,7 @@ CREATE TABLE IF NOT EXISTS runs (
     steps INTEGER,
     time_reached REAL,
     pid INTEGER,
-    owner TEXT,                      -- the server that owns it (dsim_serve.owner)
+    owner TEXT,                      -- the server that owns it (dsim.serve.owner)
     rerun_of INTEGER,
     cancel_requested INTEGER NOT NULL DEFAULT 0,
     created REAL NOT NULL,

@@ -1,5 +1,5 @@
 """Uploads: an FMU or an .ssp archive becomes a stored model or scene, after dsim's
-own checks of untrusted input, run in a child process (:mod:`dsim_serve.inspect`).
+own checks of untrusted input, run in a child process (:mod:`dsim.serve.inspect`).
 
 A file is told apart by its content (a zip archive with a modelDescription.xml is
 an FMU, one with a SystemStructure.ssd at its root a scene), never by the name it
@@ -16,8 +16,8 @@ import threading
 import zipfile
 from pathlib import Path
 
-from dsim_serve.jobs import child_env
-from dsim_serve.store import Store
+from dsim.serve.jobs import child_env
+from dsim.serve.store import Store
 
 #: seconds an inspection may take
 INSPECT_TIMEOUT = 300
@@ -37,13 +37,13 @@ class UploadError(Exception):
 
 def inspect_file(kind: str, path: Path, max_unpacked: int, shown: str,
                  given: str | None = None) -> dict:
-    """The description :mod:`dsim_serve.inspect` makes of a file in a child process
+    """The description :mod:`dsim.serve.inspect` makes of a file in a child process
     (``kind``: fmu, ssp, or parameters with ``given``, JSON text, on its standard
     input); UploadError with its problems, the temporary path in them replaced by
     ``shown``."""
     try:
         with INSPECTIONS:
-            child = subprocess.run([sys.executable, "-m", "dsim_serve.inspect", kind,
+            child = subprocess.run([sys.executable, "-m", "dsim.serve.inspect", kind,
                                     str(path), str(max_unpacked)], capture_output=True,
                                    text=True, timeout=INSPECT_TIMEOUT, env=child_env(),
                                    input=given)

@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from build_fmus.scenes import CHAIN
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.build_fmus.scenes import CHAIN
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
 
 
 def monolithic(n: int, stop: float = CHAIN["stop"], step: float = CHAIN["step"]):
@@ -29,7 +29,7 @@ def monolithic(n: int, stop: float = CHAIN["stop"], step: float = CHAIN["step"])
 def compare(csv_path, n: int) -> dict:
     """Largest difference of any mass from the reference, absolute (m) and
     relative to the reference's peak."""
-    from master.results import read_csv
+    from dsim.master.recording.results import read_csv
 
     header, data = read_csv(csv_path)
     times = data[:, 0]

@@ -5,12 +5,12 @@ Monolithic references, each the same trapezoidal rule, Baumgarte rows (xi = 1,
 w = 1000 rad/s, the glue joints' penalized measure) and step H = 1e-3 s:
 
 * rigid coupler (crank_slider_rigid): crank, coupler and slider in one planar
-  multibody :class:`~fmus.linkage.core.Linkage` (revolutes O, A, B, prismatic
+  multibody :class:`~dsim.fmus.linkage.core.Linkage` (revolutes O, A, B, prismatic
   rail, crank driver);
 * flexible coupler (crank_slider_flexible): crank and slider rigid, the coupler
   the same floating-frame Euler-Bernoulli beam as FlexibleLink2D (6 elements,
   same reference condition), joints A and B as constraint rows, all in one
-  :class:`~fmus.flexible_link.mechanism.FlexibleMechanism` solved by one Newton
+  :class:`~dsim.fmus.flexible_link.mechanism.FlexibleMechanism` solved by one Newton
   per step (no PIM, no gluing).  The flexible scene is also compared with the
   rigid model, as an informational number: that difference is the coupler's
   flexibility, not a gluing error.
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.linkage_scenes import COUPLER, CRANK_SLIDER
-from fmus.linkage.scenes import crank_slider
+from dsim.build_fmus.linkage_scenes import COUPLER, CRANK_SLIDER
+from dsim.fmus.linkage.scenes import crank_slider
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -64,10 +64,10 @@ def monolithic_flexible(stop: float = CRANK_SLIDER["stop"],
                         step: float = CRANK_SLIDER["step"]) -> dict:
     """The whole crank slider with the flexible coupler of crank_slider_flexible
     (COUPLER's beam: length, density, section, E, elements) as one
-    :class:`~fmus.flexible_link.mechanism.FlexibleMechanism`; rows as
+    :class:`~dsim.fmus.flexible_link.mechanism.FlexibleMechanism`; rows as
     :func:`monolithic` (``omega`` is the coupler's reference-frame rate, the scene's
     ``coupler.omega``), plus ``newton_iterations`` per step."""
-    from fmus.flexible_link.mechanism import crank_slider_flexible
+    from dsim.fmus.flexible_link.mechanism import crank_slider_flexible
 
     beam = {key: COUPLER[key] for key in ("density", "area", "young", "second_moment",
                                            "elements")}
@@ -99,7 +99,7 @@ def compare(csv_path, reference: dict | None = None, flexible: bool = False) -> 
     writes zero forces there, the mechanism starts at rest so they are zero).
     Without ``reference`` the monolithic model is run here, with the flexible
     coupler if ``flexible``."""
-    from master.results import read_csv
+    from dsim.master.recording.results import read_csv
 
     header, data = read_csv(csv_path)
     times = data[:, 0]
@@ -133,7 +133,7 @@ def main(flexible: bool = False, plot: bool = False, stop: float | None = None,
     """Run crank_slider_rigid (or _flexible) through dsim and compare it with its
     monolithic reference; the flexible scene also with the rigid monolithic model
     (``result["rigid"]``, informational: the coupler's flexibility)."""
-    from master.api import simulate
+    from dsim.master.api import simulate
 
     name = "crank_slider_flexible" if flexible else "crank_slider_rigid"
     csv_path = Path(out_dir) / f"{name}.csv"
@@ -154,7 +154,7 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from master.results import save_figure
+    from dsim.master.recording.results import save_figure
 
     figure, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 8))
     t = result["times"]

@@ -1,6 +1,6 @@
 """Seed section 5.3.2: the parallelogram four bar glued from three FMUs through
 its singular (collinear) configurations, against the whole mechanism in one
-:class:`~fmus.linkage.core.Linkage`.
+:class:`~dsim.fmus.linkage.core.Linkage`.
 
 Monolithic references, one per scene (``TWINS``): ``fixed`` -- revolutes A and B as
 position-level (index-3) rows, which is what fixed glue joints on the displacement
@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.linkage_scenes import FOUR_BAR
-from fmus.linkage import Linkage
-from fmus.linkage.scenes import four_bar, four_bar_mechanism
+from dsim.build_fmus.linkage_scenes import FOUR_BAR
+from dsim.fmus.linkage import Linkage
+from dsim.fmus.linkage.scenes import four_bar, four_bar_mechanism
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -78,7 +78,7 @@ def monolithic(scene: str, stop: float = FOUR_BAR["stop"], step: float = FOUR_BA
         if joints == "fixed":
             return out["A.f_x"], out["A.f_y"]
         # bushing A: force on body_i (coupler) = -(k q + c q'), q = coupler.A - crank.A
-        from fmus.linkage.kinematics import point_kinematics
+        from dsim.fmus.linkage.kinematics import point_kinematics
         bodies = np.array([1, 0])
         points = np.array([[-1.0, 0.0], [0.5, 0.0]])
         pos, vel, _ = point_kinematics(whole.q, whole.v, whole.a, bodies, points)
@@ -99,7 +99,7 @@ def compare(csv_path, scene: str) -> dict:
     """Glued (CSV rows of four_bar_singular_<scene>, possibly a failed run's converged
     part) against its twin: largest force difference at A (N) and its ratio to the
     peak, rocker angular velocity difference (rad/s)."""
-    from master.results import read_csv
+    from dsim.master.recording.results import read_csv
 
     header, data = read_csv(csv_path)
     times = data[:, 0]
@@ -141,7 +141,7 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from master.results import save_figure
+    from dsim.master.recording.results import save_figure
 
     figure, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
     t = result["times"]

@@ -25,10 +25,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from build_fmus.four_post_scenes import (CORNERS, FOUR_POST, body_parameters, fidelity_values,
-                                         post_parameters)
-from fmus.elastic.body_spec import build_body, spec_from_parameters
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.build_fmus.four_post_scenes import (CORNERS, FOUR_POST, body_parameters, fidelity_values,
+                                              post_parameters)
+from dsim.fmus.elastic.body_spec import build_body, spec_from_parameters
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
 
 ROOT = Path(__file__).resolve().parent.parent
 #: the scene folder, where its mesh_file values ("resources/meshes/...") are
@@ -51,7 +51,7 @@ def kirchhoff_frequencies(count: int = 6, element_size: float = 0.1) -> np.ndarr
     from skfem import Basis, BilinearForm, ElementTriArgyris, MeshTri, asm
     from skfem.helpers import dd, ddot, eye, trace
 
-    from fmus.elastic.reduction import generalized_eigen
+    from dsim.fmus.elastic.reduction import generalized_eigen
 
     p = FOUR_POST
     rigidity = p["youngs_modulus"] * p["thickness"] ** 3 / (12 * (1 - p["poisson_ratio"] ** 2))
@@ -78,8 +78,8 @@ def free_plate_frequencies(element_size: float, order: int, count: int = 6) -> n
     """Lowest ``count`` elastic frequencies (Hz) of the free plate as a solid: hexahedra of
     ``element_size`` in plane, one through the thickness, ``order`` 1 (8-node) or 2
     (20-node serendipity)."""
-    from build_fmus.four_post_scenes import plate_mesh
-    from fmus.elastic import ElasticBody, Material
+    from dsim.build_fmus.four_post_scenes import plate_mesh
+    from dsim.fmus.elastic import ElasticBody, Material
 
     p = FOUR_POST
     body = ElasticBody(plate_mesh(element_size),
@@ -214,7 +214,7 @@ def compare(glued: dict, reference: dict) -> dict:
 
 def run_glued(joints: str, stop: float, **settings):
     """The glued scene build/ssp/four_post_<joints>.ssp through dsim (signals in memory)."""
-    from master.api import simulate
+    from dsim.master.api import simulate
 
     result = simulate(ROOT / "build" / "ssp" / f"four_post_{joints}.ssp", stop=stop,
                       **settings)
@@ -240,7 +240,7 @@ def plot_motion(glued: dict, reference: dict, fixed: dict, snapshot: tuple, png:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from master.results import save_figure
+    from dsim.master.recording.results import save_figure
 
     figure = plt.figure(figsize=(11, 8))
     grid = figure.add_gridspec(3, 2, width_ratios=(1.6, 1))

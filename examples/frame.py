@@ -2,7 +2,7 @@
 finite-element FMUs (two rails, three cross members) glued node to node on its six
 interface edges, against the same frame meshed as one body.
 
-Monolithic reference: :func:`fmus.elastic.frame.monolithic_frame`, the frame as one
+Monolithic reference: :func:`dsim.fmus.elastic.frame.monolithic_frame`, the frame as one
 plane-stress mesh (nodes shared on the interfaces), the same Newmark average-acceleration
 rule and step H = 1e-4 s. The seed reports no difference beyond round-off (Fig. 2.11):
 glued and monolithic load-point displacement agree to 1e-8 of the peak.
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
+from dsim.fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
 
 ROOT = Path(__file__).resolve().parent.parent
 OUTPUT = "cross_front.load.u_x"
@@ -26,7 +26,7 @@ OUTPUT = "cross_front.load.u_x"
 def compare(csv_path, reference=None) -> dict:
     """Largest difference of the load-point x displacement between a glued run and the
     monolithic frame, absolute (m) and relative to the reference's peak; interface forces."""
-    from master.results import read_csv
+    from dsim.master.recording.results import read_csv
 
     header, data = read_csv(csv_path)
     times = data[:, 0]
@@ -45,7 +45,7 @@ def compare(csv_path, reference=None) -> dict:
 
 def main(plot: bool = False, stop: float = STOP_TIME, out_dir=ROOT / "results") -> dict:
     """Run build/ssp/frame_split.ssp through dsim and compare it with the monolithic frame."""
-    from master.api import simulate
+    from dsim.master.api import simulate
 
     csv_path = Path(out_dir) / "frame_split.csv"
     statistics = simulate(ROOT / "build" / "ssp" / "frame_split.ssp", out=csv_path, stop=stop)
@@ -63,7 +63,7 @@ def plot_comparison(result: dict, png: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from master.results import save_figure
+    from dsim.master.recording.results import save_figure
 
     times = result["times"]
     figure, (top, middle, bottom) = plt.subplots(3, 1, sharex=True, figsize=(8, 8))

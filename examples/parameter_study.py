@@ -21,7 +21,7 @@ KPIs therefore depend on the compliances 1/k_g and 1/k_r and hardly on m3, and k
 matters more than k_r because its compliance spans twice as much over its range
 (1/50 - 1/200 = 0.015 m/N against 1/100 - 1/400 = 0.0075 m/N): the ranking must be
 k_g > k_r > m3.  The monolithic twin of the scene (the same chain in one model,
-:class:`fmus.spring_mass.core.SpringMassChain`, same integrator and step) is run at
+:class:`dsim.fmus.spring_mass.core.SpringMassChain`, same integrator and step) is run at
 every sampled point too: the glued KPIs are compared with the twin's, and the
 twin's own ranking is the reference ranking.
 
@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.scenes import SPRING_MASS
+from dsim.build_fmus.scenes import SPRING_MASS
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "build" / "ssp" / "spring_mass_linear.ssp"
@@ -50,9 +50,9 @@ PHYSICS_RANKING = ["left.k_ground[1]", "right.k[1]", "right.m[2]"]
 
 
 def sweep_of(samples: int = SAMPLES, stop: float = STOP, backend: str | None = None):
-    """The study as a :class:`~master.sweep.Sweep`."""
-    from master.design import parse_vary
-    from master.sweep import Sweep
+    """The study as a :class:`~dsim.master.tools.sweep.Sweep`."""
+    from dsim.master.tools.design import parse_vary
+    from dsim.master.tools.sweep import Sweep
 
     fixed = {"stop": stop, **({"backend": backend} if backend else {})}
     return Sweep(vary=[parse_vary(f, sampled=True) for f in FACTORS], design="lhs",
@@ -80,8 +80,8 @@ def static_deflection(configuration: dict) -> float:
 def twin_kpis(configuration: dict, stop: float = STOP) -> dict:
     """The KPIs of the monolithic twin (eq. 5.37's chain in one model, the scene's
     integrator and step) at a point's parameters."""
-    from fmus.spring_mass.core import ChainParameters, SpringMassChain
-    from master.kpi import parse
+    from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
+    from dsim.master.tools.kpi import parse
 
     p = SPRING_MASS
     params = ChainParameters(n=3)
@@ -103,8 +103,8 @@ def main(plot: bool = False, samples: int = SAMPLES, stop: float = STOP,
     Returns the points, each KPI's largest difference from the twin relative to the
     twin's value, the largest gap of the mean position from x_s, and the rankings
     (the sweep's, the twin's) per KPI."""
-    from master import sensitivity
-    from master.sweep import run_sweep
+    from dsim.master.tools import sensitivity
+    from dsim.master.tools.sweep import run_sweep
 
     sweep = sweep_of(samples, stop, backend)
     points, interrupted = run_sweep(SCENE, sweep, Path(out), progress, resumed=resumed)

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.scenes import SPRING_MASS
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.build_fmus.scenes import SPRING_MASS
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -40,7 +40,7 @@ def monolithic(nonlinear: bool, stop: float = SPRING_MASS["stop"],
 def compare(csv_path, nonlinear: bool) -> dict:
     """Largest difference of m3's position between a glued run and the reference,
     absolute (m) and relative to the reference's peak |x3|."""
-    from master.results import read_csv
+    from dsim.master.recording.results import read_csv
 
     header, data = read_csv(csv_path)
     times = data[:, 0]
@@ -56,7 +56,7 @@ def compare(csv_path, nonlinear: bool) -> dict:
 
 def main(nonlinear: bool = True, plot: bool = False, out_dir=ROOT / "results") -> dict:
     """Run the glued scene through dsim and compare it with the reference."""
-    from master.api import simulate
+    from dsim.master.api import simulate
 
     name = "spring_mass_nonlinear" if nonlinear else "spring_mass_linear"
     csv_path = Path(out_dir) / f"{name}.csv"
@@ -74,7 +74,7 @@ def plot_comparison(result: dict, png: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from master.results import save_figure
+    from dsim.master.recording.results import save_figure
 
     figure, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(8, 5))
     top.plot(result["times"], result["reference"], "k-", lw=2.5, label="monolithic (eq. 5.37)")

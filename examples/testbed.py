@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.build import pack_scene
-from build_fmus.scenes import SceneWriter
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.build_fmus.build import pack_scene
+from dsim.build_fmus.scenes import SceneWriter
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from build_fmus.linkage_scenes import FOUR_BAR
-from build_fmus.scenes import CHAIN, SPRING_MASS
+from dsim.build_fmus.linkage_scenes import FOUR_BAR
+from dsim.build_fmus.scenes import CHAIN, SPRING_MASS
 
 
 #: the twin's step as a fraction of the scene's
@@ -52,7 +52,7 @@ def four_bar_twin(scene: str, refinement: int = REFINEMENT,
 
 def _frame() -> dict:
     from examples.frame import OUTPUT
-    from fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
+    from dsim.fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
 
     r = monolithic_frame(step_size=STEP_SIZE / REFINEMENT, stop_time=STOP_TIME)
     return {"time": r.time, OUTPUT: r.load_u_x}
@@ -85,7 +85,7 @@ def twin_csv(scene: str) -> bytes:
 
 
 def main(argv=None) -> int:
-    from master.output_files import write_whole
+    from dsim.master.recording.output_files import write_whole
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("scene", choices=sorted(TWINS))

@@ -1,4 +1,4 @@
-"""What every pythonfmu wrapper of an :class:`~fmus.interface.InterfaceCore` shares.
+"""What every pythonfmu wrapper of an :class:`~dsim.fmus.interface.InterfaceCore` shares.
 
 pythonfmu finds the model class by a regular expression that wants
 ``class Name(Fmi2Slave):`` verbatim, so the shared part cannot be a base class;
@@ -32,7 +32,7 @@ import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
-from fmus.interface import InterfaceCore
+from .interface import InterfaceCore
 
 KINEMATIC_PREFIXES = ("u", "v", "a")
 

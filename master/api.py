@@ -1,31 +1,32 @@
 """The Python API that the command line, sweeps, regression runs and the web front
 end call: :func:`prepare` checks a scene and its settings into a plan,
-:func:`simulate` runs one to the end and returns its :class:`~master.results.RunResult`.
+:func:`simulate` runs one to the end and returns its :class:`~dsim.master.recording.results.RunResult`.
 """
 from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
 
-from master.errors import InputError
-from master.execution import Execution
-from master.observers import CsvRecorder, MatWriter, PlotWriter, ProgressBar, StatisticsWriter
-from master.parameters import require_mapping, with_parameters
-from master.plan import make_plan
-from master.results import RunResult
-from master.scene import Scene
-from master.settings import BACKEND_OPTIONS, resolve
-from master.ssp import load_scene
+from dsim.master.errors import InputError
+from dsim.master.planning.parameters import require_mapping, with_parameters
+from dsim.master.planning.plan import make_plan
+from dsim.master.reading.ssp import load_scene
+from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter, ProgressBar,
+                                             StatisticsWriter)
+from dsim.master.recording.results import RunResult
+from dsim.master.running.execution import Execution
+from dsim.master.scene import Scene
+from dsim.master.settings import BACKEND_OPTIONS, resolve
 
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, **settings):
-    """The checked :class:`~master.plan.Plan` of ``scene`` (an .ssp archive, a scene
-    folder, an .ssd file, or a :class:`~master.scene.Scene`) with ``settings``
+    """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
+    folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
     options: stop, step, tolerance, relative_tolerance, max_iterations,
     refresh_after, perturbation, predictor, refresh, convergence, coupling, start,
-    backend, address, call_timeout, parameter_set, ssd; ``master.settings.SETTINGS``
+    backend, address, call_timeout, parameter_set, ssd; ``dsim.master.settings.SETTINGS``
     holds them all).  ``load_libraries=False`` checks each FMU's
     library as bytes without loading it (no code of the FMU runs: what ``dsim
     validate`` and ``dsim serve``'s uploads do).  ``strict``: refuse what would
@@ -37,7 +38,7 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     ``outputs``: glob patterns of the columns to record (default: every one);
     ``output_interval``: record every this many seconds, a whole multiple of the
     macro step (default: every step; docs/results.md).
-    Raises :class:`~master.errors.InputError` listing every problem."""
+    Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     parameters = require_mapping(parameters)
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
@@ -65,15 +66,15 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,
              observers=(), handle_signals: bool = True, force: bool = False,
              **settings) -> RunResult:
-    """Run ``scene`` to its stop time and return the :class:`~master.results.RunResult`,
+    """Run ``scene`` to its stop time and return the :class:`~dsim.master.recording.results.RunResult`,
     also when the run fails or is interrupted (``result.status``).
 
     ``out``: results CSV to write (its statistics JSON goes beside it, or to
     ``statistics``); without it the signals are kept in memory.  ``plot``: a PNG of
     the signals.  ``mat``: a MATLAB .mat file of them.  ``progress``: a progress bar on a terminal.  ``observers``: more
-    :class:`~master.observers.Observer` objects.  ``handle_signals``: SIGINT and
+    :class:`~dsim.master.recording.observers.Observer` objects.  ``handle_signals``: SIGINT and
     SIGTERM end the run after the current step (main thread only); a second one ends
-    the process at once, files kept (:mod:`master.interrupts`).  ``force``: run
+    the process at once, files kept (:mod:`dsim.master.running.interrupts`).  ``force``: run
     even when the CSV would not fit the free disk space (else refused before the
     run, as bad input).  ``parameters``, ``outputs``, ``output_interval`` and the other
     keywords are as :func:`prepare` takes them.  Raises InputError for bad input, before

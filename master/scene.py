@@ -1,5 +1,5 @@
 """The plain, immutable description of a glued system that the SSP reader
-(:mod:`master.ssp`) produces and the rest of the master consumes."""
+(:mod:`dsim.master.reading.ssp`) produces and the rest of the master consumes."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -172,12 +172,12 @@ class Scene:
     #: the SSP version the SystemStructure.ssd declares (1.0, 2.0, ...)
     ssp_version: str = ""
     #: where the macro step came from: the step setting, glue:Master, another tool's
-    #: annotation (master.ssp_tools) or dsim's default (dsim info and validate say it)
+    #: annotation (dsim.master.reading.ssp_tools) or dsim's default (dsim info and validate say it)
     step_from: str = "dsim's default"
     #: the parameter sets chosen on top of the scene's bindings (``parameter_set``)
     parameter_sets: tuple[str, ...] = ()
     #: values given for this run on top of every binding (``parameters=``, ``--set``):
-    #: full name -> the value applied (master.parameters)
+    #: full name -> the value applied (dsim.master.planning.parameters)
     overrides: dict = field(default_factory=dict)
 
     def component(self, path: str) -> Component:

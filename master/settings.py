@@ -3,7 +3,7 @@
 The scene's ``glue:Master`` annotation, the command line (``dsim run --tolerance``) and
 the Python API (``dsim.simulate(scene, tolerance=...)``) all pass through
 :func:`resolve`, so a value is valid in one exactly when it is valid in the others,
-and an invalid one is bad input (:class:`~master.errors.InputError`) that says which
+and an invalid one is bad input (:class:`~dsim.master.errors.InputError`) that says which
 values are valid.  The names that choose an implementation (coupling, predictor,
 refresh policy, convergence test, start, backend) are checked against the registries that hold the
 implementations, so a new entry in a registry is a valid setting at once.
@@ -13,25 +13,25 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 
-from master.errors import InputError
-from master.scene import MasterSettings
+from dsim.master.errors import InputError
+from dsim.master.scene import MasterSettings
 
 
 def _choices(setting: str) -> tuple[str, ...]:
     """Valid names of a setting that selects an implementation (from its registry)."""
     # imported here: the registries import the modules they register, which need settings
     if setting == "coupling":
-        from master.couplings import COUPLINGS as registry
+        from dsim.master.running.couplings import COUPLINGS as registry
     elif setting == "predictor":
-        from master.couplings.predictors import PREDICTORS as registry
+        from dsim.master.running.couplings.predictors import PREDICTORS as registry
     elif setting == "refresh":
-        from master.couplings.refresh import REFRESH_POLICIES as registry
+        from dsim.master.running.couplings.refresh import REFRESH_POLICIES as registry
     elif setting == "convergence":
-        from master.couplings.convergence import CONVERGENCE_TESTS as registry
+        from dsim.master.running.couplings.convergence import CONVERGENCE_TESTS as registry
     elif setting == "start":
-        from master.start import START_MODES as registry
+        from dsim.master.running.start import START_MODES as registry
     else:
-        from master.backends import BACKENDS as registry
+        from dsim.master.running.backends import BACKENDS as registry
     return tuple(registry)
 
 

@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.fixture(scope="session")
 def built():
     """Paths of build/fmus and build/ssp after building what is out of date."""
-    from build_fmus.build import build_fmus, pack_scenes
+    from dsim.build_fmus.build import build_fmus, pack_scenes
 
     build_fmus(log=lambda message: None)
     pack_scenes(log=lambda message: None)
@@ -49,7 +49,7 @@ def ray_local():
 
 @pytest.hookimpl(trylast=True)
 def pytest_unconfigure(config):
-    """End the test process as the dsim command ends (master/process_exit.py): without
+    """End the test process as the dsim command ends (master/tools/process_exit.py): without
     the native exit handlers of the FMU libraries loaded in it.  pythonfmu's library
     cannot be unloaded and releases its interpreter state twice at exit, which now and
     then aborts a process that has finished all its work; pytest's own work is done

@@ -1,13 +1,13 @@
 """Marching in-process cores glued by the master's own T-T algorithm
-(:func:`master.assembly.glue_cores`), for tests that compare parts with a whole."""
+(:func:`dsim.master.planning.assembly.glue_cores`), for tests that compare parts with a whole."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from master.assembly import glue_cores
-from master.scene import Joint, MasterSettings
+from dsim.master.planning.assembly import glue_cores
+from dsim.master.scene import Joint, MasterSettings
 
 
 def penalized_joint(name, a, b, row_coefficients, dofs=("x", "y")) -> Joint:

@@ -15,7 +15,7 @@ SCENES = ("four_bar_singular_fixed", "four_bar_singular_flexible", "four_bar_sin
 
 def main(out: Path) -> int:
     from examples.twins import TWINS, twin_csv
-    from master.cli import main as dsim
+    from dsim.master.tools.cli import main as dsim
 
     out.mkdir(parents=True, exist_ok=True)
     for joints in ("fixed", "penalized", "flexible"):

@@ -25,7 +25,7 @@ pytest.importorskip("httpx", reason="FastAPI's TestClient needs httpx (make test
 
 from fastapi.testclient import TestClient  # noqa: E402
 
-from dsim_serve.app import create_app  # noqa: E402
+from dsim.serve.app import create_app  # noqa: E402
 
 #: the spring_mass_linear scene assembled in forms, as the shipped one is written
 SPRING_MASS_FORM = {
@@ -90,7 +90,7 @@ class ServerProcess:
         self.log = self.db.with_suffix(f".{time.monotonic_ns()}.log")
         with open(self.log, "wb") as log:
             self.process = subprocess.Popen(
-                [sys.executable, "-m", "master.cli", "serve", "--db", str(db), "--port", "0",
+                [sys.executable, "-m", "dsim.master.tools.cli", "serve", "--db", str(db), "--port", "0",
                  *options], stdout=log, stderr=subprocess.STDOUT, cwd=ROOT,
                 env={**os.environ, "PYTHONPATH": str(ROOT)})
         self.port = self._wait_listening()

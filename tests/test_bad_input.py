@@ -6,8 +6,8 @@ import zipfile
 
 import numpy as np
 
-from master.cli import main
-from master.results import read_csv
+from dsim.master.recording.results import read_csv
+from dsim.master.tools.cli import main
 
 
 def archive_with(tmp_path, built, replace=(), drop=()):
@@ -90,7 +90,7 @@ def test_unknown_parameter_and_bad_master_setting(capsys, tmp_path, built):
 
 
 def test_bad_input_through_the_console_has_no_traceback(tmp_path):
-    process = subprocess.run([sys.executable, "-m", "master.cli", "run",
+    process = subprocess.run([sys.executable, "-m", "dsim.master.tools.cli", "run",
                               str(tmp_path / "missing.ssp")], capture_output=True, text=True)
     assert process.returncode == 2
     assert "Traceback" not in process.stderr and len(process.stderr.splitlines()) == 1

@@ -7,10 +7,10 @@ import shutil
 import numpy as np
 import pytest
 
-from master.cli import main
-from master.compare import EPS, NOISE_FACTOR, ULPS, band, compare_files
-from master.kernel_study import openblas_cores, supported_kernels
-from master.regress import find_cases
+from dsim.master.tools.cli import main
+from dsim.master.tools.compare import EPS, NOISE_FACTOR, ULPS, band, compare_files
+from dsim.master.tools.kernel_study import openblas_cores, supported_kernels
+from dsim.master.tools.regress import find_cases
 from tests.test_compare import write
 
 TIMES = np.linspace(0.0, 1.0, 11)

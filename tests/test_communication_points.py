@@ -1,5 +1,5 @@
 """Communication points are start + n * step, computed, never summed, and no step
-ends past the stop time, also in an FMU's own sum t + h (master/timeline.py): a C
+ends past the stop time, also in an FMU's own sum t + h (master/running/timeline.py): a C
 block that refuses a step ending past its stopTime by any amount (failure 8, as
 some tools' FMUs do) runs every step size / stop time pair to the end."""
 import itertools
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import dsim
-from master.timeline import halves, size_to, step_count
+from dsim.master.running.timeline import halves, size_to, step_count
 from tests.scene_files import component, scene_folder, ssd
 
 STEPS = (0.1, 0.003, 1e-3, 1e-4, 1 / 3)

@@ -1,7 +1,7 @@
 """`dsim compare`: the regression check a CI job runs on a results CSV."""
 import numpy as np
 
-from master.cli import main
+from dsim.master.tools.cli import main
 
 
 def write(path, times, columns):

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from examples import parameter_study as study
-from master.cli import main
-from master.design import Design, parse_vary
-from master.errors import InputError
-from master.kpi import parse, parse_all
+from dsim.master.errors import InputError
+from dsim.master.tools.cli import main
+from dsim.master.tools.design import Design, parse_vary
+from dsim.master.tools.kpi import parse, parse_all
 from tests.test_nothing_lost import DSIM, ROOT
 
 

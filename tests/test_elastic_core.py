@@ -7,9 +7,9 @@ I = t H^3 / 12, A = t H. The beam is slender (L / H = 50) so shear deformation i
 import numpy as np
 import pytest
 
-from fmus.elastic import (STEEL, ElasticBody, PointLoad, craig_bampton_error, in_box,
-                          load_mesh, rectangle)
-from fmus.elastic import frame
+from dsim.fmus.elastic import (STEEL, ElasticBody, PointLoad, craig_bampton_error, in_box,
+                               load_mesh, rectangle)
+from dsim.fmus.elastic import frame
 
 E, RHO = STEEL.youngs_modulus, STEEL.density
 L, H, T = 1.0, 0.02, 0.01
@@ -172,7 +172,7 @@ def test_a_repeated_step_takes_the_linear_response_and_equals_the_full_step():
     by q1 + Z dF once the step size has seen as many repeats as the body has interface
     dofs; the state equals a fresh body's full step to round-off, and a repeat with the
     first forces is the first end state bit for bit."""
-    from fmus.elastic.retry import RepeatedStep
+    from dsim.fmus.elastic.retry import RepeatedStep
 
     h, rng = 1e-4, np.random.default_rng(7)
     body, fresh = frame.cross_front(), frame.cross_front()
@@ -343,7 +343,7 @@ def test_lumped_mass_keeps_total_mass_and_softens():
 
 
 def test_solid_hex_cantilever_with_rigid_end():
-    from fmus.elastic import box
+    from dsim.fmus.elastic import box
     side, length, force = 0.05, 1.0, -1000.0
     body = ElasticBody(box(0, length, 0, side, 0, side, side / 4), STEEL,
                        node_sets={"root": in_box((0, 0, 0), (0, side, side)),

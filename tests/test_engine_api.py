@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import dsim
-from master.cli import main
+from dsim.master.tools.cli import main
 
 
 def test_simulate_returns_signals_statistics_and_files(built, tmp_path):

@@ -3,7 +3,7 @@
 An FMU that refuses its parameters, fails a step or goes fatal ends the command with
 its documented exit code (2 bad input, 1 a failed run) and one line saying why, and
 the process ends with that code: the dsim command skips the FMU libraries' exit
-handlers (master/process_exit.py), where pythonfmu's crashed it about once in 90
+handlers (master/tools/process_exit.py), where pythonfmu's crashed it about once in 90
 runs.  So every path runs many times, two processes side by side as a loaded
 machine runs them.  Our own FMUs refuse parameters without going fatal, and dsim
 frees an instance that failed initialization unless it went fatal."""
@@ -18,8 +18,8 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
-from master.cli import main
-from master.fmu import _MESSAGES
+from dsim.master.running.fmu import _MESSAGES
+from dsim.master.tools.cli import main
 from tests.scene_files import component, edited_archive, scene_folder, ssd
 from tests.test_nothing_lost import ROOT, block_scene
 from tests.third_party.build import c_fmu
@@ -69,7 +69,7 @@ def scenes(built, block_fmus, tmp_path_factory):
 
 
 def run(scene: Path, out: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "master.cli", "run", str(scene), "--out",
+    return subprocess.run([sys.executable, "-m", "dsim.master.tools.cli", "run", str(scene), "--out",
                            str(out), "--quiet"], capture_output=True, text=True, cwd=ROOT,
                           env={**os.environ, "OMP_NUM_THREADS": "1"})
 

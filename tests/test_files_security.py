@@ -15,14 +15,14 @@ from pathlib import Path
 import pytest
 
 import dsim
-from master.errors import InputError
-from master.observers import CsvRecorder, RunInfo
-from master.output_files import OutputFile
-from master.unpacking import sweep_dead_folders
+from dsim.master.errors import InputError
+from dsim.master.reading.unpacking import sweep_dead_folders
+from dsim.master.recording.observers import CsvRecorder, RunInfo
+from dsim.master.recording.output_files import OutputFile
 from tests.scene_files import component, pack, scene_folder, ssd
 
 ROOT = Path(__file__).resolve().parent.parent
-CLI = [sys.executable, "-m", "master.cli"]
+CLI = [sys.executable, "-m", "dsim.master.tools.cli"]
 
 
 def digest(path: Path) -> str:
@@ -30,7 +30,7 @@ def digest(path: Path) -> str:
 
 
 def dsim_cli(*args, tmpdir: Path | None = None, env=None, timeout=120):
-    """``python -m master.cli ARGS``: (exit code, stderr lines)."""
+    """``python -m dsim.master.tools.cli ARGS``: (exit code, stderr lines)."""
     environment = dict(os.environ, **(env or {}))
     if tmpdir is not None:
         tmpdir.mkdir(exist_ok=True)
@@ -104,7 +104,7 @@ def test_two_runs_on_one_output_never_mix(tmp_path):
 
 KILLED_WRITER = """
 import os, sys
-from master.output_files import OutputFile
+from dsim.master.recording.output_files import OutputFile
 output = OutputFile(sys.argv[1])
 output.open()
 output.append(b"time\\n0.0\\n")

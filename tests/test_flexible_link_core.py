@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from fmus.flexible_link import FlexibleLink
-from fmus.linkage.scenes import crank_slider
+from dsim.fmus.flexible_link import FlexibleLink
+from dsim.fmus.linkage.scenes import crank_slider
 from tests.gluing_helpers import march, penalized_joint
 
 STEEL = dict(length=6.0, density=7850.0, area=0.01, young=210e9, second_moment=0.1 ** 4 / 12)

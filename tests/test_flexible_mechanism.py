@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fmus.flexible_link.mechanism import crank_slider_flexible
-from fmus.linkage.scenes import crank_slider
+from dsim.fmus.flexible_link.mechanism import crank_slider_flexible
+from dsim.fmus.linkage.scenes import crank_slider
 
 H, STEPS = 1e-3, 300
 

@@ -3,7 +3,7 @@ and passes its validation: a user can open any of them without a scene."""
 import numpy as np
 import pytest
 
-from build_fmus.build import FMU_SCRIPTS
+from dsim.build_fmus.build import FMU_SCRIPTS
 
 
 @pytest.mark.parametrize("name", sorted(FMU_SCRIPTS))
@@ -31,7 +31,7 @@ def test_every_fmu_in_the_build_folder_is_one_the_test_covers(built):
 def test_the_elastic_body_without_a_mesh_file_is_the_built_in_beam():
     """ElasticBody's default body: 1 m x 0.1 m, 20 x 2 quads (21 x 3 nodes), steel
     0.01 m thick: its mass is rho L h t."""
-    from fmus.elastic.body_spec import BodySpec, build_body
+    from dsim.fmus.elastic.body_spec import BodySpec, build_body
 
     body = build_body(BodySpec())
     assert body.mesh.p.shape == (2, 63)

@@ -6,10 +6,10 @@ import meshio
 import numpy as np
 import pytest
 
-from build_fmus.four_post_scenes import FIDELITY, FOUR_POST
+from dsim.build_fmus.four_post_scenes import FIDELITY, FOUR_POST
 from examples import four_post
-from master.api import simulate
-from master.ssp import load_scene
+from dsim.master.api import simulate
+from dsim.master.reading.ssp import load_scene
 from tests.scene_files import edited_archive
 
 #: through the front bump (0.5 to 0.6 s) and a little after; coarse mesh for speed
@@ -101,8 +101,8 @@ def test_generic_fmu_from_a_user_mesh_file(built, tmp_path):
     from fmpy import simulate_fmu
     from fmpy.validation import validate_fmu
 
-    from fmus.elastic import rectangle
-    from fmus.elastic.body_spec import build_body, spec_from_parameters
+    from dsim.fmus.elastic import rectangle
+    from dsim.fmus.elastic.body_spec import build_body, spec_from_parameters
 
     length, depth, thickness, load = 1.0, 0.05, 0.01, -100.0
     mesh = rectangle(0.0, length, 0.0, depth, 0.0125, kind="tri")
@@ -143,7 +143,7 @@ def test_scene_settings_are_the_seeds(built):
 ], ids=["2-D box on a 3-D mesh", "unknown fidelity", "not a mesh"])
 def test_a_plate_the_parameters_cannot_make_is_bad_input(built, tmp_path, capsys,
                                                          before, after, message):
-    from master.cli import main
+    from dsim.master.tools.cli import main
 
     bad = edited_archive(built["ssp"] / "four_post_fixed.ssp", tmp_path / "bad.ssp",
                          "resources/body.ssv", before, after)

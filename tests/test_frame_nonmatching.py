@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from fmus.elastic.frame import monolithic_frame
-from master.results import read_csv
-from master.api import simulate
+from dsim.fmus.elastic.frame import monolithic_frame
+from dsim.master.api import simulate
+from dsim.master.recording.results import read_csv
 
 STOP = 0.01
 

@@ -11,13 +11,13 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from examples import frame as frame_example
-from fmus.elastic.frame import monolithic_frame
-from build_fmus.frame_scenes import part_parameters
-from fmus.elastic.body_spec import build_body, port_node_counts, spec_from_parameters
-from master.cli import main
-from master.results import read_csv
-from master.api import prepare, simulate
-from master.ssp import load_scene
+from dsim.build_fmus.frame_scenes import part_parameters
+from dsim.fmus.elastic.body_spec import build_body, port_node_counts, spec_from_parameters
+from dsim.fmus.elastic.frame import monolithic_frame
+from dsim.master.api import prepare, simulate
+from dsim.master.reading.ssp import load_scene
+from dsim.master.recording.results import read_csv
+from dsim.master.tools.cli import main
 from tests.scene_files import edited_archive
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -218,7 +218,7 @@ def test_info_shows_the_gluable_ports_and_the_scene_files(built, capsys):
 
 def test_bad_mesh_through_the_console_is_one_line(built, tmp_path):
     bad = _edited(built, tmp_path, "resources/meshes/deck_plate.vtk", "elastic_body_fmu.py")
-    process = subprocess.run([sys.executable, "-m", "master.cli", "run", str(bad), "--out",
+    process = subprocess.run([sys.executable, "-m", "dsim.master.tools.cli", "run", str(bad), "--out",
                               str(tmp_path / "o.csv")], capture_output=True, text=True)
     assert process.returncode == 2
     assert len(process.stderr.splitlines()) == 1 and "Traceback" not in process.stderr, \

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from examples import chain, spring_mass
-from master.results import read_csv
-from master.api import simulate
+from dsim.master.api import simulate
+from dsim.master.recording.results import read_csv
 
 
 @pytest.mark.parametrize("nonlinear", [False, True], ids=["linear", "nonlinear"])

@@ -3,10 +3,10 @@ multiple connections, flexible joint laws, against monolithic models."""
 import numpy as np
 import pytest
 
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
-from master.assembly import glue_cores
-from master.errors import SimulationError
-from master.scene import Joint, MasterSettings
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.master.errors import SimulationError
+from dsim.master.planning.assembly import glue_cores
+from dsim.master.scene import Joint, MasterSettings
 
 H, STOP = 0.01, 3.0
 

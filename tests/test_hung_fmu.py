@@ -1,6 +1,6 @@
 """A hung FMU can be stopped, and its rows are kept: the C oscillator built with
 -DHANG_TIME never returns from the step that reaches t = 0.0505 s (step 51 of 1 ms),
-so a run of `python -m master.cli run` converges exactly 50 steps and then hangs in
+so a run of `python -m dsim.master.tools.cli run` converges exactly 50 steps and then hangs in
 fmi2DoStep (native code, where no Python signal handler runs).  The first signal asks
 for a stop after a step that never ends; the second must end the process at once
 with every converged row and the statistics on disk, and no process of the run left
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from master.results import read_csv
+from dsim.master.recording.results import read_csv
 from tests.scene_files import component, scene_folder, ssd
 from tests.third_party.build import OSCILLATOR_VARIABLES, c_fmu
 
@@ -42,7 +42,7 @@ def hung_scene(tmp_path_factory):
 
 def start(scene: Path, target: Path, *options: str) -> subprocess.Popen:
     """dsim run in a session of its own: every process it starts is found by it."""
-    return subprocess.Popen([sys.executable, "-m", "master.cli", "run", str(scene), "--out",
+    return subprocess.Popen([sys.executable, "-m", "dsim.master.tools.cli", "run", str(scene), "--out",
                              str(target), "--quiet", *options], cwd=ROOT,
                             stderr=subprocess.PIPE, text=True, start_new_session=True,
                             env={**os.environ, "OMP_NUM_THREADS": "1"})

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from fmus.linkage import Body, Linkage, Mechanism, Revolute, SpringDamper
-from fmus.linkage.scenes import CRANK_SLIDER_PARTS, crank_angle, crank_slider, four_bar
+from dsim.fmus.linkage import Body, Linkage, Mechanism, Revolute, SpringDamper
+from dsim.fmus.linkage.scenes import CRANK_SLIDER_PARTS, crank_angle, crank_slider, four_bar
 from tests.gluing_helpers import march, penalized_joint
 
 G = 9.81

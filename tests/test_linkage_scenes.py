@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from examples import crank_slider, four_bar
-from fmus.linkage.description import mechanism_to_text
-from fmus.linkage.scenes import crank_slider_part
-from master.cli import main as dsim
-from master.results import read_csv
-from master.api import simulate
+from dsim.fmus.linkage.description import mechanism_to_text
+from dsim.fmus.linkage.scenes import crank_slider_part
+from dsim.master.api import simulate
+from dsim.master.recording.results import read_csv
+from dsim.master.tools.cli import main as dsim
 
 
 @pytest.mark.parametrize("name", ["Linkage2D", "FlexibleLink2D"])
@@ -151,7 +151,7 @@ def test_four_bar_fixed_passes_the_singular_point_on_the_displacement_measure(
     with index-3 rows at A and B under the same rule, closer than the flexible joints
     equal theirs, in fewer iterations per step."""
     from examples.twins import four_bar_twin
-    from master.sweep import error_against
+    from dsim.master.tools.sweep import error_against
 
     runs = {joints: simulate(built["ssp"] / f"four_bar_singular_{joints}.ssp",
                              tolerance=tolerance, stop=0.5)
@@ -176,7 +176,7 @@ def test_four_bar_penalized_passes_at_1e10(built):
     round-off floor: those steps end on the round-off test, counted, and the run
     passes the singular point as close to its twin as at 1e-8."""
     from examples.twins import four_bar_twin
-    from master.sweep import error_against
+    from dsim.master.tools.sweep import error_against
 
     run = simulate(built["ssp"] / "four_bar_singular_penalized.ssp", tolerance=1e-10,
                    stop=0.5)
@@ -212,7 +212,7 @@ def test_consistent_start_finds_the_four_bars_centripetal_joint_forces(built, tm
     """The crank turns at full speed from t = 0, so the fixed joints carry load at
     once; start="consistent" solves the initial acceleration compatibility before
     the first step: the t = 0 forces are the whole mechanism's reactions."""
-    from fmus.linkage.scenes import four_bar
+    from dsim.fmus.linkage.scenes import four_bar
 
     out = tmp_path / "start.csv"
     simulate(built["ssp"] / "four_bar_singular_fixed.ssp", out=out, stop=0.05)

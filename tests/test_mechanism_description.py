@@ -7,10 +7,10 @@ import shutil
 import numpy as np
 from fmpy import simulate_fmu
 
-from build_fmus.scenes import SceneWriter
-from fmus.linkage.description import mechanism_from_text, mechanism_to_text
-from fmus.linkage.scenes import crank_slider_mechanism, four_bar_part
-from master.cli import main
+from dsim.build_fmus.scenes import SceneWriter
+from dsim.fmus.linkage.description import mechanism_from_text, mechanism_to_text
+from dsim.fmus.linkage.scenes import crank_slider_mechanism, four_bar_part
+from dsim.master.tools.cli import main
 
 
 def test_a_description_round_trips_every_element():
@@ -61,7 +61,7 @@ def test_a_user_mechanism_glued_from_its_description(built, tmp_path):
     0.3 * 9.81 / 0.8 = 3.679 N at the tips, and by symmetry no vertical force."""
     folder = truss_scene(tmp_path / "scene", built, json.dumps(PENDULUM))
     assert main(["run", str(folder), "--out", str(tmp_path / "r.csv"), "--quiet"]) == 0
-    from master.results import read_columns
+    from dsim.master.recording.results import read_columns
 
     run = read_columns(tmp_path / "r.csv")
     assert np.max(np.abs(run["left.omega"])) < 1e-9

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from master.mls import transfer_matrix
+from dsim.master.planning.mls import transfer_matrix
 
 
 def edge(count, x0=0.0, x1=0.1, y=0.1):
@@ -71,11 +71,11 @@ def test_non_matching_bar_in_tension_matches_the_one_piece_bar():
     (away from the clamped root the stress is uniform, so both meshes are exact
     there and any difference is the transfer's), and the joint carries exactly
     the applied load."""
-    from fmus.elastic.assembly import STEEL
-    from fmus.elastic.core import ElasticBody, PointLoad
-    from fmus.elastic.geometry import in_box, rectangle
-    from master.assembly import glue_cores
-    from master.scene import Joint, MasterSettings
+    from dsim.fmus.elastic.assembly import STEEL
+    from dsim.fmus.elastic.core import ElasticBody, PointLoad
+    from dsim.fmus.elastic.geometry import in_box, rectangle
+    from dsim.master.planning.assembly import glue_cores
+    from dsim.master.scene import Joint, MasterSettings
 
     length, depth, thickness, force = 1.0, 0.1, 0.01, 1e5
     cut = in_box((0.5, 0.0), (0.5, depth))

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import dsim
-from master.cli import main
-from master.results import read_csv
+from dsim.master.recording.results import read_csv
+from dsim.master.tools.cli import main
 from tests.scene_files import component, pack, scene_folder, ssd
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import dsim
-from master.cli import main
+from dsim.master.tools.cli import main
 from tests.scene_files import HEADER
 
 SSV = ('<?xml version="1.0" encoding="UTF-8"?>\n<ssv:ParameterSet version="1.0" name="{name}" '

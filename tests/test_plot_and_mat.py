@@ -3,7 +3,7 @@ import numpy as np
 from scipy.io import loadmat
 
 import dsim
-from master.cli import main
+from dsim.master.tools.cli import main
 
 
 def test_a_run_writes_its_results_as_mat_too(built, tmp_path):

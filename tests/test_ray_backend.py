@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import dsim
-from master.cli import main
-from master.results import read_csv
+from dsim.master.recording.results import read_csv
+from dsim.master.tools.cli import main
 from tests.scene_files import component, scene_folder, ssd
 from tests.test_nothing_lost import DSIM, ROOT, block_scene, run_cli
 from tests.test_third_party_fmu import scene as oscillator_scene
@@ -210,7 +210,7 @@ def test_an_fmu_that_refuses_its_parameters_is_the_same_line_on_the_ray_backend(
 def test_a_scene_file_reaches_a_worker_that_cannot_see_the_drivers_path(ray_local, tmp_path):
     """A mesh file of the scene goes through Ray's object store as the FMUs do: a
     worker on a node without the driver's file lands a copy of the same name."""
-    from master.ray_cluster import Shipment, landed
+    from dsim.master.running.ray_cluster import Shipment, landed
 
     mesh = tmp_path / "plate.vtk"
     mesh.write_bytes(b"a mesh")
@@ -369,7 +369,7 @@ def test_a_bad_address_or_backend_option_is_one_line(built, tmp_path, arguments,
 @pytest.mark.parametrize("arguments", [["--backend", "ray"], ["--isolate"]])
 def test_the_ray_backends_without_ray_installed_are_one_line(built, tmp_path, arguments):
     script = ("import sys\nsys.modules['ray'] = None  # as if it were not installed\n"
-              "from master.cli import main\nsys.exit(main(sys.argv[1:]))\n")
+              "from dsim.master.tools.cli import main\nsys.exit(main(sys.argv[1:]))\n")
     process = subprocess.run([sys.executable, "-c", script, "run",
                               str(built["ssp"] / "spring_mass_linear.ssp"), *arguments,
                               "--out", str(tmp_path / "r.csv")],

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from master.cli import main
-from master.sweep import TIGHTEST, Sweep, run_sweep
+from dsim.master.tools.cli import main
+from dsim.master.tools.sweep import TIGHTEST, Sweep, run_sweep
 from tests.test_nothing_lost import DSIM, ROOT, block_scene
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import dsim
-from master.cli import main
-from master.results import read_columns
+from dsim.master.recording.results import read_columns
+from dsim.master.tools.cli import main
 
 
 def test_outputs_choose_the_columns_of_the_csv_the_result_and_the_plot(built, tmp_path):

@@ -5,7 +5,7 @@ import shutil
 import numpy as np
 import pytest
 
-from fmus.newton import at_roundoff, failure_message, reciprocal_condition
+from dsim.fmus.newton import at_roundoff, failure_message, reciprocal_condition
 from tests.conftest import ROOT
 
 
@@ -48,7 +48,7 @@ def test_a_stalled_increment_with_the_residual_at_round_off_is_converged():
 def test_a_step_that_does_not_converge_still_fails_and_says_why():
     """Two Newton iterations cannot solve a step from a poor predictor: the step fails
     with the time, the increment and the residual against its round-off floor."""
-    from fmus.linkage import LinkageConvergenceError
+    from dsim.fmus.linkage import LinkageConvergenceError
 
     def short(bar):
         bar.max_newton = 1
@@ -91,8 +91,8 @@ def test_a_failed_reference_does_not_stop_the_build(built, tmp_path, monkeypatch
     """The twin of a scene fails to compute (as the four bar's did on some CPUs): the
     build says so in one line, packs the scene without a reference and goes on."""
     import examples.twins as twins
-    from build_fmus.build import pack_scenes
-    from fmus.linkage import LinkageConvergenceError
+    from dsim.build_fmus.build import pack_scenes
+    from dsim.fmus.linkage import LinkageConvergenceError
 
     root = tmp_path / "root"
     for scene in ("spring_mass_linear", "spring_mass_nonlinear"):

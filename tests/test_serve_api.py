@@ -15,7 +15,7 @@ from tests.serve_fixtures import (SPRING_MASS_FORM, create_app, launch, server, 
                                   upload, wait_run)
 
 import dsim
-from master.cli import main as dsim_main
+from dsim.master.tools.cli import main as dsim_main
 
 
 def test_an_fmu_is_stored_once_by_its_content_and_described(server, built):
@@ -328,7 +328,7 @@ def test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form(server, 
                                                                        tmp_path):
     """The saved scene runs as the hand-written one does, to the last bit; the same
     joint on the penalized measure runs too."""
-    from dsim_serve.forms import scene_form
+    from dsim.serve.forms import scene_form
     from tests.test_third_party_fmu import scene as hand_written
     from tests.third_party.build import OSCILLATOR_VARIABLES, c_fmu
 
@@ -377,7 +377,7 @@ def test_a_stored_scene_fills_the_form_and_saves_as_a_new_one_with_its_numbers(s
     """"Edit as a new scene": the form holds every component, parameter, joint and
     setting of the shipped spring_mass_linear; saved unchanged, it runs to the same bits.
     A scene the form cannot hold (files of its own) is said so."""
-    from dsim_serve.forms import scene_form
+    from dsim.serve.forms import scene_form
 
     client, store, scene_id = server
     page = client.get(f"/scenes/new?start={scene_id}").text.replace("&#39;", "'")
@@ -496,7 +496,7 @@ def test_the_diagram_draws_every_component_joint_and_connection(server, built):
 
 def test_a_server_bound_beyond_this_machine_needs_its_token(tmp_path):
     from fastapi.testclient import TestClient
-    from dsim_serve.command import loopback
+    from dsim.serve.command import loopback
 
     assert loopback("127.0.0.1") and loopback("::1") and loopback("localhost")
     assert not loopback("0.0.0.0") and not loopback("192.0.2.7")

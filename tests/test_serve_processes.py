@@ -43,7 +43,7 @@ def _gone(pid: int, timeout: float = 20) -> bool:
     while time.monotonic() < deadline:
         try:
             os.kill(pid, 0)
-            if b"dsim_serve.worker" not in open(f"/proc/{pid}/cmdline", "rb").read():
+            if b"dsim.serve.worker" not in open(f"/proc/{pid}/cmdline", "rb").read():
                 return True
         except (OSError, ProcessLookupError):
             return True
@@ -102,7 +102,7 @@ def test_a_second_cancel_ends_a_run_hung_in_an_fmu_with_its_rows_and_step_count(
     """The oscillator hangs in its 51st step (tests/test_hung_fmu.py): the first cancel
     asks for a stop after a step that never ends; the second ends the worker at once
     (not killed after the grace), with the 50 converged rows and the statistics."""
-    from dsim_serve.jobs import KILL_GRACE
+    from dsim.serve.jobs import KILL_GRACE
     from tests.scene_files import pack
     from tests.test_hung_fmu import CONVERGED, ROWS, rows_on_disk
 

@@ -75,7 +75,7 @@ def test_a_dns_rebinding_page_is_refused_by_its_host_name(process, built):
 
 
 def test_hosts_are_the_bound_names_and_any_host_needs_a_token(tmp_path):
-    from dsim_serve.app import accepted_hosts
+    from dsim.serve.app import accepted_hosts
 
     assert accepted_hosts("127.0.0.1", 80) == ("127.0.0.1:80", "localhost:80", "[::1]:80")
     assert accepted_hosts("::1", 80) == ("127.0.0.1:80", "localhost:80", "[::1]:80")
@@ -118,7 +118,7 @@ def test_a_second_server_on_one_database_exits_2_naming_the_first(process, built
                          json={"settings": {"stop": "100000"}, "signals": []}).json()["id"]
     run = wait_run(client, run_id, until=("running",))
     second = subprocess.run(
-        [sys.executable, "-m", "master.cli", "serve", "--db", str(server.db), "--port", "0"],
+        [sys.executable, "-m", "dsim.master.tools.cli", "serve", "--db", str(server.db), "--port", "0"],
         capture_output=True, text=True, timeout=60, cwd=ROOT,
         env={**os.environ, "PYTHONPATH": str(ROOT)})
     lines = second.stderr.strip().splitlines()
@@ -139,8 +139,8 @@ def test_only_runs_of_a_dead_server_are_taken_over(tmp_path):
     those of a dead one (a process that has ended) are recorded as interrupted."""
     from fastapi.testclient import TestClient
 
-    from dsim_serve.owner import _start_time, server_identity
-    from dsim_serve.store import Store
+    from dsim.serve.owner import _start_time, server_identity
+    from dsim.serve.store import Store
 
     ended = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     dead = f"{ended.pid}:{_start_time(ended.pid)}:0"
@@ -247,7 +247,7 @@ def test_parallel_uploads_of_one_fmu_are_one_model(process, built):
 def test_one_content_added_at_once_by_many_threads_is_one_row(tmp_path):
     """The race under the parallel uploads, made likely: every thread has the
     inspection behind it and adds the same model and scene at the same moment."""
-    from dsim_serve.store import Store
+    from dsim.serve.store import Store
 
     store = Store(tmp_path / "db.sqlite")
     barrier = threading.Barrier(20)

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
 
 
 def oscillator(m=2.0, k=50.0, x0=0.1, n=1):

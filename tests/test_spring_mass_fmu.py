@@ -4,8 +4,8 @@ import numpy as np
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from master.fmu import FmuSubsystem, SubsystemSpec
-from master.ports import PortDof, conventional_ports
+from dsim.master.reading.ports import PortDof, conventional_ports
+from dsim.master.running.fmu import FmuSubsystem, SubsystemSpec
 
 
 def test_fmpy_validate_finds_no_problem(built):

@@ -3,7 +3,7 @@ warning naming the others), ``--ssd NAME`` chooses, ``dsim info`` lists them."""
 import zipfile
 
 import dsim
-from master.cli import main
+from dsim.master.tools.cli import main
 
 
 def _two_structures(built, tmp_path):

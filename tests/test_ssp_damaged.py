@@ -3,7 +3,7 @@ traceback: an .ssv whose bytes are not its declared encoding (lxml raises OSErro
 not a syntax error) and a component source too long to be a file name."""
 import pytest
 
-from master.cli import main
+from dsim.master.tools.cli import main
 from tests.scene_files import component, scene_folder, ssd
 
 SSV = (b'<?xml version="1.0" encoding="UTF-8"?><ssv:ParameterSet xmlns:ssv='

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from lxml import etree
 
-from master.cli import main
+from dsim.master.tools.cli import main
 from tests.conftest import ROOT
 
 #: scenes whose validation is quick (their FMUs' libraries are checked as bytes)
@@ -115,7 +115,7 @@ def test_a_run_of_a_damaged_scene_ends_with_its_exit_code(unpacked, tmp_path):
         case_rng = random.Random(seed)
         folder = tmp_path / f"case{case}"
         target = _damaged_copy(unpacked / case_rng.choice(RUN_SCENES), folder, case_rng)
-        done = subprocess.run([sys.executable, "-m", "master.cli", "run", str(folder),
+        done = subprocess.run([sys.executable, "-m", "dsim.master.tools.cli", "run", str(folder),
                                "--stop", "0.02", "--quiet", "--out", str(tmp_path / f"{case}.csv")],
                               cwd=ROOT, capture_output=True, text=True, timeout=120)
         where = f"seed {seed} ({target.relative_to(folder)})"

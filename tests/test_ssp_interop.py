@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import dsim
-from master.cli import main
+from dsim.master.tools.cli import main
 from tests.third_party.build import c_fmu
 
 H, TAU, GAIN = 1e-3, 0.1, 0.9
@@ -138,7 +138,7 @@ def test_string_parameters_connections_and_columns(fmus, tmp_path):
     # b2's note is b1's status at the step start
     assert list(result["b2.status"]) == ['sec,ond "2"::0'] + [
         f'sec,ond "2":first::{n}:{n + 1}' for n in range(3)]
-    from master.results import read_columns
+    from dsim.master.recording.results import read_columns
     from scipy.io import loadmat
     assert list(read_columns(tmp_path / "run.csv")["b2.status"]) == list(result["b2.status"])
     stored = loadmat(tmp_path / "run.mat")["signals"][0, 0]["b1_status"]

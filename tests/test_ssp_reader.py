@@ -3,8 +3,8 @@ import zipfile
 
 from fmpy.ssp.ssd import read_ssd
 
-from master.cli import main
-from master.ssp import load_scene
+from dsim.master.reading.ssp import load_scene
+from dsim.master.tools.cli import main
 
 NESTED = """<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription version="1.0" name="nested"
@@ -116,7 +116,7 @@ def test_info_lists_components_capabilities_ports_joints_and_settings(built, cap
 
 
 def test_build_skips_what_is_up_to_date(built):
-    from build_fmus.build import build_fmus, pack_scenes
+    from dsim.build_fmus.build import build_fmus, pack_scenes
 
     messages = []
     build_fmus(log=messages.append)

@@ -6,7 +6,7 @@ import zipfile
 import pytest
 
 import dsim
-from master.cli import main
+from dsim.master.tools.cli import main
 from tests.test_ssp_interop import HEADER, block, connectors, system, values, write_scene
 
 SSV = ('<?xml version="1.0" encoding="UTF-8"?>\n'

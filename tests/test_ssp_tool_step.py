@@ -1,11 +1,11 @@
 """The macro step OMSimulator and the Open Simulation Platform write into an SSD is
-the run's step when dsim's own settings give none (master/ssp_tools.py), with the
+the run's step when dsim's own settings give none (master/reading/ssp_tools.py), with the
 precedence --step > glue:Master > those annotations > dsim's default; dsim info and
 validate say where the step came from."""
 import pytest
 
 import dsim
-from master.cli import main
+from dsim.master.tools.cli import main
 from tests.scene_files import component, scene_folder, ssd
 
 OMS = ('<ssd:Annotations><ssc:Annotation type="org.openmodelica">'

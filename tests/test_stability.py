@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import dsim
-from master.couplings.divergence import EnvelopeWatch, newton_diverging
-from master.results import read_columns
-from master.sweep import error_against
+from dsim.master.recording.results import read_columns
+from dsim.master.running.couplings.divergence import EnvelopeWatch, newton_diverging
+from dsim.master.tools.sweep import error_against
 
 
 def envelope_verdict(residuals) -> int | None:
@@ -40,8 +40,8 @@ def test_the_forces_test_sees_the_force_error_a_small_residual_hides():
     matrix of compliances 1e-5 m/N with a 1e-6 relative gap between its rows, a four
     bar's axial loop near collinear): a residual within 1e-8 m leaves a force correction
     of 500 N to come, which the forces test counts and the residual test does not."""
-    from master.couplings.convergence import CONVERGENCE_TESTS, what_is_left
-    from master.couplings.iterative import DenseFactor
+    from dsim.master.running.couplings.convergence import CONVERGENCE_TESTS, what_is_left
+    from dsim.master.running.couplings.iterative import DenseFactor
 
     jacobian = 1e-5 * np.array([[1.0, 1.0], [1.0, 1.0 + 1e-6]])
     residual = np.array([0.0, 5e-9])                   # m, within the tolerance

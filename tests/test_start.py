@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import dsim
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
 
 STRETCH = 0.05  # m: m1 starts this far from m2, the joint spring between them stretched
 
@@ -64,7 +64,7 @@ def test_a_stretched_flexible_joint_starts_preloaded_by_default(built, tmp_path,
 
 
 def test_the_rest_warning_reaches_the_command_line(built, tmp_path, capsys):
-    from master.cli import main
+    from dsim.master.tools.cli import main
 
     scene = stretched_scene(built, tmp_path, False)
     assert main(["run", str(scene), "--start", "rest", "--stop", "0.1", "--quiet",

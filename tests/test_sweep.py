@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from examples.spring_mass import monolithic
-from master.cli import main
+from dsim.master.tools.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -10,11 +10,11 @@ import pytest
 from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 
-from fmus.spring_mass.core import ChainParameters, SpringMassChain
-from master.cli import main
-from master.results import read_csv
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
+from dsim.master.recording.results import read_csv
+from dsim.master.tools.cli import main
 import dsim
-from master.api import simulate
+from dsim.master.api import simulate
 from tests.third_party.build import OSCILLATOR_VARIABLES, c_fmu
 
 

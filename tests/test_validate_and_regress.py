@@ -8,7 +8,7 @@ from xml.etree import ElementTree
 
 import pytest
 
-from master.cli import main
+from dsim.master.tools.cli import main
 from tests.test_ssp_interop import block, connection, connectors, system, write_scene
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -49,7 +49,7 @@ def test_validate_runs_no_code_of_the_fmus(tmp_path):
                 defines=[f'MARKER_FILE="{marker}"'])
     folder = write_scene(tmp_path / "scene", system(block("b1", "resources/marker.fmu")),
                          {"marker.fmu": fmu})
-    command = [sys.executable, "-m", "master.cli"]
+    command = [sys.executable, "-m", "dsim.master.tools.cli"]
     checked = subprocess.run(command + ["validate", str(folder)], cwd=ROOT,
                              capture_output=True, text=True, timeout=120)
     assert checked.returncode == 0, checked.stderr

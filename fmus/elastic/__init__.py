@@ -1,6 +1,6 @@
 """Linear elastic finite-element bodies (scikit-fem) as glueable cores.
 
-``ElasticBody`` implements :class:`fmus.interface.InterfaceCore`; ``frame`` builds the
+``ElasticBody`` implements :class:`dsim.fmus.interface.InterfaceCore`; ``frame`` builds the
 ladder-frame scenes of SCENES.md. See docs/elastic_body.md.
 """
 from .assembly import STEEL, Material

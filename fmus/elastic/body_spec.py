@@ -4,7 +4,7 @@
 file (any format meshio reads, linear tri/quad/tet/hex), element order, material,
 thickness (2-D), mass, Rayleigh damping, fidelity (full, Craig-Bampton, rigid), clamps,
 ports, a sine point load and probes. :func:`build_body` makes the
-:class:`~fmus.elastic.core.ElasticBody`; :class:`SlotBody` shows it through the fixed
+:class:`~dsim.fmus.elastic.core.ElasticBody`; :class:`SlotBody` shows it through the fixed
 variable layout an FMU needs (FMI 2.0 fixes the variable list at build time, a mesh
 decides how many nodes a port has):
 
@@ -47,7 +47,7 @@ DOFS = ("x", "y", "z")
 RIGID_DOFS = ("x", "y", "z", "rx", "ry", "rz")
 FIDELITIES = ("full", "craig_bampton", "rigid")
 #: The body of an empty ``mesh_file``: a 1 m x 0.1 m plane-stress beam of 20 x 2 bilinear
-#: quadrilaterals (arguments of :func:`~fmus.elastic.geometry.rectangle`, m)
+#: quadrilaterals (arguments of :func:`~dsim.fmus.elastic.geometry.rectangle`, m)
 DEFAULT_BEAM = dict(x0=0.0, x1=1.0, y0=0.0, y1=0.1, element_size=0.05)
 
 

@@ -32,8 +32,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from fmus.interface import InterfaceCore
-from fmus.newton import NewtonCount, at_roundoff, failure_message
+from ..interface import InterfaceCore
+from ..newton import NewtonCount, at_roundoff, failure_message
 
 from .beam import assemble
 
@@ -103,7 +103,7 @@ class FlexibleLink(InterfaceCore):
         self.qf, self.qfd, self.qfdd = np.zeros(n), np.zeros(n), np.zeros(n)
         self.port_forces = np.zeros((2, 2))
         self.iterations = 0
-        #: converged steps, and those that ended at the round-off floor (fmus.newton)
+        #: converged steps, and those that ended at the round-off floor (dsim.fmus.newton)
         self.newton = NewtonCount()
 
     # --- pieces ---------------------------------------------------------------

@@ -57,11 +57,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fmus.linkage.core import Linkage, LinkageConvergenceError
-from fmus.newton import NewtonCount, at_roundoff, failure_message, roundoff_floor
-from fmus.linkage.elements import AngleDriver, Body, Mechanism, Port, Prismatic, Revolute
-from fmus.linkage.laws import CosineRampSpeed
-from fmus.linkage.scenes import CrankSliderParameters
+from ..linkage.core import Linkage, LinkageConvergenceError
+from ..newton import NewtonCount, at_roundoff, failure_message, roundoff_floor
+from ..linkage.elements import AngleDriver, Body, Mechanism, Port, Prismatic, Revolute
+from ..linkage.laws import CosineRampSpeed
+from ..linkage.scenes import CrankSliderParameters
 
 from .core import FlexibleLink
 

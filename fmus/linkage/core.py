@@ -11,7 +11,7 @@ integrated by the trapezoidal rule (Newmark average acceleration)
 
 with Newton on (a1, lambda1) at t + h; or, with ``spectral_radius`` rho < 1, by the
 generalized-alpha rule of which the trapezoidal rule is the rho = 1 member
-(:mod:`fmus.generalized_alpha`: equilibrium and constraints still hold at t + h, a
+(:mod:`dsim.fmus.generalized_alpha`: equilibrium and constraints still hold at t + h, a
 pseudo-acceleration carries numerical damping of the modes above 1/h).  The default
 constraint row is Baumgarte's (c_a, c_v, c_d) = (1, 2 xi w, w^2): the acceleration-level
 constraint with position and velocity feedback.  ``formulation="index3"`` uses (0, 0, 1),
@@ -33,9 +33,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from fmus.generalized_alpha import TRAPEZOIDAL, GeneralizedAlpha
-from fmus.interface import InterfaceCore
-from fmus.newton import NewtonCount, at_roundoff, failure_message, roundoff_floor
+from ..generalized_alpha import TRAPEZOIDAL, GeneralizedAlpha
+from ..interface import InterfaceCore
+from ..newton import NewtonCount, at_roundoff, failure_message, roundoff_floor
 
 from .constraints import ConstraintSet
 from .elements import Mechanism
@@ -55,7 +55,7 @@ class Linkage(InterfaceCore):
     Parameters
     ----------
     mechanism:
-        The parts list (:class:`~fmus.linkage.elements.Mechanism`).
+        The parts list (:class:`~dsim.fmus.linkage.elements.Mechanism`).
     formulation:
         ``"baumgarte"`` (default) or ``"index3"``.
     baumgarte_frequency, baumgarte_damping:

@@ -1,7 +1,7 @@
 """A planar mechanism as a description (JSON text): what a user writes to model their
 own linkage in the Linkage2D FMU, and what dsim's scenes ship in their parameter files.
 
-The description mirrors :class:`~fmus.linkage.elements.Mechanism` (SI units, local
+The description mirrors :class:`~dsim.fmus.linkage.elements.Mechanism` (SI units, local
 points in the body frame, ``null`` for ground)::
 
     {"bodies": [{"name": "crank", "mass": 1.0, "inertia": 0.0833,

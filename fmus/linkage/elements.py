@@ -69,7 +69,7 @@ class Prismatic:
 class AngleDriver:
     """Prescribed angle theta_i - theta_j = law(t) (rad); body_j None means ground.
 
-    ``law`` returns (angle, rate, acceleration); see :mod:`fmus.linkage.laws`.
+    ``law`` returns (angle, rate, acceleration); see :mod:`dsim.fmus.linkage.laws`.
     """
 
     name: str
@@ -129,7 +129,7 @@ class Port:
 
 @dataclass
 class Mechanism:
-    """Everything a :class:`~fmus.linkage.core.Linkage` is built from.
+    """Everything a :class:`~dsim.fmus.linkage.core.Linkage` is built from.
 
     ``gravity`` is the global acceleration of gravity (m/s^2), e.g. (0, -9.81).
     """

@@ -2,14 +2,14 @@
 
 An FMU's variables are fixed by its modelDescription, while mechanisms have
 different ports (the shipped parts: crank A; coupler A, B; slider P; rocker B) and
-bodies.  :class:`PartCore` wraps the :class:`~fmus.linkage.core.Linkage` of one
+bodies.  :class:`PartCore` wraps the :class:`~dsim.fmus.linkage.core.Linkage` of one
 mechanism behind the union of the ports, ``FIXED_PORTS`` = A, B, P with dofs x y,
 and a fixed list of outputs (``PART_OUTPUTS``: its first body).  A port the
 mechanism does not have takes no force and reports zero motion; a scene glues only
 ports it has.
 
 What the mechanism is comes from the parameter ``mechanism``: a description
-(JSON text, :mod:`fmus.linkage.description`) or the name of a file holding one in
+(JSON text, :mod:`dsim.fmus.linkage.description`) or the name of a file holding one in
 the FMU's resources folder.  dsim's scenes write their parts this way
 (build_fmus/linkage_scenes.py); nothing in the FMU knows them.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmus.interface import InterfaceCore
+from ..interface import InterfaceCore
 
 from .core import Linkage
 from .description import mechanism_from_text
@@ -86,7 +86,7 @@ def described(text: str, resources=None):
 
 
 def build_part(p: PartParameters, resources=None) -> Linkage:
-    """The :class:`~fmus.linkage.core.Linkage` of the described mechanism."""
+    """The :class:`~dsim.fmus.linkage.core.Linkage` of the described mechanism."""
     p.check()
     return Linkage(described(p.mechanism, resources), formulation=p.formulation,
                    baumgarte_frequency=p.baumgarte_frequency,

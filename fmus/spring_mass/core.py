@@ -27,8 +27,8 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from fmus.interface import InterfaceCore
-from fmus.newton import NewtonCount, at_roundoff, failure_message
+from ..interface import InterfaceCore
+from ..newton import NewtonCount, at_roundoff, failure_message
 
 #: Largest chain one FMU carries: FMI 2.0 fixes the variable list at build time.
 MAX_MASSES = 4
@@ -222,7 +222,7 @@ class SpringMassChain(InterfaceCore):
                 a1, how = a1 - delta, "increment"
                 break
             if at_roundoff(residual, np.abs(m * a1) + terms + np.abs(f_int)):
-                how = "round-off"  # the residual can get no smaller (fmus.newton)
+                how = "round-off"  # the residual can get no smaller (dsim.fmus.newton)
                 break
             a1 = a1 - delta
         else:

@@ -1,0 +1,403 @@
+"""Model parameters given for one run (``dsim run --set``, ``--set-file``,
+``dsim.simulate(scene, parameters=...)``): start values of the components' FMU
+variables, and the laws of the flexible joints, applied on top of everything the
+scene binds.
+
+A name is a dotted path: the component's path, a dot, the FMU variable's name as the
+modelDescription writes it (``left.k_ground[1]``, ``frame.rail.thickness``); or a
+joint's name, a dot and one of its law's coefficients (``j1.k0``).  The longest
+component path that prefixes the name wins, so variables whose own names hold dots
+(``load.F_x``) are reached too.
+
+Every value is checked against each FMU's modelDescription (read from the archive;
+no library is loaded), and every problem is one line of one
+:class:`~dsim.master.errors.InputError` raised before anything runs: an unknown component,
+joint or variable (the closest names offered), a value that is not of the variable's
+type, a variable FMI 2.0 lets no master set (a constant, a calculated parameter, an
+output the FMU calculates), a value outside the variable's min/max.  What the plan
+knows later (an input that a connection or a joint writes) it checks itself
+(:func:`written_by_master`).
+
+The values reach the FMUs by the path the scene's own ``ParameterBinding`` values take
+(``Component.parameters``, then ``fmi2Set*`` in initialization mode), so a value given
+here and the same value in an .ssv parameter set give the same run, byte for byte.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import numbers
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from dsim.master.errors import InputError
+
+#: where a value given for the run came from (``Component.origins``), and how
+#: messages name it
+ORIGIN = "given for the run (--set, --set-file, parameters=)"
+#: joint law coefficients a run may set: per dof (one value for all, or one per dof)
+JOINT_PER_DOF = ("k0", "k1", "c0", "c1")
+#: ... and of the penalized measure (one value)
+JOINT_SCALAR = ("xi", "omega")
+#: coefficients that are physical only when not negative
+NON_NEGATIVE = ("k0", "c0", "xi", "omega")
+#: the SSP value type dsim keeps for an FMU variable type
+KEPT_TYPE = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer",
+             "Boolean": "Boolean", "String": "String"}
+#: the most names one 'closest' search compares (a large FE FMU has thousands)
+SEARCHED = 50000
+
+
+@dataclass(frozen=True)
+class Settable:
+    """A variable of a component that a run may set (``dsim info``, the web form)."""
+
+    component: str
+    name: str
+    type: str
+    causality: str
+    variability: str
+    unit: str | None
+    start: str | None
+    min: str | None
+    max: str | None
+    description: str
+    #: an Enumeration's items as (name, value)
+    items: tuple[tuple[str, int], ...] = ()
+
+    @property
+    def full_name(self) -> str:
+        return f"{self.component}.{self.name}"
+
+
+def _declared(variable, attribute: str):
+    """A variable's attribute, else its declared type's (FMI 2.0: the type's applies)."""
+    own = getattr(variable, attribute, None)
+    if own not in (None, ""):
+        return own
+    declared = variable.declaredType
+    return getattr(declared, attribute, None) if declared is not None else None
+
+
+def items_of(variable) -> tuple[tuple[str, int], ...]:
+    """(name, value) of an Enumeration variable's items (its declared type's)."""
+    declared = variable.declaredType
+    if variable.type != "Enumeration" or declared is None:
+        return ()
+    return tuple((item.name, int(item.value)) for item in declared.items)
+
+
+def refusal(variable) -> str | None:
+    """Why FMI 2.0 lets no master set ``variable`` before the run starts (None: it
+    may).  dsim sets values in initialization mode, where FMI 2.0 allows a variable
+    that is not constant and is a parameter (fixed or tunable: both may be set
+    before initialization), an input, or has initial="exact" or "approx"."""
+    if variable.variability == "constant":
+        return "a constant: FMI 2.0 lets no master set it"
+    if variable.causality == "calculatedParameter":
+        return "a calculated parameter: the FMU computes it from other parameters"
+    if variable.causality == "independent":
+        return "the independent variable (time)"
+    if variable.causality in ("parameter", "input") or variable.initial in ("exact", "approx"):
+        return None
+    return (f"calculated by the FMU (causality {variable.causality}, initial="
+            f"{variable.initial or 'calculated'}): FMI 2.0 lets no master set it")
+
+
+def settable_variables(path: Path, component: str) -> list[Settable]:
+    """Every variable of the FMU at ``path`` that a run may set, in the order of its
+    modelDescription."""
+    from dsim.master.reading.ports import model_description
+
+    result = []
+    for variable in model_description(path).modelVariables:
+        if refusal(variable) is not None or variable.type not in KEPT_TYPE:
+            continue
+        result.append(Settable(component, variable.name, variable.type, variable.causality,
+                               variable.variability or "", _declared(variable, "unit"),
+                               variable.start, _declared(variable, "min"),
+                               _declared(variable, "max"), variable.description or "",
+                               items_of(variable)))
+    return result
+
+
+# --- values ------------------------------------------------------------------------
+def _number(value, integer: bool):
+    """``value`` (a Python number or text) as a float or int; ValueError if it is not
+    one (a bool is no number here: True for a stiffness is a slip)."""
+    if isinstance(value, bool):
+        raise ValueError
+    if isinstance(value, str):
+        text = value.strip()
+        try:
+            number = int(text) if integer else float(text)
+        except ValueError:
+            number = float(text)  # '2.0' or '1e3' for an Integer: whole numbers pass
+    elif isinstance(value, numbers.Real):
+        number = value
+    else:
+        raise ValueError
+    if integer:
+        if isinstance(number, float) and not (math.isfinite(number) and number.is_integer()):
+            raise ValueError
+        return int(number)
+    number = float(number)
+    if not math.isfinite(number):
+        raise ValueError
+    return number
+
+
+def convert(variable, value) -> tuple[object, str | None]:
+    """``value`` (a Python value, or text to read by the variable's type) as the value
+    the FMU variable takes, and what is wrong with it (None: nothing)."""
+    kind = variable.type
+    try:
+        if kind == "Real":
+            return _number(value, False), None
+        if kind == "Integer":
+            return _number(value, True), None
+        if kind == "Boolean":
+            if isinstance(value, bool):
+                return value, None
+            text = str(value).strip().lower() if isinstance(value, (str, int)) else None
+            if text in ("true", "1"):
+                return True, None
+            if text in ("false", "0"):
+                return False, None
+            raise ValueError
+        if kind == "String":
+            if not isinstance(value, str):
+                raise ValueError
+            return value, None
+        if kind == "Enumeration":
+            items = items_of(variable)
+            names = {name: number for name, number in items}
+            if isinstance(value, str) and value.strip() in names:
+                return names[value.strip()], None
+            number = _number(value, True)
+            if items and number not in names.values():
+                raise ValueError
+            return number, None
+    except (TypeError, ValueError, OverflowError):
+        wanted = {"Real": "a finite number", "Integer": "an integer",
+                  "Boolean": "true or false", "String": "text",
+                  "Enumeration": "one of " + ", ".join(
+                      f"{name} ({number})" for name, number in items_of(variable))
+                  if items_of(variable) else "an integer"}[kind]
+        return value, f"is {kind}: '{value}' is not {wanted}"
+    return value, f"is of type {kind}, which dsim cannot set"
+
+
+def _limits(variable, value) -> str | None:
+    """What is wrong with ``value`` against the variable's min and max, or None."""
+    if variable.type not in ("Real", "Integer", "Enumeration"):
+        return None
+    low, high = _declared(variable, "min"), _declared(variable, "max")
+    try:
+        if low not in (None, "") and value < float(low):
+            return f"is {value!r}, below its min {low}"
+        if high not in (None, "") and value > float(high):
+            return f"is {value!r}, above its max {high}"
+    except ValueError:  # a min the description writes oddly: fmpy's checks say so
+        return None
+    return None
+
+
+def _closest(name: str, candidates, count: int = 3) -> str:
+    """' (closest: a, b)' of the names nearest ``name``, or ''."""
+    found = difflib.get_close_matches(name, list(candidates)[:SEARCHED], n=count, cutoff=0.5)
+    return f" (closest: {', '.join(found)})" if found else ""
+
+
+def _split(name: str, owners) -> tuple[str, str] | None:
+    """(owner, rest) for the longest owner path that prefixes ``name`` and a dot."""
+    parts = name.split(".")
+    for cut in range(len(parts) - 1, 0, -1):
+        owner = ".".join(parts[:cut])
+        if owner in owners:
+            return owner, ".".join(parts[cut:])
+    return None
+
+
+# --- joints ------------------------------------------------------------------------
+def _joint_value(joint, coefficient: str, value) -> tuple[object, str | None]:
+    """A joint law coefficient: a tuple (one per dof) or a float, and its problem."""
+    if coefficient not in JOINT_PER_DOF + JOINT_SCALAR:
+        return None, (f"joint '{joint.name}' has no coefficient '{coefficient}' (it has: "
+                      f"{', '.join(JOINT_PER_DOF + JOINT_SCALAR)})")
+    if coefficient in JOINT_PER_DOF and joint.kind != "flexible":
+        return None, (f"joint '{joint.name}' is {joint.kind}: it has no spring or damper "
+                      f"law, so '{coefficient}' cannot be set (only a flexible joint's)")
+    if coefficient in JOINT_SCALAR and joint.measure != "penalized":
+        return None, (f"joint '{joint.name}' measures {joint.measure}: '{coefficient}' is "
+                      "a coefficient of the penalized measure")
+    listed = value.split() if isinstance(value, str) else (
+        list(value) if isinstance(value, (list, tuple)) else [value])
+    try:
+        values = [_number(v, False) for v in listed]
+    except (TypeError, ValueError, OverflowError):
+        return None, f"'{value}' is not a finite number or a list of them"
+    size = len(joint.dofs) if coefficient in JOINT_PER_DOF else 1
+    if len(values) == 1:
+        values *= size
+    if len(values) != size:
+        return None, (f"{len(values)} values for joint '{joint.name}''s {size} dofs "
+                      f"({' '.join(joint.dofs)}): give 1 or {size}")
+    if coefficient in NON_NEGATIVE and any(v < 0 for v in values):
+        return None, f"{value} is negative: '{coefficient}' must be at least 0"
+    return (tuple(values) if coefficient in JOINT_PER_DOF else values[0]), None
+
+
+# --- the scene with the values applied ----------------------------------------------
+def scene_file(base: Path, name: str, value: str, where: str):
+    """(the scene file a String value ``resources/...`` names, or None; the problem,
+    or None): an FMU only knows its own resources, so the master hands it the
+    absolute path of a file of the scene (docs/ssp_support.md)."""
+    resources = base.resolve() / "resources"
+    file = (base / value).resolve()
+    if not file.is_relative_to(resources):
+        return None, f"{where}: parameter '{name}' = '{value}' leaves the scene's resources folder"
+    if not file.is_file():
+        return None, f"{where}: parameter '{name}' = '{value}': the scene has no such file"
+    return file, None
+
+
+def with_parameters(scene, parameters: dict):
+    """``scene`` with ``parameters`` (full name -> Python value or text) applied on
+    top of every binding; what is wrong with them is added to ``scene.problems`` (one
+    line each), so that the plan reports them with its own findings."""
+    from dsim.master.reading.ports import variables_by_name
+    from dsim.master.reading.ssp import SCENE_RESOURCES
+
+    if not parameters:
+        return scene
+    problems: list[str] = []
+    components = {c.path: c for c in scene.components}
+    joints = {j.name: j for j in scene.joints}
+    new_parameters = {path: dict(c.parameters) for path, c in components.items()}
+    new_origins = {path: dict(c.origins) for path, c in components.items()}
+    new_files = {path: dict(c.files) for path, c in components.items()}
+    joint_changes: dict[str, dict] = {}
+    applied, inputs = {}, []
+    described: dict = {}  # FMU file -> its variables by name (None: unreadable)
+    base = Path(scene.inputs[0]).parent if scene.inputs else Path(scene.file).parent
+    for name, value in parameters.items():
+        name = str(name).strip()
+        where = f"parameter '{name}'"
+        owner = _split(name, components)
+        if owner is None and _split(name, joints):
+            joint_name, coefficient = _split(name, joints)
+            converted, problem = _joint_value(joints[joint_name], coefficient, value)
+            if problem:
+                problems.append(f"{where}: {problem}")
+            else:
+                joint_changes.setdefault(joint_name, {})[coefficient] = converted
+                applied[name] = list(converted) if isinstance(converted, tuple) else converted
+            continue
+        if owner is None:
+            head = name.split(".")[0]
+            hint = "" if "." in name else " (give COMPONENT.VARIABLE)"
+            problems.append(f"{where}: no component or joint of the scene is named '{head}'"
+                            + hint + _closest(head, list(components) + list(joints)))
+            continue
+        path, variable_name = owner
+        component = components[path]
+        if component.source not in described:
+            try:
+                described[component.source] = variables_by_name(component.source)
+            except Exception:  # a missing or broken FMU: the plan says what is wrong with it
+                described[component.source] = None
+        variables = described[component.source]
+        if variables is None:
+            continue
+        variable = variables.get(variable_name)
+        if variable is None:
+            settable = [v.name for v in variables.values() if refusal(v) is None]
+            problems.append(f"{where}: component '{path}' ({component.source.name}) has no "
+                            f"variable '{variable_name}'" + _closest(variable_name, settable))
+            continue
+        reason = refusal(variable)
+        if reason:
+            problems.append(f"{where}: variable '{variable_name}' of component '{path}' is "
+                            f"{reason}")
+            continue
+        converted, problem = convert(variable, value)
+        problem = problem or _limits(variable, converted)
+        if problem:
+            problems.append(f"{where}: variable '{variable_name}' of component '{path}' "
+                            f"{problem}")
+            continue
+        kind = KEPT_TYPE[variable.type]
+        new_parameters[path][variable_name] = (kind, converted)
+        new_origins[path][variable_name] = f"{where} {ORIGIN}"
+        new_files[path].pop(variable_name, None)
+        if kind == "String" and converted.startswith(SCENE_RESOURCES):
+            file, problem = scene_file(base, variable_name, converted, where)
+            if problem:
+                problems.append(problem)
+                continue
+            new_files[path][variable_name] = file
+            inputs.append(file)
+        applied[name] = converted
+    changed = tuple(replace(c, parameters=new_parameters[c.path], origins=new_origins[c.path],
+                            files=new_files[c.path]) for c in scene.components)
+    new_joints = tuple(replace(j, **joint_changes[j.name]) if j.name in joint_changes else j
+                       for j in scene.joints)
+    return replace(scene, components=changed, joints=new_joints,
+                   problems=tuple(scene.problems) + tuple(problems),
+                   inputs=tuple(scene.inputs) + tuple(inputs),
+                   overrides={**scene.overrides, **applied})
+
+
+def joint_coefficients(joint) -> tuple[str, ...]:
+    """The law coefficients of ``joint`` a run may set (``j1.k0``)."""
+    return ((JOINT_PER_DOF if joint.kind == "flexible" else ())
+            + (JOINT_SCALAR if joint.measure == "penalized" else ()))
+
+
+def master_writes(spec, path: Path) -> set[str]:
+    """Names of the inputs of one subsystem that the master writes itself: its glued
+    port forces (every step) and the variables connections feed."""
+    from dsim.master.reading.ports import model_description
+
+    forces = {dof.force for dof in spec.port_dofs}
+    names = set(spec.start_writes) | set(spec.text_writes) | set(spec.writes)
+    names |= {v.name for v in model_description(path).modelVariables
+              if v.type == "Real" and v.causality == "input" and v.valueReference in forces}
+    return names
+
+
+def written_by_master(scene, specs, usable: dict) -> list[str]:
+    """Problems of values given for a run (``scene.overrides``) to inputs the master
+    writes itself: a glued port's force (the joints set it every step) or an input a
+    connection feeds (set at initialization and every step): the value would be
+    replaced before the first step."""
+    problems = []
+    for spec in specs:
+        variables = usable.get(spec.name, {})
+        forces = {dof.force for dof in spec.port_dofs}
+        fed = set(spec.start_writes) | set(spec.text_writes)
+        for name in scene.component(spec.name).origins:
+            if not scene.component(spec.name).origins[name].endswith(ORIGIN):
+                continue
+            variable = variables.get(name)
+            if variable is None:
+                continue
+            if name in fed:
+                problems.append(f"parameter '{spec.name}.{name}': a connection feeds this "
+                                "input, and would replace the value before the first step")
+            elif variable.type == "Real" and variable.valueReference in forces and \
+                    variable.causality == "input":
+                problems.append(f"parameter '{spec.name}.{name}': a joint sets this port "
+                                "force every step, and would replace the value")
+    return problems
+
+
+def require_mapping(parameters) -> dict:
+    """``parameters`` as a dict of names (InputError when it is not a mapping)."""
+    if parameters is None:
+        return {}
+    if not hasattr(parameters, "items"):
+        raise InputError(f"parameters: give a mapping of NAME -> value, not "
+                         f"{type(parameters).__name__}")
+    return dict(parameters.items())

@@ -1,0 +1,415 @@
+"""The checked plan of a run: everything that can be known and checked about a
+scene and its settings before any FMU is instantiated.
+
+:func:`make_plan` reads each FMU's modelDescription once, resolves ports and
+joints, chooses the variables each component reads after every step (recorded
+outputs and causal connection sources) and writes (causal inputs), resolves the
+causal connections into index arrays, decides which components are glued (in a
+joint: iterated with rollback) and which are free (one doStep per macro step),
+and collects every problem into one :class:`~dsim.master.errors.InputError`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dsim.master.errors import InputError
+from dsim.master.planning.assembly import assemble
+from dsim.master.planning.parameters import written_by_master
+from dsim.master.reading.fmu_archive import fmu_problem
+from dsim.master.reading.ports import (NEEDED, component_ports, description_warning,
+                                       joint_port_dofs, model_description, variables_by_name)
+from dsim.master.reading.ssp_values import TYPES
+from dsim.master.reading.units import conversion, fmu_units, variable_unit
+from dsim.master.recording.selection import record_every, select_columns
+from dsim.master.running.connections import (Transfer, build_text_transfer, build_transfer,
+                                             check_connections)
+from dsim.master.running.fmu import SubsystemSpec, can_save_state
+from dsim.master.running.timeline import is_whole
+from dsim.master.scene import Scene
+from dsim.master.settings import check_span
+
+#: variable types a recorded column can carry
+NUMERIC = ("Real", "Integer", "Enumeration", "Boolean")
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A checked scene, ready to run (immutable: every run makes its own state)."""
+
+    scene: Scene
+    coupling: str
+    backend: str
+    specs: tuple[SubsystemSpec, ...]
+    #: recorded outputs as (component path, variable), and where each is in the
+    #: run's flat output vector
+    recorded: tuple[tuple[str, str], ...]
+    record_index: np.ndarray
+    transfer: Transfer
+    #: indices of the components in a joint (the glued ones)
+    glued: tuple[int, ...]
+    sides: dict
+    ports: dict
+    #: every connection (fixed parameters too), carried at initialization in
+    #: ``start_passes`` read-and-write passes (dependency order)
+    start_transfer: Transfer = None
+    start_passes: int = 0
+    #: what the run should say before it starts (a default it assumed, for one)
+    warnings: tuple[str, ...] = ()
+    #: the explicit coupling glues a component that cannot save its state: the
+    #: interface flexibility comes from the start accelerations (no rollback)
+    flexibility_at_start: bool = False
+    #: String outputs recorded (component, variable), where each is in the run's flat
+    #: list of String values, and the String connections (applied at every step)
+    text_recorded: tuple[tuple[str, str], ...] = ()
+    text_index: tuple[int, ...] = ()
+    text_transfer: object = None
+    #: every glued FMU accepts a communication step other than the nominal one
+    #: (canHandleVariableCommunicationStepSize): a failed macro step may be cut
+    variable_steps: bool = False
+    #: what the backend is given besides the specs (``address`` of a Ray cluster)
+    backend_options: dict = None
+    #: the recorded numeric columns (outputs, then joint forces) chosen by ``outputs``,
+    #: as indices into the full row; None: every one (dsim.master.recording.selection)
+    selected: np.ndarray | None = None
+    #: rows are recorded every this many macro steps (``output_interval``), and at
+    #: the last converged step
+    record_every: int = 1
+    #: what the run was asked to record (the statistics say it)
+    outputs: tuple[str, ...] = ()
+    output_interval: float | None = None
+
+    @property
+    def text_columns(self) -> tuple[str, ...]:
+        """CSV columns of the recorded String outputs (after every numeric column)."""
+        return tuple(f"{path}.{name}" for path, name in self.text_recorded)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """CSV columns of the recorded outputs (``component.variable``)."""
+        return tuple(f"{path}.{name}" for path, name in self.recorded)
+
+    @property
+    def non_matching(self) -> bool:
+        """Whether a joint glues node sets of different sizes (needs positions)."""
+        return any(len(a) != len(b) for a, b in self.sides.values())
+
+    def assemble(self, positions=None):
+        """A fresh gluing layout and joint states (``positions``: initial positions
+        of the glued dofs, needed by non-matching joints)."""
+        paths = [spec.name for spec in self.specs]
+        layout, joints, _ = assemble(paths, list(self.scene.joints), self.sides, positions)
+        return layout, joints
+
+    @property
+    def inputs(self) -> list:
+        """Files the run reads (a run must never write over one of them)."""
+        files = [self.scene.file] + [spec.path for spec in self.specs]
+        return files + list(self.scene.inputs)
+
+
+def _usable(scene: Scene, problems: list, warnings: list,
+            load_libraries: bool = True) -> dict:
+    """component path -> its variables by name, for the components whose FMU can be
+    used; every other component gets one problem line (``load_libraries``: also load
+    each library in a child process, see :func:`dsim.master.reading.fmu_archive.fmu_problem`)."""
+    usable = {}
+    for component in scene.components:
+        if not component.source.is_file():
+            continue  # the reader has said so
+        problem = fmu_problem(component.source, load_libraries)
+        where = f"{component.location}: FMU {component.source.name}"
+        model_exchange = component.implementation == "ModelExchange"
+        if problem and model_exchange and problem.startswith("a Model Exchange FMU"):
+            problems.append(f"{component.location}: implementation=\"ModelExchange\": dsim "
+                            "runs co-simulation only, and FMU "
+                            f"{component.source.name} has no CoSimulation interface")
+        elif problem:
+            problems.append(f"{where}: {problem}")
+        else:
+            usable[component.path] = variables_by_name(component.source)
+            tolerated = description_warning(component.source)
+            if tolerated:
+                warnings.append(f"{where}: {tolerated}")
+            if model_exchange:  # SSP lets the SSD choose; dsim has no integrator of its own
+                warnings.append(f"{component.location}: implementation=\"ModelExchange\": "
+                                "dsim runs co-simulation; the FMU's CoSimulation interface "
+                                "is run instead")
+    return usable
+
+
+def _records(scene: Scene, usable: dict) -> tuple[dict, dict]:
+    """Outputs to record per component, numeric and String: its declared output
+    connectors, else every output of its FMU that is not port kinematics."""
+    numbers, texts = {}, {}
+    for component in scene.components:
+        variables = usable.get(component.path)
+        if variables is None:
+            continue
+        declared = [c.name for c in component.connectors
+                    if c.kind == "output" and c.name in variables]
+        chosen = declared or [n for n, v in variables.items() if v.causality == "output"
+                              and n.split(".")[-1][:2] not in ("u_", "v_", "a_")]
+        numbers[component.path] = [n for n in chosen if variables[n].type in NUMERIC]
+        texts[component.path] = [n for n in chosen if variables[n].type == "String"]
+    return numbers, texts
+
+
+def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
+    """Every declared connector of a component is a variable of its FMU, of the same
+    causality, type and (where both say one) unit dimension."""
+    for component in scene.components:
+        variables = usable.get(component.path)
+        if variables is None:
+            continue
+        units = None
+        for connector in component.connectors:
+            where = f"{component.location}: connector '{connector.name}'"
+            variable = variables.get(connector.name)
+            if variable is None:
+                problems.append(f"{where} is not a variable of {component.source.name}")
+                continue
+            if connector.kind and connector.kind != variable.causality:
+                problems.append(f"{where} is declared {connector.kind}, but the FMU's "
+                                f"variable is {variable.causality}")
+            if connector.type and connector.type != TYPES.get(variable.type, variable.type):
+                problems.append(f"{where} is declared {connector.type}, but the FMU's "
+                                f"variable is {variable.type}")
+            declared = variable_unit(variable)
+            if connector.unit and declared and connector.unit != declared:
+                units = units or {**fmu_units(component.source), **scene.units}
+                known = (units.get(connector.unit), units.get(declared))
+                try:
+                    if None not in known:
+                        conversion(*known)
+                    warnings.append(f"{where} has unit '{connector.unit}', its FMU variable "
+                                    f"'{declared}': connections convert from the "
+                                    "connector's unit")
+                except ValueError as error:
+                    problems.append(f"{where}: its unit and the FMU variable's: {error}")
+
+
+def _with_files(component, variables: dict) -> dict:
+    """The component's parameter values with each scene file it names (a String
+    ``resources/...``) given as the file's absolute path; names that are no variable
+    of its FMU are left out (:func:`_check_parameters` warned about them)."""
+    return {name: value for name, value in {
+        **component.parameters,
+        **{name: ("String", str(file)) for name, file in component.files.items()}}.items()
+        if name in variables}
+
+
+def _check_parameters(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
+    """Every parameter value must reach a variable that FMI 2.0 lets a master set
+    before initialization: variability not constant, and an input, a parameter or a
+    variable with initial="exact" or "approx".  A value naming no variable is a
+    warning (SSP ignores it; a set may carry values for other tools, such as CAD
+    geometry): it is not applied."""
+    for component in scene.components:
+        variables = usable.get(component.path)
+        if variables is None:
+            continue
+        for name in component.parameters:
+            where = component.origins.get(name, component.location)
+            variable = variables.get(name)
+            if variable is None:
+                warnings.append(f"{where}: parameter '{name}' is not a variable of component "
+                                f"'{component.path}' ({component.source.name}): not applied")
+            elif variable.variability == "constant" or not (
+                    variable.causality in ("parameter", "input")
+                    or variable.initial in ("exact", "approx")):
+                problems.append(f"{where}: '{component.path}.{name}' is a "
+                                f"{variable.variability} {variable.causality} with initial="
+                                f"{variable.initial}: FMI 2.0 lets no master set it")
+
+
+def _sides(scene: Scene, ports: dict, problems: list) -> dict:
+    sides = {}
+    for joint in scene.joints:
+        if joint.a[0] not in ports or joint.b[0] not in ports:
+            continue
+        a = joint_port_dofs(joint, "a", ports[joint.a[0]], problems)
+        b = joint_port_dofs(joint, "b", ports[joint.b[0]], problems)
+        if a and b and len(a) != len(b) and not set(joint.dofs) <= {"x", "y", "z"}:
+            problems.append(f"{joint.location}: node sets of {len(a) // len(joint.dofs)} and "
+                            f"{len(b) // len(joint.dofs)} nodes can be glued by moving least "
+                            "squares on translations only (dofs x y z)")
+        sides[joint.name] = (a, b)
+        for path in (joint.a[0], joint.b[0]):
+            if not can_save_state(scene.component(path).source) and (
+                    scene.master.coupling != "explicit"):
+                problems.append(f"{joint.location}: component '{path}' cannot save and "
+                                "restore its state (canGetAndSetFMUstate is false), so it "
+                                "cannot be iterated in a joint: it can take part through "
+                                "causal connections, or in a joint with the explicit coupling "
+                                "(coupling='explicit', no rollback)")
+    return sides
+
+
+def _capabilities(scene: Scene, usable: dict, problems: list) -> None:
+    """What an FMU's co-simulation capabilities forbid this run: a shortened last step
+    for an FMU that needs a fixed one, two instances of an FMU that allows one."""
+    step = scene.master.step
+    uneven = not is_whole(scene.start_time, scene.stop_time, step)
+    users: dict = {}
+    for component in scene.components:
+        if component.path not in usable:
+            continue
+        cs = model_description(component.source).coSimulation
+        if uneven and not cs.canHandleVariableCommunicationStepSize:
+            problems.append(f"{component.location}: FMU {component.source.name} needs a fixed "
+                            "communication step (canHandleVariableCommunicationStepSize="
+                            f"false), but {scene.start_time:g} .. {scene.stop_time:g} s is "
+                            f"not a whole number of {step:g} s steps (the last would be "
+                            "shorter)")
+        if cs.canBeInstantiatedOnlyOncePerProcess:
+            users.setdefault(cs.modelIdentifier, []).append(component)
+    for identifier, components in users.items():
+        if len(components) > 1:
+            problems.append(f"{components[1].location}: FMU '{identifier}' can be instantiated "
+                            "only once per process (canBeInstantiatedOnlyOncePerProcess), and "
+                            f"{len(components)} components use it: "
+                            f"{', '.join(c.path for c in components)}")
+
+
+def _kinds(scene: Scene) -> dict[str, tuple[bool, bool, bool]]:
+    """component path -> the kinematic kinds (u, v, a) its joints read each iteration:
+    a fixed joint its measure's; a flexible one all three (its law, or its integrated
+    extension, starts from the ports' motion)."""
+    result: dict[str, list[bool]] = {}
+    for joint in scene.joints:
+        wanted = [True] * 3 if joint.kind == "flexible" else [
+            k in NEEDED[joint.measure] for k in ("u", "v", "a")]
+        for path in (joint.a[0], joint.b[0]):
+            current = result.setdefault(path, [False] * 3)
+            result[path] = [x or y for x, y in zip(current, wanted)]
+    return {path: tuple(flags) for path, flags in result.items()}
+
+
+def _passes(paths: list[str], links) -> int:
+    """How many read-and-write passes carry start values along every chain of
+    connections: the longest chain of components (a cycle: every component once)."""
+    feeds: dict[str, set] = {p: set() for p in paths}
+    for link in links:
+        if link.start[0] != link.end[0]:
+            feeds[link.start[0]].add(link.end[0])
+    depth, active = {}, set()
+
+    def longest(node) -> int:
+        if node in active:  # a cycle
+            raise RecursionError
+        if node not in depth:
+            active.add(node)
+            depth[node] = 1 + max((longest(n) for n in feeds[node]), default=0)
+            active.discard(node)
+        return depth[node]
+
+    try:
+        return max((longest(p) for p in paths), default=0) - 1
+    except RecursionError:
+        return len(paths)
+
+
+def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
+              load_libraries: bool = True, strict: bool = False, outputs=None,
+              output_interval=None) -> Plan:
+    """Check everything that can be checked without instantiating an FMU; raise
+    InputError listing every problem.  ``load_libraries=False``: no FMU library is
+    loaded, not even in a child process (its bytes are checked).  ``strict``: every
+    warning is a problem too.  ``outputs``, ``output_interval``: what to record
+    (:mod:`dsim.master.recording.selection`)."""
+    from dsim.master.running.backends import BACKENDS
+
+    backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
+    problems = list(scene.problems) + check_span(
+        scene.start_time, scene.stop_time, scene.master.step, f"{scene.file}: DefaultExperiment")
+    problems += BACKENDS[backend].problems(**backend_options)
+    every, problem = record_every(output_interval, scene.master.step)
+    if problem:
+        problems.append(problem)
+    coupling = scene.master.coupling
+    if scene.joints and coupling == "causal":
+        problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
+                        f"{len(scene.joints)} joints: use iterative or explicit")
+    warnings = list(scene.warnings)
+    usable = _usable(scene, problems, warnings, load_libraries)
+    ports = component_ports(scene, problems, usable)
+    _check_connectors(scene, usable, problems, warnings)
+    _check_parameters(scene, usable, problems, warnings)
+    _capabilities(scene, usable, problems)
+    records, text_records = _records(scene, usable)
+    links = check_connections(scene, usable, problems)
+    fed: dict = {}
+    for link in links:
+        if link.end in fed:
+            problems.append(f"{scene.file}: '{'.'.join(link.end)}' is fed twice, by "
+                            f"'{'.'.join(fed[link.end])}' and '{'.'.join(link.start)}'")
+        fed[link.end] = link.start
+    sides = _sides(scene, ports, problems)
+    if not scene.experiment:
+        warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
+                        f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "
+                        "--stop sets the stop time)")
+    warnings = list(dict.fromkeys(warnings))
+    if strict:
+        problems += [f"{warning} (a warning; refused with --strict)" for warning in warnings]
+        warnings = []
+    if problems:
+        error = InputError(list(dict.fromkeys(problems)))
+        error.warnings = warnings
+        raise error
+    paths = [c.path for c in scene.components]
+    layout, _, interfaces = assemble(paths, list(scene.joints), sides)
+    numbers = [link for link in links if link.kind != "String"]
+    texts = [link for link in links if link.kind == "String"]
+    reads = {p: list(records[p]) for p in paths}
+    text_reads = {p: list(text_records[p]) for p in paths}
+    for link in links:
+        read = text_reads if link.kind == "String" else reads
+        if link.start[1] not in read[link.start[0]]:
+            read[link.start[0]].append(link.start[1])
+    transfer, writes = build_transfer(paths, reads, [link for link in numbers
+                                                     if link.every_step])
+    start_transfer, start_writes = build_transfer(paths, reads, numbers)
+    text_transfer, text_writes = build_text_transfer(paths, text_reads, texts)
+    recorded, record_index, offset = [], [], 0
+    for path in paths:
+        for i, name in enumerate(reads[path]):
+            if name in records[path]:
+                recorded.append((path, name))
+                record_index.append(offset + i)
+        offset += len(reads[path])
+    kinds = _kinds(scene)
+    specs = tuple(SubsystemSpec(
+        c.path, c.source, tuple(interfaces[c.path]), _with_files(c, usable[c.path]),
+        tuple(reads[c.path]), tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
+        kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
+        tuple(text_reads[c.path]), tuple(text_writes[c.path]),
+        scene.placements.get(c.path, ""), tuple(c.files)) for c in scene.components)
+    text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
+    text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
+                  text_reads[p].index(n) for p, n in text_recorded]
+    columns = [f"{path}.{name}" for path, name in recorded] + list(layout.labels)
+    selected, text_selected, problems = select_columns(
+        outputs, columns, [f"{path}.{name}" for path, name in text_recorded])
+    problems += written_by_master(scene, specs, usable)
+    if problems:
+        error = InputError(problems)
+        error.warnings = warnings
+        raise error
+    if text_selected is not None:
+        text_recorded = tuple(text_recorded[i] for i in text_selected)
+        text_index = [text_index[i] for i in text_selected]
+    glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
+    return Plan(scene, coupling if scene.joints else "causal", backend, specs,
+                tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
+                ports, start_transfer, _passes(paths, links), tuple(warnings),
+                bool(scene.joints) and coupling == "explicit" and any(
+                    not can_save_state(scene.components[i].source) for i in glued),
+                text_recorded, tuple(text_index), text_transfer,
+                all(model_description(scene.components[i].source).coSimulation
+                    .canHandleVariableCommunicationStepSize for i in glued),
+                backend_options, selected, every,
+                tuple([outputs] if isinstance(outputs, str) else outputs or ()),
+                None if output_interval is None else float(output_interval))

@@ -1,0 +1,171 @@
+"""FMU files as untrusted input: checked before any instance is made.
+
+An FMU is a zip archive with a modelDescription.xml and a shared library per
+platform.  A corrupt or truncated archive, an FMI version or interface type dsim
+does not run, or a library that cannot be loaded must each be one line of bad
+input before the first step, never a traceback or a crashed process: a library
+cut short can kill the process that maps it (SIGBUS), so it is first loaded in a
+child process, where a crash is only a message.
+"""
+from __future__ import annotations
+
+import hashlib
+import struct
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+from fmpy import platform, sharedLibraryExtension
+
+from dsim.master.errors import InputError
+from dsim.master.reading.unpacking import check_archive, extract
+
+_UNZIPPED: dict[Path, str] = {}
+
+# Loads the library and returns; a crash shows as a negative return code.
+_PROBE = "import ctypes, sys; ctypes.CDLL(sys.argv[1])"
+
+
+def unzipped(path: Path) -> str:
+    """Folder holding the extracted FMU (shared by every instance of the file): unpacked
+    within the limits of :mod:`dsim.master.reading.unpacking`, into a folder removed at exit (or by
+    the next run, when this one is killed)."""
+    path = Path(path)
+    if path not in _UNZIPPED:
+        _UNZIPPED[path] = str(extract(path, "FMU", "fmu"))
+    return _UNZIPPED[path]
+
+
+def _archive_problem(path: Path) -> str | None:
+    try:
+        check_archive(path, "FMU")  # before testzip, which inflates every member
+    except InputError as error:
+        return error.problems[0]
+    try:
+        with zipfile.ZipFile(path) as archive:
+            broken = archive.testzip()
+            names = set(archive.namelist())
+    except (zipfile.BadZipFile, OSError, EOFError) as error:
+        return f"not a readable FMU archive ({error})"
+    if broken:
+        return f"corrupt FMU archive (member '{broken}' fails its CRC check)"
+    if "modelDescription.xml" not in names:
+        return "not an FMU (no modelDescription.xml in the archive)"
+    return None
+
+
+def _description_problem(path: Path) -> str | None:
+    from dsim.master.reading.ports import model_description
+
+    try:
+        description = model_description(path)
+    except Exception as error:  # fmpy raises several kinds for a broken description
+        return f"unreadable modelDescription.xml ({' '.join(str(error).split())})"
+    if description.fmiVersion != "2.0":
+        return (f"an FMI {description.fmiVersion} FMU: dsim runs FMI 2.0 co-simulation "
+                "FMUs")
+    if description.coSimulation is None:
+        return ("a Model Exchange FMU without co-simulation: dsim runs FMI 2.0 "
+                "co-simulation FMUs")
+    return None
+
+
+def _library_member(path: Path) -> str:
+    """The archive member of the library for this platform that the FMU names."""
+    from dsim.master.reading.ports import model_description
+
+    identifier = model_description(path).coSimulation.modelIdentifier
+    return f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+
+
+def _library_problem(path: Path) -> str | None:
+    """Whether the library (there, and whole as bytes: :func:`_library_bytes_problem`)
+    loads: in a child process, where a crash is only a message."""
+    member = _library_member(path)
+    try:
+        library = Path(unzipped(path)) / member
+    except InputError as error:
+        return error.problems[0]
+    try:
+        probe = subprocess.run([sys.executable, "-I", "-S", "-c", _PROBE, str(library)],
+                               capture_output=True, text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        return f"its library {member} did not finish loading in 120 s"
+    if probe.returncode < 0:
+        import signal
+        name = signal.Signals(-probe.returncode).name
+        return f"its library {member} is corrupt: loading it crashed the process ({name})"
+    if probe.returncode:
+        last = (probe.stderr.strip().splitlines() or ["unknown error"])[-1]
+        return f"its library {member} cannot be loaded: {last}"
+    return None
+
+
+#: ELF class and e_machine of each Linux platform of FMI 2.0
+ELF_MACHINES = {"linux64": (2, 62), "linux32": (1, 3)}  # (ELF class, e_machine)
+
+
+
+def _elf_problem(data: bytes, platform: str) -> str | None:
+    """What keeps ``data`` from being a whole ELF shared object for ``platform``,
+    from its headers alone (nothing is loaded or run): a library cut short or made
+    for another machine is refused here rather than at its first run."""
+    if data[:4] != b"\x7fELF":
+        return "is not an ELF shared library"
+    expected = ELF_MACHINES.get(platform)
+    if expected is None:
+        return None
+    bits, machine = expected
+    if data[4] != bits or data[5] != 1:  # class, little-endian
+        return f"is not a little-endian {32 * bits}-bit library"
+    if bits == 2:
+        if len(data) < 64:
+            return "is cut short (no whole ELF header)"
+        kind, found, phoff, shoff = struct.unpack_from("<HH12xQQ", data, 16)
+        phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 54)
+    else:
+        if len(data) < 52:
+            return "is cut short (no whole ELF header)"
+        kind, found, phoff, shoff = struct.unpack_from("<HH8xII", data, 16)
+        phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 42)
+    if kind != 3:
+        return "is not a shared object (ELF type %d)" % kind
+    if found != machine:
+        return f"is built for another machine (ELF machine {found})"
+    if phoff + phnum * phentsize > len(data) or shoff + shnum * shentsize > len(data):
+        return "is cut short (its headers point past its end)"
+    return None
+
+
+def _library_bytes_problem(path: Path) -> str | None:
+    """The library of this platform that an FMU names is in the archive and looks
+    whole (:func:`_elf_problem`), read as bytes, never loaded."""
+    member = _library_member(path)
+    with zipfile.ZipFile(path) as archive:
+        if member not in archive.namelist():
+            found = sorted({n.split("/")[1] for n in archive.namelist()
+                            if n.startswith("binaries/") and n.count("/") >= 2})
+            return (f"no binary for this platform ({member} missing; the FMU has "
+                    f"{', '.join(found) or 'no binaries'})")
+        problem = _elf_problem(archive.read(member), platform) if member.endswith(".so") \
+            else None
+    return f"its library {member} {problem}" if problem else None
+
+
+_CHECKED: dict[tuple[str, bool], str | None] = {}
+
+
+def fmu_problem(path: Path, load: bool = True) -> str | None:
+    """What is wrong with the FMU file at ``path`` for dsim, or None (checked once per
+    content: the same FMU extracted again from a scene archive is not probed again).
+    Its library is read as bytes (:func:`_library_bytes_problem`) and, with ``load``,
+    loaded in a child process; without, nothing of the FMU runs (``dsim validate``,
+    uploads to ``dsim serve``: an FMU's library runs its constructors when loaded)."""
+    path = Path(path)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    if (digest, load) not in _CHECKED:
+        _CHECKED[digest, load] = (
+            _archive_problem(path) or _description_problem(path)
+            or _library_bytes_problem(path) or (_library_problem(path) if load else None))
+    return _CHECKED[digest, load]

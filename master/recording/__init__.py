@@ -1,0 +1,1 @@
+"""Recording a run: observers, the files they write (safely), results and statistics."""

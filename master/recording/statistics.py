@@ -1,0 +1,93 @@
+"""The statistics of a run (the JSON beside the CSV, ``RunResult.statistics``):
+wall time per phase, iterations per step, flexibility refreshes, and per component
+the doSteps, state saves and restores, and calls and seconds per FMI function."""
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+#: counter names of the FMI functions (FMU subsystems) and core methods (in-process)
+DO_STEP = ("fmi2DoStep", "step")
+SAVE = ("fmi2GetFMUstate", "get_state")
+RESTORE = ("fmi2SetFMUstate", "set_state")
+
+
+def _count(functions: dict, names) -> int:
+    return sum(functions.get(name, {}).get("calls", 0) for name in names)
+
+
+def _components(execution) -> dict:
+    if execution.backend is None:
+        return {}
+    result = {}
+    backend = execution.backend
+    for name, counters, place in zip(backend.names, backend.counters(), backend.places()):
+        functions = {f: {"calls": calls, "seconds": seconds}
+                     for f, (calls, seconds) in sorted(counters.items())}
+        result[name] = {"seconds": sum(f["seconds"] for f in functions.values()),
+                        "do_steps": _count(functions, DO_STEP),
+                        "state_saves": _count(functions, SAVE),
+                        "state_restores": _count(functions, RESTORE),
+                        "functions": functions}
+        if place is not None:  # a worker process elsewhere: which node, which process
+            result[name]["worker"] = dict(place)
+    return result
+
+
+def run_statistics(execution, wall_seconds: float, components: dict | None = None) -> dict:
+    """The statistics of an ended :class:`~dsim.master.running.execution.Execution` (seconds, counts);
+    ``components``: what is known of them, when they cannot be asked (an abandoned run
+    whose workers may be stuck)."""
+    scene, settings = execution.scene, execution.settings
+    components = _components(execution) if components is None else components
+    # (an abandoned run knows only where its workers ran: no seconds, no counts)
+    inside = sum(c.get("seconds", 0.0) for c in components.values())
+    do_steps = sum(c.get("do_steps", 0) for c in components.values())
+    iterations = np.array(execution._iterations or [0])
+    steps = execution.index
+    coupling = execution.coupling
+    phases = dict(execution._phases)
+    if coupling is not None:
+        phases.update({f"steps: {k}": v for k, v in coupling.seconds.items()})
+    return {
+        "scene": scene.name,
+        "file": str(scene.file),
+        "status": execution.status,
+        "message": str(execution.error) if execution.error else None,
+        "start_time": scene.start_time,
+        "stop_time": scene.stop_time,
+        "time_reached": execution.time,
+        "coupling": execution.plan.coupling,
+        "backend": execution.plan.backend,
+        "master": dict(settings.__dict__),
+        "steps": steps,
+        "planned_steps": execution.planned_steps,
+        "wall_seconds": wall_seconds,
+        "setup_seconds": phases["setup"],
+        "phases": phases,
+        "seconds_in_fmus": inside,
+        "seconds_in_master": wall_seconds - inside,
+        "iterations": {
+            "total": int(iterations.sum()) if steps else 0,
+            "mean_per_step": float(iterations.mean()) if steps else 0.0,
+            "max_per_step": int(iterations.max()) if steps else 0,
+            "histogram": {str(k): v for k, v in sorted(Counter(execution._iterations).items())},
+        },
+        "lambda_refreshes": coupling.refreshes if coupling is not None else 0,
+        "lambda_factorizations": coupling.factorizations if coupling is not None else 0,
+        "step_cuts": getattr(coupling, "cuts", 0),
+        "least_squares_factorizations": getattr(coupling, "regularized", 0),
+        "least_squares_steps": getattr(coupling, "least_squares_steps", 0),
+        "roundoff_steps": getattr(coupling, "roundoff_steps", 0),
+        "do_steps_per_step": do_steps / steps if steps else 0.0,
+        "components": components,
+        "warnings": list(execution.warnings),
+        # what repeats the run besides the scene and "master": the parameter sets
+        # chosen, the values given on top (docs/parameters.md) and what was recorded
+        "parameter_sets": list(scene.parameter_sets),
+        "parameters": dict(scene.overrides),
+        "recording": {"outputs": list(execution.plan.outputs),
+                      "output_interval": execution.plan.output_interval,
+                      "every_steps": execution.plan.record_every},
+    }

@@ -1,0 +1,130 @@
+"""The backend protocol: what the couplings and the execution need from the
+subsystems, in batches over all of them (or over a subset)."""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+
+class Backend(ABC):
+    """The subsystems of one run, wherever they live.
+
+    Lists of per-subsystem values (forces, kinematics, outputs, inputs) follow the
+    backend's order of subsystems; :meth:`subset` gives a backend over some of them
+    in the order asked, sharing the same subsystems.
+    """
+
+    #: registry name
+    name = ""
+    #: whether the subsystems live in other processes (their counters need a call)
+    remote = False
+
+    @classmethod
+    def problems(cls, **options) -> list[str]:
+        """What is wrong with running on this backend with ``options`` (the run
+        options that are not master settings, such as ``address``), one line each."""
+        from dsim.master.settings import BACKEND_OPTIONS
+
+        return [f"setting {key}: {BACKEND_OPTIONS[key]}"
+                for key, value in options.items() if value is not None]
+
+    @classmethod
+    @abstractmethod
+    def from_specs(cls, specs, **options) -> "Backend":
+        """Create every subsystem of a run from its
+        :class:`~dsim.master.running.fmu.SubsystemSpec` (instantiated, in initialization mode)."""
+
+    @abstractmethod
+    def subset(self, indices) -> "Backend":
+        """A backend over the subsystems at ``indices``."""
+
+    @abstractmethod
+    def __len__(self) -> int:
+        """Number of subsystems."""
+
+    @property
+    @abstractmethod
+    def names(self) -> list[str]:
+        """Subsystem names, in order."""
+
+    @abstractmethod
+    def begin_step(self) -> None:
+        """Every subsystem saves its state as the macro step's start."""
+
+    @abstractmethod
+    def trial_step(self, forces, time: float, step_size: float) -> list:
+        """Each subsystem steps from its saved state with its forces; their kinematics."""
+
+    @abstractmethod
+    def advance(self, forces, time: float, step_size: float) -> list:
+        """Each subsystem steps with its forces, no rollback; their kinematics."""
+
+    @abstractmethod
+    def step(self, time: float, step_size: float, inputs=()) -> list:
+        """Each subsystem writes its causal inputs (``inputs``: (subsystem index,
+        values) pairs), takes one plain step (no forces, no state saved) and reads
+        its outputs; the outputs of every subsystem."""
+
+    @abstractmethod
+    def flexibility(self, forces, time: float, step_size: float, deltas, bases) -> list:
+        """Each subsystem's interface flexibility [Gu, Gv, Ga] by perturbation."""
+
+    @abstractmethod
+    def set_forces(self, forces) -> None:
+        """Write each subsystem's glued-dof forces (no step)."""
+
+    @abstractmethod
+    def start_flexibility(self, forces, deltas) -> list:
+        """Each subsystem's d a / d f at the start time (no step)."""
+
+    @abstractmethod
+    def kinematics(self) -> list:
+        """Current interface kinematics of every subsystem."""
+
+    @abstractmethod
+    def read_outputs(self) -> list:
+        """Every subsystem's read values (a float array each)."""
+
+    @abstractmethod
+    def write_inputs(self, inputs, start: bool = False) -> None:
+        """Write causal inputs: ``inputs`` is a list of (subsystem index, values); with
+        ``start``, what connections feed at initialization (fixed parameters too)."""
+
+    @abstractmethod
+    def read_texts(self) -> list:
+        """Every subsystem's String values read after a step (a list of str each)."""
+
+    @abstractmethod
+    def write_texts(self, inputs) -> None:
+        """Write String inputs: (subsystem index, list of str) pairs."""
+
+    @abstractmethod
+    def finish_initialization(self) -> None:
+        """Every subsystem leaves initialization mode."""
+
+    @abstractmethod
+    def counters(self) -> list[dict]:
+        """Per subsystem: FMI function -> [calls, seconds]."""
+
+    def places(self) -> list:
+        """Per subsystem: where it ran ({"node": ..., "pid": ...}), or None (here)."""
+        return [None] * len(self)
+
+    @abstractmethod
+    def close(self) -> list[Exception]:
+        """Terminate every subsystem, even if some fail; the errors they raised."""
+
+    def abandon(self) -> None:
+        """The process ends at once (a second signal) while a subsystem may be stuck:
+        end what this backend started elsewhere, without waiting for any subsystem
+        (processes on this machine are killed by the caller)."""
+
+
+def terminate_all(subsystems) -> list[Exception]:
+    """Terminate every subsystem, even if some fail; the errors they raised."""
+    errors = []
+    for subsystem in subsystems:
+        try:
+            subsystem.terminate()
+        except Exception as error:  # gather: every subsystem must be released
+            errors.append(error)
+    return errors

@@ -1,0 +1,93 @@
+"""Every subsystem in this process, called one after the other."""
+from __future__ import annotations
+
+from dsim.master.running.backends.base import Backend, terminate_all
+
+
+class InProcessBackend(Backend):
+    """The subsystems live in this process and are called in order."""
+
+    name = "in-process"
+
+    def __init__(self, subsystems):
+        self.subsystems = list(subsystems)
+
+    @classmethod
+    def from_specs(cls, specs, **options) -> "InProcessBackend":
+        from dsim.master.running.fmu import FmuSubsystem
+
+        subsystems = []
+        try:
+            for spec in specs:
+                subsystems.append(FmuSubsystem(spec))
+        except BaseException:
+            cls(subsystems).close()
+            raise
+        return cls(subsystems)
+
+    def subset(self, indices) -> "InProcessBackend":
+        return InProcessBackend([self.subsystems[i] for i in indices])
+
+    def __len__(self) -> int:
+        return len(self.subsystems)
+
+    @property
+    def names(self) -> list[str]:
+        return [s.name for s in self.subsystems]
+
+    def begin_step(self) -> None:
+        for subsystem in self.subsystems:
+            subsystem.begin_step()
+
+    def trial_step(self, forces, time, step_size):
+        return [s.trial_step(f, time, step_size) for s, f in zip(self.subsystems, forces)]
+
+    def advance(self, forces, time, step_size):
+        return [s.advance(f, time, step_size) for s, f in zip(self.subsystems, forces)]
+
+    def step(self, time, step_size, inputs=()):
+        subsystems = self.subsystems
+        for index, values in inputs:
+            subsystems[index].write_inputs(values)
+        return [s.exchange(time, step_size) for s in subsystems]
+
+    def flexibility(self, forces, time, step_size, deltas, bases):
+        return [s.flexibility(f, time, step_size, d, b)
+                for s, f, d, b in zip(self.subsystems, forces, deltas, bases)]
+
+    def set_forces(self, forces) -> None:
+        for subsystem, f in zip(self.subsystems, forces):
+            subsystem.set_forces(f)
+
+    def start_flexibility(self, forces, deltas):
+        return [s.start_flexibility(f, d) for s, f, d in zip(self.subsystems, forces, deltas)]
+
+    def kinematics(self):
+        return [s.kinematics() for s in self.subsystems]
+
+    def read_outputs(self):
+        return [s.read_outputs() for s in self.subsystems]
+
+    def write_inputs(self, inputs, start: bool = False) -> None:
+        for index, values in inputs:
+            if start:
+                self.subsystems[index].write_start_inputs(values)
+            else:
+                self.subsystems[index].write_inputs(values)
+
+    def read_texts(self):
+        return [s.read_texts() for s in self.subsystems]
+
+    def write_texts(self, inputs) -> None:
+        for index, values in inputs:
+            self.subsystems[index].write_texts(values)
+
+    def finish_initialization(self) -> None:
+        for subsystem in self.subsystems:
+            subsystem.finish_initialization()
+
+    def counters(self):
+        return [s.statistics() for s in self.subsystems]
+
+    def close(self) -> list[Exception]:
+        return terminate_all(self.subsystems)

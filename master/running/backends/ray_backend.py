@@ -1,0 +1,432 @@
+"""The subsystems in Ray actors: other processes, other machines (docs/distributed.md).
+
+Each worker process is a Ray actor (:class:`Host`) that builds its
+:class:`~dsim.master.running.fmu.FmuSubsystem` objects itself from their picklable specs, so an
+FMU's states never leave the process that holds the instance.  Every batched call of
+the couplings is one remote call per worker (restore, set forces, step and read
+kinematics of each of its subsystems in one message), launched for every worker
+before the first answer is awaited: the workers step side by side, the
+perturbation steps of the flexibility too.  The numbers are the in-process
+backend's to the last bit: the same FmuSubsystem code runs, only elsewhere.
+
+``ray``: one worker per FMU instance, at most one per CPU of the cluster (beyond
+that, subsystems share workers, dealt round-robin); a component placed with
+``glue:Placement`` runs on a node that has the named Ray resource.
+``isolated``: one worker process per FMU instance on a local Ray instance, so an FMU
+that crashes its process ends the run with a message, never dsim itself.
+"""
+from __future__ import annotations
+
+import threading
+
+from dsim.master.errors import InputError, SimulationError
+from dsim.master.running.backends.base import Backend
+from dsim.master.running.backends.ray_worker import Host, deal
+from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
+
+#: seconds to wait for the workers to start and instantiate their FMUs
+START_SECONDS = 300.0
+#: what a placed worker takes of its node's resource: little, so that any number of
+#: components can share a node (the resource says where, not how many)
+PLACEMENT_SHARE = 0.001
+
+
+class _Cluster:
+    """What the views of one run share: the connection, the workers, where each
+    subsystem lives and the last simulated time (to name it when a worker dies)."""
+
+    def __init__(self, connection, hosts, owners):
+        self.connection = connection
+        self.hosts = hosts
+        #: per worker: the names of its subsystems
+        self.owners = owners
+        #: per worker: {"node": Ray node id, "pid": process id}, once started
+        self.places = [None] * len(hosts)
+        self.time = None
+        #: seconds a worker may take to answer one call (None: no limit)
+        self.call_timeout: float | None = None
+        self.dead: set[int] = set()
+        self.closed = False
+        #: subsystem name -> its counters, taken before the workers end
+        self.counters: dict[str, dict] = {}
+        #: per worker: calls that need no answer (save the state, write forces or
+        #: inputs), sent ahead of its next call that does: a round trip saved
+        self.deferred: dict[int, list] = {}
+        #: (worker, slot) -> the outputs read right after its last step, while no other
+        #: call has reached it: what read_outputs returns without a round trip
+        self.outputs: dict[tuple[int, int], object] = {}
+
+
+class RayBackend(Backend):
+    """Every subsystem in a Ray actor (a worker process); batched calls in parallel."""
+
+    name = "ray"
+    remote = True
+    #: one worker per FMU instance whatever the number of CPUs
+    one_per_instance = False
+
+    def __init__(self, cluster: _Cluster, members, names):
+        self._cluster = cluster
+        #: per subsystem: (worker index, slot in the worker)
+        self.members = list(members)
+        self._names = list(names)
+
+    # --- set-up ------------------------------------------------------------------
+    @classmethod
+    def problems(cls, **options) -> list[str]:
+        found = super().problems(**{k: v for k, v in options.items()
+                                    if k not in ("address", "call_timeout")})
+        if not available():
+            found.append(f"backend '{cls.name}' needs the ray package: {INSTALL}")
+        address = options.get("address")
+        if address and address_problem(address):
+            found.append(address_problem(address))
+        return found
+
+    @classmethod
+    def from_specs(cls, specs, address=None, call_timeout=None,
+                   **options) -> "RayBackend":
+        connection = connect(address)
+        try:
+            backend = cls._start(connection, list(specs))
+            backend._cluster.call_timeout = call_timeout
+            return backend
+        except BaseException:
+            connection.close()
+            raise
+
+    @classmethod
+    def _start(cls, connection, specs) -> "RayBackend":
+        ray = connection.ray
+        shipment = Shipment(ray)
+        remote = ray.remote(Host)
+        hosts, assigned, members = [], [], [None] * len(specs)
+        for placement, indices in cls._groups(connection, specs):
+            options = {"num_cpus": 0, "max_restarts": 0}
+            if placement:
+                options["resources"] = {placement: PLACEMENT_SHARE}
+            else:  # over the nodes, as evenly as Ray can
+                options["scheduling_strategy"] = "SPREAD"
+            for dealt in deal(len(indices), cls._workers(connection, placement, len(indices))):
+                chosen = [indices[i] for i in dealt]
+                for slot, index in enumerate(chosen):
+                    members[index] = (len(hosts), slot)
+                hosts.append(remote.options(**options).remote())
+                assigned.append(chosen)
+        opened = [host.open.remote([specs[i] for i in chosen],
+                                   [_shipped_files(shipment, specs[i]) for i in chosen])
+                  for host, chosen in zip(hosts, assigned)]
+        owners = [[specs[i].name for i in chosen] for chosen in assigned]
+        backend = cls(_Cluster(connection, hosts, owners), members, [s.name for s in specs])
+        try:
+            backend._cluster.places = backend._open(opened)
+        except BaseException:
+            backend.close()
+            raise
+        return backend
+
+    @classmethod
+    def _groups(cls, connection, specs) -> list[tuple[str, list[int]]]:
+        """Subsystem indices by placement (Ray resource; '' for anywhere), checked
+        against the cluster's resources."""
+        groups: dict[str, list[int]] = {}
+        for index, spec in enumerate(specs):
+            groups.setdefault(spec.placement, []).append(index)
+        known = connection.resources()
+        missing = [f"component '{specs[i].name}' is placed on Ray resource '{place}', which "
+                   f"no node of the cluster has (it has: {', '.join(sorted(known))})"
+                   for place, indices in groups.items() if place and place not in known
+                   for i in indices]
+        if missing:
+            raise InputError(missing)
+        return list(groups.items())
+
+    @classmethod
+    def _workers(cls, connection, placement: str, count: int) -> int:
+        if cls.one_per_instance:
+            return count
+        return max(1, min(count, connection.cpus(placement)))
+
+    def _open(self, opened) -> list[dict]:
+        """Wait for every worker to instantiate its FMUs: their places."""
+        ray = self._cluster.connection.ray
+        ready, waiting = ray.wait(opened, num_returns=len(opened), timeout=START_SECONDS)
+        if waiting:
+            late = [name for h, ref in enumerate(opened) if ref in waiting
+                    for name in self._cluster.owners[h]]
+            raise InputError(f"the Ray workers of components {_quoted(late)} did not start "
+                             f"in {START_SECONDS:g} s (is the cluster short of memory, or "
+                             "are its nodes gone?)")
+        places = []
+        for h, ref in enumerate(opened):
+            try:
+                places.append(ray.get(ref))
+            except ray.exceptions.RayTaskError as error:
+                raise _cause(error) from None
+            except ray.exceptions.RayActorError:
+                self._cluster.dead.add(h)
+                raise InputError(f"{_who(self._cluster.owners[h])}: the worker process "
+                                 "died while the FMU was instantiated (it crashed or was "
+                                 "killed)") from None
+            except ray.exceptions.RayError as error:
+                self._cluster.dead.add(h)
+                raise InputError(f"{_who(self._cluster.owners[h])}: Ray could not start "
+                                 f"its worker: {_first_line(error)}") from None
+        return places
+
+    # --- the batched calls -------------------------------------------------------
+    def _run(self, steps, time=None, answer: bool = True) -> list:
+        """``steps[i]``: the (method, arguments) calls of subsystem i, in order; one
+        remote call per worker, all launched before any answer is awaited.  The results
+        of each subsystem's calls (a list; empty for one given no call).  Without
+        ``answer`` the calls wait for the worker's next call (Ray runs one caller's
+        calls of an actor in order; an error they raise surfaces with that call)."""
+        cluster = self._cluster
+        if time is not None:
+            cluster.time = time
+        batches: dict[int, list] = {}
+        for member, calls in zip(self.members, steps):
+            if calls:
+                batches.setdefault(member[0], []).append((member[1], calls))
+                cluster.outputs.pop(member, None)  # the subsystem may change
+        if not answer:
+            for host, batch in batches.items():
+                cluster.deferred.setdefault(host, []).extend(batch)
+            return [[] for _ in steps]
+        pending, skipped = {}, {}
+        for host, batch in batches.items():
+            ahead = cluster.deferred.pop(host, [])
+            skipped[host] = len(ahead)
+            pending[host] = cluster.hosts[host].run.remote(ahead + batch)
+        answers = {host: iter(self._answer(host, ref)[skipped[host]:])
+                   for host, ref in pending.items()}
+        return [next(answers[host]) if calls else []
+                for (host, _), calls in zip(self.members, steps)]
+
+    def _answer(self, host: int, ref):
+        ray = self._cluster.connection.ray
+        who = _who(self._cluster.owners[host])
+        try:
+            return ray.get(ref, timeout=self._cluster.call_timeout)
+        except ray.exceptions.GetTimeoutError:
+            self._cluster.dead.add(host)
+            ray.kill(self._cluster.hosts[host])  # a hung FMU: its process must go
+            raise SimulationError(f"{who}: no answer from the worker in "
+                                  f"{self._cluster.call_timeout:g} s (--call-timeout): the "
+                                  "FMU hangs or is too slow; the worker was stopped",
+                                  time=self._cluster.time) from None
+        except ray.exceptions.RayTaskError as error:
+            raise _cause(error) from None
+        except ray.exceptions.RayActorError:
+            self._cluster.dead.add(host)
+            place = self._cluster.places[host] or {}
+            raise SimulationError(f"{who}: the worker process (pid {place.get('pid', '?')}) "
+                                  "died: the FMU crashed or was killed",
+                                  time=self._cluster.time) from None
+        except ray.exceptions.RayError as error:  # its node, or the cluster, is gone
+            self._cluster.dead.add(host)
+            raise SimulationError(f"{who}: Ray lost the worker: {_first_line(error)}",
+                                  time=self._cluster.time) from None
+
+    def _each(self, method, *columns, time=None, answer: bool = True) -> list:
+        """``method`` on every subsystem, with the i-th entry of each column: the
+        result of each."""
+        return [results[0] if results else None for results in self._run(
+            [[(method, tuple(c[i] for c in columns))] for i in range(len(self.members))],
+            time, answer)]
+
+    def _stepped(self, method, columns, time) -> list:
+        """A step of every subsystem (``method`` with the i-th entry of each column)
+        and, in the same call, a read of its outputs, kept for :meth:`read_outputs`:
+        after the step that converges, the couplings read the outputs next, so that
+        round trip is saved (reading changes nothing in an FMU)."""
+        answers = self._run([[(method, tuple(c[i] for c in columns)), ("read_outputs", ())]
+                             for i in range(len(self.members))], time)
+        for member, (_, outputs) in zip(self.members, answers):
+            self._cluster.outputs[member] = outputs
+        return [kinematics for kinematics, _ in answers]
+
+    def _some(self, method, inputs, answer: bool = False) -> None:
+        """``method`` on the subsystems of (index, values) ``inputs``, with the values."""
+        steps = [[] for _ in self.members]
+        for index, values in inputs:
+            steps[index].append((method, (values,)))
+        self._run(steps, answer=answer)
+
+    def subset(self, indices) -> "RayBackend":
+        return type(self)(self._cluster, [self.members[i] for i in indices],
+                          [self._names[i] for i in indices])
+
+    def __len__(self) -> int:
+        return len(self.members)
+
+    @property
+    def names(self) -> list[str]:
+        return list(self._names)
+
+    def begin_step(self) -> None:
+        self._each("begin_step", answer=False)
+
+    def trial_step(self, forces, time, step_size):
+        n = len(self.members)
+        return self._stepped("trial_step", (forces, [time] * n, [step_size] * n), time)
+
+    def advance(self, forces, time, step_size):
+        n = len(self.members)
+        return self._stepped("advance", (forces, [time] * n, [step_size] * n), time)
+
+    def step(self, time, step_size, inputs=()):
+        steps = [[] for _ in self.members]
+        for index, values in inputs:
+            steps[index].append(("write_inputs", (values,)))
+        for calls in steps:
+            calls.append(("exchange", (time, step_size)))
+        return [results[-1] for results in self._run(steps, time)]
+
+    def flexibility(self, forces, time, step_size, deltas, bases):
+        n = len(self.members)
+        return self._each("flexibility", forces, [time] * n, [step_size] * n, deltas, bases,
+                          time=time)
+
+    def set_forces(self, forces) -> None:
+        self._each("set_forces", forces, answer=False)
+
+    def start_flexibility(self, forces, deltas):
+        return self._each("start_flexibility", forces, deltas)
+
+    def kinematics(self):
+        return self._each("kinematics")
+
+    def read_outputs(self):
+        kept = self._cluster.outputs
+        if all(member in kept for member in self.members):
+            return [kept[member].copy() for member in self.members]
+        return self._each("read_outputs")
+
+    def write_inputs(self, inputs, start: bool = False) -> None:
+        self._some("write_start_inputs" if start else "write_inputs", inputs)
+
+    def read_texts(self):
+        return self._each("read_texts")
+
+    def write_texts(self, inputs) -> None:
+        self._some("write_texts", inputs)
+
+    def finish_initialization(self) -> None:
+        # answered: a model that refuses to leave initialization is bad input, said now
+        self._each("finish_initialization")
+
+    def counters(self):
+        cluster = self._cluster
+        if cluster.closed or any(host in cluster.dead for host, _ in self.members):
+            return [cluster.counters.get(name, {}) for name in self._names]
+        return self._each("statistics")
+
+    def places(self) -> list:
+        return [self._cluster.places[host] for host, _ in self.members]
+
+    def close(self) -> list[Exception]:
+        """Terminate every subsystem (the live workers'), then end the workers and,
+        if this run started Ray, Ray itself; the errors the subsystems raised."""
+        cluster = self._cluster
+        if cluster.closed:
+            return []
+        ray = cluster.connection.ray
+        errors: list[Exception] = []
+        try:
+            live = [h for h in range(len(cluster.hosts)) if h not in cluster.dead]
+            cluster.counters = self._last_counters(live)
+            closing = {h: cluster.hosts[h].close.remote() for h in live}
+            for h, ref in closing.items():
+                try:
+                    errors += ray.get(ref)
+                except ray.exceptions.RayError:
+                    pass  # a worker gone while closing has nothing left to release
+            for host in cluster.hosts:
+                ray.kill(host)
+        finally:
+            cluster.closed = True
+            cluster.connection.close()
+        return errors
+
+    def abandon(self) -> None:
+        """Kill every worker (on a cluster they are not this machine's to kill by pid),
+        giving Ray a second at most: the process ends at once."""
+        cluster = self._cluster
+        if cluster.closed:
+            return
+        ray = cluster.connection.ray
+
+        def kill_all():
+            for host in cluster.hosts:
+                try:
+                    ray.kill(host)
+                except Exception:  # gone already, or Ray itself is
+                    pass
+
+        killer = threading.Thread(target=kill_all, name="dsim-ray-kill", daemon=True)
+        killer.start()
+        killer.join(timeout=1.0)
+
+    def _last_counters(self, live) -> dict:
+        """Every live subsystem's counters before the workers go (the statistics are
+        made after the run has closed its backend)."""
+        ray = self._cluster.connection.ray
+        counters = {}
+        for h in live:
+            ahead = self._cluster.deferred.pop(h, [])  # counted, as in-process
+            slots = [(slot, [("statistics", ())]) for slot in
+                     range(len(self._cluster.owners[h]))]
+            try:
+                values = ray.get(self._cluster.hosts[h].run.remote(ahead + slots))
+            except ray.exceptions.RayError:
+                continue
+            counters.update(zip(self._cluster.owners[h],
+                                (v[0] for v in values[len(ahead):])))
+        return counters
+
+
+class IsolatedBackend(RayBackend):
+    """One worker process per FMU instance on this machine: a crashing FMU ends the
+    run with a message naming it, never dsim (``dsim run --isolate``)."""
+
+    name = "isolated"
+    one_per_instance = True
+
+    @classmethod
+    def problems(cls, **options) -> list[str]:
+        found = super().problems(**options)
+        if options.get("address"):
+            found.append("setting address: the isolated backend runs on this machine; "
+                         "use --backend ray to run on a cluster")
+        return found
+
+    @classmethod
+    def from_specs(cls, specs, address=None, **options) -> "IsolatedBackend":
+        return super().from_specs(specs, None, **options)  # this machine's own instance
+
+
+def _shipped_files(shipment, spec) -> tuple:
+    """What a worker needs to find a subsystem's files: its FMU, and the scene files
+    its String parameters name (parameter -> shipped file)."""
+    return (shipment.add(spec.path),
+            {name: shipment.add(spec.parameters[name][1]) for name in spec.files})
+
+
+def _who(names) -> str:
+    return f"component {_quoted(names)}" if len(names) == 1 else \
+        f"components {_quoted(names)} (one worker process)"
+
+
+def _quoted(names) -> str:
+    return ", ".join(f"'{n}'" for n in names)
+
+
+def _first_line(error) -> str:
+    return (str(error).strip().splitlines() or [type(error).__name__])[0]
+
+
+def _cause(error) -> Exception:
+    """The exception a worker raised (dsim's own errors arrive whole)."""
+    cause = getattr(error, "cause", None)
+    return cause if isinstance(cause, Exception) else error

@@ -1,0 +1,137 @@
+"""What every coupling shares: one template macro step.
+
+A coupling decides how the subsystems advance together over a macro step.  The
+template :meth:`Coupling.step` is the same for all of them (seen from the
+execution): causal inputs from the outputs at the step start (Jacobi), then the
+coupling's own advance of the glued subsystems (:meth:`Coupling._advance`: T-T
+Newton with rollback, one explicit trial, or nothing), then one plain doStep of
+every subsystem that is in no joint (never saved nor restored), then one batched
+read of every subsystem's outputs.
+"""
+from __future__ import annotations
+
+import time as clock
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from dsim.master.running.connections import Transfer
+
+
+@dataclass
+class StepReport:
+    """What one macro step took: Newton iterations (0 when nothing is glued),
+    flexibility refreshes, the largest residual left (units of the measure), how
+    deep the step was cut (0: not cut; 2: down to quarter steps), and the residual
+    left along directions no joint force changes where the gluing matrix lost rank
+    (0: none; the step was accepted in the least-squares sense)."""
+
+    iterations: int
+    refreshed: int
+    residual: float
+    cuts: int = 0
+    lost: float = 0.0
+
+
+#: the report of a step that glued nothing
+_NOTHING = StepReport(0, 0, 0.0)
+
+
+class Coupling(ABC):
+    """Advances every subsystem of a backend over macro steps.
+
+    ``glued`` lists the backend's subsystems that are in a joint (the layout's
+    incidence follows their order); the others take one doStep per macro step.
+    ``transfer`` moves causal connection values (see :mod:`dsim.master.running.connections`).
+    """
+
+    #: registry name
+    name = ""
+    #: whether the glued subsystems must save and restore their state
+    rolls_back = True
+
+    def __init__(self, backend, glued, layout, joints, settings, transfer=None):
+        self.backend = backend
+        glued = list(glued)
+        free = [i for i in range(len(backend)) if i not in set(glued)]
+        self.glued = backend.subset(glued)
+        self.free = backend.subset(free)
+        self._order = (glued, free)
+        transfer = transfer or Transfer(np.zeros(0, int), np.zeros(0), np.zeros(0), ())
+        self._glued_inputs = transfer.restricted(glued)
+        self._free_inputs = transfer.restricted(free)
+        self._outputs_by_subsystem: list[np.ndarray] = [np.zeros(0)] * len(backend)
+        self.layout = layout
+        self.joints = joints
+        self.settings = settings
+        self.forces = np.zeros(layout.size if layout else 0)
+        self.outputs = np.zeros(0)
+        self.refreshes = 0
+        #: times the gluing matrix was factored
+        self.factorizations = 0
+        #: seconds spent measuring flexibilities and factoring the gluing matrix
+        self.seconds = {"flexibility": 0.0, "factorization": 0.0}
+
+    def start(self, kinematics=None, forces=None) -> None:
+        """Set up at the start time, after initialization: ``kinematics`` of the
+        glued subsystems and the start forces (None: zero)."""
+        if forces is not None:
+            self.forces = np.array(forces, dtype=float)
+        self.read_outputs()
+
+    def read_outputs(self) -> np.ndarray:
+        """Every subsystem's read values (recorded outputs and connection sources),
+        one flat array in the backend's order."""
+        self._outputs_by_subsystem = list(self.backend.read_outputs())
+        self.outputs = np.concatenate(self._outputs_by_subsystem) if self._outputs_by_subsystem else np.zeros(0)
+        return self.outputs
+
+    def _assemble(self, subset: int, parts) -> None:
+        for index, part in zip(self._order[subset], parts):
+            self._outputs_by_subsystem[index] = part
+
+    def step(self, time: float, step_size: float, step_index: int) -> StepReport:
+        """Advance every subsystem from ``time`` by ``step_size`` (s)."""
+        glued, free = self._order
+        if not glued:  # causal: every subsystem free, in order
+            inputs = self._free_inputs.inputs(self.outputs) if self._free_inputs.size else ()
+            self._outputs_by_subsystem = self.free.step(time, step_size, inputs)
+            self.outputs = np.concatenate(self._outputs_by_subsystem)
+            return _NOTHING
+        if glued:
+            if self._glued_inputs.size:
+                self.glued.write_inputs(self._glued_inputs.inputs(self.outputs))
+            report = self._advance(time, step_size, step_index)
+        else:
+            report = StepReport(0, 0, 0.0)
+        if free:
+            # write inputs, step, read outputs: one call per subsystem
+            inputs = self._free_inputs.inputs(self.outputs) if self._free_inputs.size else ()
+            self._assemble(1, self.free.step(time, step_size, inputs))
+        if glued:
+            self._assemble(0, self.glued.read_outputs())
+        self.outputs = np.concatenate(self._outputs_by_subsystem)
+        return report
+
+    @abstractmethod
+    def _advance(self, time: float, step_size: float, step_index: int) -> StepReport:
+        """Advance the glued subsystems (the coupling's own work)."""
+
+    def _timed(self, phase: str, function, *args):
+        start = clock.perf_counter()
+        try:
+            return function(*args)
+        finally:
+            self.seconds[phase] += clock.perf_counter() - start
+
+
+class CausalCoupling(Coupling):
+    """No joints: every subsystem takes one doStep per macro step with inputs from
+    the outputs at the step start; no state is saved, no Newton runs."""
+
+    name = "causal"
+    rolls_back = False
+
+    def _advance(self, time, step_size, step_index) -> StepReport:
+        return StepReport(0, 0, 0.0)

@@ -1,0 +1,427 @@
+"""The execution of a checked plan: a coupling, a backend and observers.
+
+:class:`Execution` is for callers that step, watch and stop a run themselves
+(a sweep, a web server); :func:`dsim.master.api.simulate` runs one to the end.  The
+flow: observers start (files opened and locked), the backend instantiates the
+subsystems, the start forces are set in initialization mode, then every macro
+step is one template step of the coupling, its outputs checked for non-finite
+values and handed to the observers; whatever the ending, the subsystems are
+released, the statistics made, and the observers finish with the
+:class:`~dsim.master.recording.results.RunResult`.
+
+Time is ``start + n * step`` (no drift); the last step is shortened to land on
+the stop time exactly (never past it, also in the FMUs' own sum ``t + h``:
+:mod:`dsim.master.running.timeline`), and every other step is given to the FMUs as exactly
+``step``, so that nothing that depends on the step size (the interface
+flexibility, the gluing matrix's factor) is rebuilt for round-off.
+"""
+from __future__ import annotations
+
+import math
+import signal
+import threading
+import time as clock
+from contextlib import nullcontext
+
+import numpy as np
+
+from dsim.master.errors import InputError, SimulationError
+from dsim.master.recording.observers import CsvRecorder, MemoryRecorder, RunInfo, StepRecord
+from dsim.master.recording.output_files import OutputError
+from dsim.master.recording.results import RunResult
+from dsim.master.recording.statistics import run_statistics
+from dsim.master.running.backends import BACKENDS
+from dsim.master.running.couplings import COUPLINGS
+from dsim.master.running.interrupts import SignalWatch
+from dsim.master.running.start import check_start, start_forces
+from dsim.master.running.timeline import size_to, step_count
+
+
+#: cut steps (and least-squares steps) named one by one in the warnings
+CUTS_SAID = 5
+
+
+class Execution:
+    """One run of a :class:`~dsim.master.planning.plan.Plan` with ``observers`` (and, unless one of
+    them records the signals or ``keep_signals`` is False, a memory recorder for the
+    result's signals).
+
+    Use :meth:`run` to go to the end, or :meth:`start`, then :meth:`step` until it
+    returns False, then :meth:`finish`.  :meth:`stop` (from an observer, another
+    thread or a signal handler) ends the run after the current step, as
+    interrupted.  Bad input found while starting raises InputError; a failure
+    during the run ends it as failed, and :meth:`finish` returns the result.
+    """
+
+    def __init__(self, plan, observers=(), keep_signals: bool = True):
+        self.plan = plan
+        self.scene = plan.scene
+        self.settings = plan.scene.master
+        self.observers = list(observers)
+        if keep_signals and not any(isinstance(o, (CsvRecorder, MemoryRecorder))
+                                    for o in self.observers):
+            self.observers.insert(0, MemoryRecorder())  # the result's signals
+        self.status = "created"
+        self.index = 0
+        self.time = self.scene.start_time
+        self.warnings: list[str] = []
+        self.planned_steps = step_count(self.scene.start_time, self.scene.stop_time,
+                                        self.settings.step)
+        self.backend = None
+        self.coupling = None
+        self.layout = None
+        self.error: Exception | None = None
+        self.signal: int | None = None
+        self._stop_requested: str | None = None
+        self._iterations: list[int] = []
+        self._refreshes = 0
+        self._phases = {"setup": 0.0, "steps": 0.0, "observers": 0.0, "finish": 0.0}
+        self._wall_start = None
+        self._columns: tuple[str, ...] = ()
+        self._held = None
+
+    # --- time --------------------------------------------------------------------
+    def step_time(self, index: int) -> float:
+        """Communication point ``index`` (s): start + index * step, the last one the
+        stop time."""
+        if index >= self.planned_steps:
+            return self.scene.stop_time
+        return self.scene.start_time + index * self.settings.step
+
+    def _step_size(self, index: int) -> float:
+        """Size handed to the FMUs for the step from point ``index``: ``step``, except
+        for the last one, which ends at the stop time and never past it."""
+        if index + 1 < self.planned_steps:
+            return self.settings.step
+        return size_to(self.step_time(index), self.step_time(index + 1), self.settings.step)
+
+    # --- observers ---------------------------------------------------------------
+    def _notify(self, hook: str, *args) -> None:
+        start = clock.perf_counter()
+        try:
+            for observer in self.observers:
+                getattr(observer, hook)(*args)
+        finally:
+            self._phases["observers"] += clock.perf_counter() - start
+
+    def warn(self, message: str) -> None:
+        """Record a warning and pass it to the observers."""
+        self.warnings.append(message)
+        self._notify("warned", message)
+
+    # --- start -------------------------------------------------------------------
+    def start(self) -> None:
+        """Open the observers, instantiate and initialise the subsystems, set the
+        start forces and record the start time (raises InputError on bad input)."""
+        if self.status != "created":
+            raise RuntimeError(f"the execution is {self.status}, it can start only once")
+        self._wall_start = clock.perf_counter()
+        self._stepped = [observer.stepped for observer in self.observers]
+        plan = self.plan
+        self._texts: list[str] = []
+        self._text_reads = any(spec.text_reads for spec in plan.specs)
+        layout, joints = plan.assemble()
+        self._columns = tuple(plan.columns) + tuple(layout.labels)
+        self._record_all = np.array_equal(plan.record_index, np.arange(sum(
+            len(spec.reads) for spec in plan.specs)))
+        self._selected = plan.selected
+        self._record_every = plan.record_every
+        self._held = None  # the last converged step, when it is not on the output grid
+        shown = self._columns if self._selected is None else tuple(
+            self._columns[i] for i in self._selected)
+        info = RunInfo(self.scene.name, self.scene.file, shown, self.scene.start_time,
+                       self.scene.stop_time, self.settings.step, self.planned_steps,
+                       plan.coupling, plan.backend, tuple(plan.inputs), plan.text_columns,
+                       plan.record_every)
+        started = []
+        try:
+            for observer in self.observers:
+                observer.started(info)
+                started.append(observer)
+            self.backend = BACKENDS[plan.backend].from_specs(plan.specs,
+                                                             **(plan.backend_options or {}))
+            self._initialize(layout, joints)
+        except BaseException as error:
+            for observer in started:
+                observer.aborted()
+            if self.backend is not None:
+                self.backend.close()
+            self.status = "aborted"
+            if isinstance(error, SimulationError):  # the consistent start failed
+                raise InputError(str(error)) from None
+            raise
+        self.status = "running"
+        for message in self.plan.warnings:
+            self.warn(message)
+        self._phases["setup"] = clock.perf_counter() - self._wall_start
+        try:
+            self._read_texts()
+            row = self._row()
+            self._check_finite(row)
+            self._notify("stepped", StepRecord(0, self.time, self._chosen(row),
+                                               texts=self._recorded_texts()))
+        except SimulationError as error:
+            self._fail(error.located(0, self.time))
+        except OutputError as error:
+            self._fail(error)
+
+    def _carry_start_values(self) -> None:
+        """In initialization mode, carry connected values along every chain of
+        connections (outputs calculated from parameters feed inputs and parameters
+        downstream), pass after pass in dependency order."""
+        transfer, texts = self.plan.start_transfer, self.plan.text_transfer
+        numbers = transfer is not None and transfer.size
+        if not numbers and not (texts is not None and texts.size):
+            return
+        for _ in range(self.plan.start_passes):
+            if numbers:
+                outputs = np.concatenate(self.backend.read_outputs())
+                self.backend.write_inputs(transfer.inputs(outputs), start=True)
+            self._read_texts()
+            self._write_texts()
+
+    # --- String values: moved and recorded around the coupling's numeric step ----
+    def _read_texts(self) -> None:
+        if self._text_reads:
+            self._texts = [text for texts in self.backend.read_texts() for text in texts]
+
+    def _write_texts(self) -> None:
+        transfer = self.plan.text_transfer
+        if transfer is not None and transfer.size:
+            self.backend.write_texts(transfer.inputs(self._texts))
+
+    def _recorded_texts(self) -> tuple[str, ...]:
+        return tuple(self._texts[i] for i in self.plan.text_index)
+
+    def _initialize(self, layout, joints) -> None:
+        plan, settings = self.plan, self.settings
+        self._carry_start_values()
+        glued = self.backend.subset(plan.glued)
+        if plan.non_matching and settings.start != "rest":
+            layout, joints = plan.assemble(self._positions(glued, layout))
+        forces, reported, warning = start_forces(settings.start, glued, layout, joints)
+        if warning:
+            self.warn(warning)
+        sensitivity = self._start_sensitivity(glued, layout, forces)
+        self.backend.finish_initialization()
+        if plan.non_matching and settings.start == "rest":
+            layout, joints = plan.assemble(self._positions(glued, layout))
+        for message in check_start(settings.start, glued, layout, joints, forces, reported,
+                                   settings, self._step_size(0)):
+            self.warn(message)
+        self.layout = layout
+        self.coupling = COUPLINGS[plan.coupling](self.backend, plan.glued, layout, joints,
+                                                 settings, plan.transfer)
+        if sensitivity is not None:
+            self.coupling.start_sensitivity = sensitivity
+        if plan.variable_steps and hasattr(self.coupling, "cut_limit"):
+            self.coupling.cut_limit = settings.step_cuts
+        self.coupling.start(glued.kinematics() if layout.size else None, forces)
+
+    def _start_sensitivity(self, glued, layout, forces):
+        """In initialization mode, d a / d f of every glued subsystem (when the explicit
+        coupling glues one that cannot save its state: its flexibility comes from it)."""
+        if not self.plan.flexibility_at_start:
+            return None
+        local = layout.local_forces(np.zeros(layout.size) if forces is None else forces)
+        sensitivity = glued.start_flexibility(
+            local, [self.settings.perturbation * np.maximum(1.0, np.abs(f)) for f in local])
+        for name, matrix in zip(glued.names, sensitivity):
+            if not np.any(matrix):
+                raise InputError(f"component '{name}': its port accelerations do not follow "
+                                 "its forces in initialization mode, so the explicit coupling "
+                                 "cannot measure its flexibility without a rollback")
+        return sensitivity
+
+    def _positions(self, glued, layout) -> dict:
+        """Initial positions of the glued dofs, for non-matching joints."""
+        positions = {}
+        for spec_index, (u, _, _) in zip(self.plan.glued, glued.kinematics()):
+            spec = self.plan.specs[spec_index]
+            for port_dof, value in zip(spec.port_dofs, u):
+                positions[(spec.name, port_dof.port, port_dof.dof)] = value
+        return positions
+
+    # --- steps -------------------------------------------------------------------
+    def _row(self) -> np.ndarray:
+        """The recorded values of the step (outputs, then joint forces): a new array."""
+        outputs = self.coupling.outputs
+        if not self._record_all:
+            outputs = outputs[self.plan.record_index]
+        if not len(self.coupling.forces):
+            return outputs  # the coupling makes a new output array every step
+        return np.concatenate((outputs, self.coupling.forces))
+
+    def _chosen(self, row: np.ndarray) -> np.ndarray:
+        """The recorded columns of a full row (``outputs``)."""
+        return row if self._selected is None else row[self._selected]
+
+    def _check_finite(self, row: np.ndarray) -> None:
+        # a sum is finite exactly when every term is (or, rarely, when it overflows: then
+        # the full check below runs); for a short row it is the cheapest test there is
+        total = sum(row.tolist()) if len(row) < 64 else np.add.reduce(row)
+        if math.isfinite(total) or np.isfinite(row).all():
+            return
+        bad = np.flatnonzero(~np.isfinite(row))
+        column = self._columns[bad[0]]
+        if bad[0] < len(self.plan.columns):
+            component, variable = self.plan.recorded[bad[0]]
+            what = f"component '{component}' output '{variable}'"
+        else:
+            what = f"joint '{self.layout.joint_of[bad[0] - len(self.plan.columns)]}' " \
+                   f"force '{column}'"
+        raise SimulationError(f"{what} is not finite ({row[bad[0]]})", time=self.time,
+                              step=self.index)
+
+    def step(self) -> bool:
+        """Take one macro step; False when the run has ended (stop time reached,
+        failed or stopped)."""
+        if self.status != "running":
+            return False
+        if self._stop_requested:
+            self.status = "interrupted"
+            return False
+        index, time = self.index, self.time
+        started = clock.perf_counter()
+        end = self.step_time(index + 1)
+        size = self._step_size(index)
+        try:
+            if self._text_reads:
+                self._write_texts()
+            report = self.coupling.step(time, size, index + 1)
+            if report.cuts:
+                self._warn_cut(index + 1, end, size / 2 ** report.cuts)
+            if report.lost and self.coupling.least_squares_steps <= CUTS_SAID:
+                self.warn(f"step {index + 1} (t = {end:.6g} s): the gluing matrix lost rank "
+                          "(a singular configuration): the step was accepted in the "
+                          f"least-squares sense, {report.lost:.3e} of residual left along "
+                          "the direction no joint force changes")
+            self._read_texts()
+            self.index, self.time = index + 1, end
+            row = self._row()
+            self._check_finite(row)
+            self._phases["steps"] += clock.perf_counter() - started
+            self._iterations.append(report.iterations)
+            record = StepRecord(self.index, end, self._chosen(row), report.iterations,
+                                report.refreshed, report.residual, self._recorded_texts())
+            # off the output grid a step is held, and recorded only if the run ends there
+            if self.index % self._record_every and self.index < self.planned_steps:
+                self._held = record
+            else:
+                self._held = None
+                for stepped in self._stepped:
+                    stepped(record)
+        except SimulationError as error:
+            self._fail(error.located(index + 1, end))
+            return False
+        except OutputError as error:
+            self._fail(error)
+            return False
+        except KeyboardInterrupt:
+            self._stop_requested = "interrupted by the user"
+            self.signal = signal.SIGINT
+            self.status = "interrupted"
+            return False
+        if self.index >= self.planned_steps:
+            self.status = "completed"
+            return False
+        return True
+
+    def _warn_cut(self, index: int, end: float, smallest: float) -> None:
+        """Say that a step was cut (the first few; the statistics count them all)."""
+        cuts = self.coupling.cuts
+        if cuts <= CUTS_SAID:
+            self.warn(f"step {index} (t = {end:.6g} s): Newton did not converge over the "
+                      f"whole step; it passed in steps of {smallest:g} s"
+                      + (" (further cut steps are counted in the statistics: step_cuts)"
+                         if cuts == CUTS_SAID else ""))
+
+    def _fail(self, error: Exception) -> None:
+        self.error = error
+        self.status = "failed"
+
+    def stop(self, reason: str = "stopped", signal_number: int | None = None) -> None:
+        """End the run after the current step, as interrupted."""
+        self._stop_requested = reason
+        if signal_number is not None:
+            self.signal = signal_number
+
+    # --- the end -----------------------------------------------------------------
+    def finish(self) -> RunResult:
+        """Release the subsystems, make the statistics and the result, and let every
+        observer finish (also after a failure or an interrupt)."""
+        started = clock.perf_counter()
+        if self.status == "running":
+            self.status = "interrupted"
+            self._stop_requested = self._stop_requested or "stopped before the stop time"
+        if self._held is not None:  # the last converged step, off the output grid
+            held, self._held = self._held, None
+            try:
+                for stepped in self._stepped:
+                    stepped(held)
+            except OutputError as error:
+                self.warnings.append(str(error))
+        if self.backend is not None:  # said after how the run ended, not before
+            self.warnings += [f"releasing the subsystems: {error}"
+                              for error in self.backend.close()]
+        self._phases["finish"] = clock.perf_counter() - started
+        message = ""
+        if self.status == "failed":
+            message = str(self.error)
+        elif self.status == "interrupted":
+            message = (f"{self._stop_requested} (stopped at t = {self.time:g} s, "
+                       f"step {self.index} of {self.planned_steps})")
+        result = RunResult(self.status, message, self.time, self.index,
+                           warnings=self.warnings, error=self.error, signal=self.signal)
+        result.statistics = run_statistics(self, clock.perf_counter() - self._wall_start)
+        for observer in self.observers:
+            try:
+                observer.finished(result)
+            except Exception as error:  # one observer must not stop the others
+                result.warnings.append(f"{type(observer).__name__}: {error}")
+            result.files.update(getattr(observer, "files", {}))
+        return result
+
+    def run(self, handle_signals: bool = True) -> RunResult:
+        """Start (unless started), step to the end and finish.  With
+        ``handle_signals`` (main thread only), SIGINT and SIGTERM end the run after
+        the current step, as interrupted, with everything written; a second one ends
+        the process at once, also while an FMU is stuck in its step, with the
+        converged rows and the statistics kept (:mod:`dsim.master.running.interrupts`)."""
+        watch = nullcontext()
+        if handle_signals and threading.current_thread() is threading.main_thread():
+            watch = SignalWatch(self)
+        with watch:  # over finish() too: releasing a subsystem may hang as well
+            if self.status == "created":
+                self.start()
+            while self.step():
+                pass
+            return self.finish()
+
+    def abandon(self, signal_number: int) -> RunResult:
+        """The run as far as it got, for a process that ends at once (a second signal),
+        made from another thread while the main thread may be inside an FMU: no
+        subsystem is called and no worker asked (the counters of workers elsewhere are
+        not known then, only where they ran)."""
+        name = signal.Signals(signal_number).name
+        if self.status in ("completed", "failed"):  # ended already, finishing: it says so
+            status = self.status
+            message = (str(self.error) if self.error else "completed") + \
+                f"; then ended at once by {name} while the subsystems were released"
+        else:
+            self.stop(self._stop_requested or f"interrupted by {name}",
+                      self.signal or signal_number)
+            self.status = status = "interrupted"
+            message = (f"{self._stop_requested}, then ended at once by {name} (stopped at "
+                       f"t = {self.time:g} s, step {self.index} of {self.planned_steps})")
+        result = RunResult(status, message, self.time, self.index, warnings=list(self.warnings),
+                           error=self.error, signal=signal_number)
+        components = None
+        backend = self.backend
+        if backend is not None and backend.remote:
+            components = {component: {"worker": dict(place)} if place else {}
+                          for component, place in zip(backend.names, backend.places())}
+        wall = clock.perf_counter() - (self._wall_start or clock.perf_counter())
+        result.statistics = run_statistics(self, wall, components)
+        result.statistics["message"] = message
+        return result

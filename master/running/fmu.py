@@ -1,0 +1,466 @@
+"""One FMI 2.0 co-simulation FMU instance as a :class:`~dsim.master.running.subsystem.Subsystem`.
+
+fmpy loads the shared library and binds the FMI functions; the calls of the time
+loop go to those raw functions with value-reference and value arrays allocated
+once per batch (fmpy's convenience getters build new ctypes arrays on every call,
+which costs more than a small FMU's whole step).  Every call passes one
+checkpoint that counts and times it per FMI function and turns a status above
+fmi2Warning into a :class:`~dsim.master.errors.SimulationError` naming the component,
+the function, the status and what the FMU logged.  An FMU that fails while it is
+instantiated and initialised with the scene's parameters is bad input (an
+:class:`~dsim.master.errors.InputError`, exit 2); so is one that logs an error there
+while its call returns fmi2OK (what a pythonfmu FMU can do instead of returning
+fmi2Error: :mod:`dsim.fmus.fmi_binding`).  An instance that failed there is freed at
+once, unless it returned fmi2Fatal; the libraries stay loaded either way
+(:mod:`dsim.master.tools.process_exit` says how a command then ends).
+"""
+from __future__ import annotations
+
+import ctypes
+import time as clock
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from fmpy import calloc, free
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2FMUstate,
+                       fmi2ValueReference)
+
+from dsim.master.errors import InputError, SimulationError, StepFailure
+from dsim.master.reading.fmu_archive import unzipped
+from dsim.master.reading.ports import PortDof, model_description, variables_by_name
+from dsim.master.running.subsystem import Subsystem
+
+STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal",
+          5: "fmi2Pending"}
+#: FMI type -> (ctypes value type, get function, set function)
+TYPES = {"Real": (ctypes.c_double, "fmi2GetReal", "fmi2SetReal"),
+         "Integer": (ctypes.c_int, "fmi2GetInteger", "fmi2SetInteger"),
+         "Enumeration": (ctypes.c_int, "fmi2GetInteger", "fmi2SetInteger"),
+         "Boolean": (ctypes.c_int, "fmi2GetBoolean", "fmi2SetBoolean")}
+
+
+def can_save_state(path: Path) -> bool:
+    """Whether the FMU declares canGetAndSetFMUstate (needed for rollback)."""
+    cs = model_description(path).coSimulation
+    return bool(cs and cs.canGetAndSetFMUstate)
+
+
+#: instance name -> the last (fmi2Status, one-line message) pairs it logged
+_MESSAGES: dict[str, list[tuple[int, str]]] = {}
+#: instance name -> how many messages of status fmi2Error or worse it logged
+_ERRORS: dict[str, int] = {}
+
+
+def _log(environment, instance, status, category, message):
+    name = (instance or b"").decode("utf-8", "replace")
+    text = " ".join((message or b"").decode("utf-8", "replace").split())
+    _MESSAGES[name] = (_MESSAGES.get(name, []) + [(int(status), text)])[-20:]
+    if status >= 3:
+        _ERRORS[name] = _ERRORS.get(name, 0) + 1
+
+
+# One callbacks structure for the whole process, alive as long as it is: fmpy's proxy
+# (which formats the variadic message) keeps a single global pointer to the logger.
+_CALLBACKS = fmi2CallbackFunctions()
+_CALLBACKS.logger = fmi2CallbackLoggerTYPE(_log)
+_CALLBACKS.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+_CALLBACKS.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+try:
+    from fmpy.logging import addLoggerProxy as _add_logger_proxy
+    _add_logger_proxy(ctypes.byref(_CALLBACKS))
+except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
+    pass
+
+
+def logged_error(instance: str) -> str:
+    """The first error an instance logged (fmi2Error before fmi2Fatal), or ''."""
+    messages = _MESSAGES.get(instance, [])
+    for level in (3, 4, 2):
+        for status, text in messages:
+            if status == level and text:
+                return text
+    return ""
+
+
+@dataclass(frozen=True)
+class SubsystemSpec:
+    """Everything needed to create one FMU subsystem, wherever it runs (picklable).
+
+    ``reads`` names the variables read after every step (recorded outputs and
+    causal connection sources), ``writes`` the inputs that causal connections set.
+    """
+
+    name: str
+    path: Path
+    port_dofs: tuple[PortDof, ...]
+    parameters: dict
+    reads: tuple[str, ...]
+    writes: tuple[str, ...]
+    start_time: float
+    stop_time: float
+    location: str = ""
+    #: the kinematic kinds (u, v, a) the joints need from the first step on (before
+    #: it, for the start forces and their check, every kind the FMU has is read)
+    kinds: tuple[bool, bool, bool] = (True, True, True)
+    #: the variables connections set at initialization (``writes`` and the fixed
+    #: parameters connections feed)
+    start_writes: tuple[str, ...] = ()
+    #: String variables read after every step (recorded, or feeding a connection), and
+    #: the String inputs connections set
+    text_reads: tuple[str, ...] = ()
+    text_writes: tuple[str, ...] = ()
+    #: the Ray resource whose node runs the instance (``glue:Placement``; '' anywhere)
+    placement: str = ""
+    #: the String parameters whose value is the absolute path of a scene file (a
+    #: remote backend ships the file and rewrites the value)
+    files: tuple[str, ...] = ()
+
+
+class _Call:
+    """One FMI function of one instance, called with ready-made ctypes arguments (no
+    per-call argument conversion), counted and timed, its status checked."""
+
+    __slots__ = ("function", "name", "owner", "calls", "seconds")
+
+    def __init__(self, owner: "FmuSubsystem", name: str):
+        # a fresh function object of the library (fmpy's own carries argtypes, whose
+        # conversion costs as much as the call): arguments are passed as ctypes objects
+        self.function = owner.fmu.dll[name]
+        self.function.restype = ctypes.c_int
+        self.name = name
+        self.owner = owner
+        self.calls = 0
+        self.seconds = 0.0
+
+    def __call__(self, *args) -> None:
+        start = clock.perf_counter()
+        status = self.function(self.owner.handle, *args)
+        self.seconds += clock.perf_counter() - start
+        self.calls += 1
+        if status > 1:
+            self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}", status)
+        # a pythonfmu FMU cannot return fmi2Error: it refuses its parameters by logging
+        # one while the call returns fmi2OK (after initialization a log is only a log)
+        if self.owner._initializing and _ERRORS.get(self.owner.name):
+            self.owner._fail(self.name, f"it logged an error and returned "
+                                        f"{STATUS.get(status, status)}", 3)
+
+
+class _Batch:
+    """Value references of one FMI type, a value array (and its numpy view), and the
+    bound get and set calls, allocated once."""
+
+    def __init__(self, owner: "FmuSubsystem", kind: str, vrs):
+        ctype, get_name, set_name = TYPES[kind]
+        self.kind = kind
+        self.size = len(vrs)
+        self.count = ctypes.c_size_t(self.size)
+        self.vrs = (fmi2ValueReference * self.size)(*vrs)
+        self.values = (ctype * self.size)()
+        self.array = np.ctypeslib.as_array(self.values) if self.size else np.zeros(0)
+        self.get = owner.call(get_name)
+        self.set = owner.call(set_name)
+        self._convert = {"Real": np.asarray, "Boolean": self._as_boolean}.get(kind, np.rint)
+
+    def read(self) -> np.ndarray:
+        """The variables' current values (a view, valid until the next read)."""
+        if self.size:
+            self.get(self.vrs, self.count, self.values)
+        return self.array
+
+    def write(self, values) -> None:
+        """Set the variables (Integer rounded, Boolean true where non-zero)."""
+        if self.size:
+            self.array[:] = self._convert(values)
+            self.set(self.vrs, self.count, self.values)
+
+    @staticmethod
+    def _as_boolean(values):
+        return np.asarray(values) != 0
+
+
+class _Strings:
+    """String variables read or written in one call (fmi2GetString / fmi2SetString)."""
+
+    def __init__(self, owner: "FmuSubsystem", vrs):
+        self.size = len(vrs)
+        self.count = ctypes.c_size_t(self.size)
+        self.vrs = (fmi2ValueReference * self.size)(*vrs)
+        self.values = (ctypes.c_char_p * self.size)()
+        self.get = owner.call("fmi2GetString") if self.size else None
+        self.set = owner.call("fmi2SetString") if self.size else None
+
+    def read(self) -> list[str]:
+        if not self.size:
+            return []
+        self.get(self.vrs, self.count, self.values)
+        return [(v or b"").decode("utf-8", "replace") for v in self.values]
+
+    def write(self, texts) -> None:
+        if self.size:
+            for i, text in enumerate(texts):
+                self.values[i] = str(text).encode("utf-8")
+            self.set(self.vrs, self.count, self.values)
+
+
+def _batches(owner, variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
+    """Group variables by FMI type: one batch per type, and for each batch where its
+    values go in (or come from) the caller's flat vector."""
+    groups: dict[str, list[int]] = {}
+    for i, variable in enumerate(variables):
+        groups.setdefault(variable.type, []).append(i)
+    batches, places = [], []
+    for kind, indices in groups.items():
+        if kind not in TYPES:
+            raise InputError(f"variable '{variables[indices[0]].name}' is of type {kind}, "
+                             "which dsim cannot read or write yet")
+        batches.append(_Batch(owner, kind, [variables[i].valueReference for i in indices]))
+        places.append(np.array(indices, dtype=int))
+    return batches, places
+
+
+class FmuSubsystem(Subsystem):
+    """An FMU instance made from a :class:`SubsystemSpec`, glued at its port dofs."""
+
+    def __init__(self, spec: SubsystemSpec):
+        super().__init__()
+        self.name = spec.name
+        self.path = Path(spec.path)
+        self.spec = spec
+        description = model_description(self.path)
+        variables = variables_by_name(self.path)
+        port_dofs = spec.port_dofs
+        self.interface = tuple((p.port, p.dof) for p in port_dofs)
+        self.output_names = tuple(spec.reads)
+        self._state = None
+        self._stepped = False
+        #: the FMU returned fmi2Fatal: no call may follow
+        self.fatal = False
+        self.time = spec.start_time
+        self._location = spec.location or spec.name
+        try:
+            self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped(self.path),
+                                 modelIdentifier=description.coSimulation.modelIdentifier,
+                                 instanceName=spec.name)
+        except Exception as error:  # fmpy raises plain Exceptions for a missing library
+            raise InputError(f"{self._location}: FMU {self.path.name} cannot be loaded: "
+                             f"{error}") from None
+        self._calls: dict[str, _Call] = {}
+        self.handle = None
+        _MESSAGES.pop(spec.name, None)
+        _ERRORS.pop(spec.name, None)
+        # until finish_initialization() the instance is in initialization mode, where a
+        # failing call means the model refused the scene's parameters: bad input
+        self._initializing = True
+        self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
+            callbacks=_CALLBACKS, loggingOn=True))
+        self.handle = ctypes.c_void_p(self.fmu.component)
+        self._forces = _Batch(self, "Real", [p.force for p in port_dofs])
+        # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
+        kinds = [[getattr(p, kind) for p in port_dofs]
+                 for kind in ("position", "velocity", "acceleration")]
+        present = [bool(vrs) and all(vr is not None for vr in vrs) for vrs in kinds]
+        needed = [p and wanted for p, wanted in zip(present, spec.kinds)]
+        # (batch, which kinds it holds): all the FMU has, and the ones the joints need
+        self._kinematics_all = (_Batch(self, "Real", [vr for vrs, p in zip(kinds, present)
+                                                      if p for vr in vrs]), present)
+        self._kinematics_needed = (_Batch(self, "Real", [vr for vrs, p in zip(kinds, needed)
+                                                         if p for vr in vrs]), needed)
+        self._reads, self._read_places = _batches(self, [variables[n] for n in spec.reads])
+        self._read_values = np.zeros(len(spec.reads))
+        # one Real batch in order (the common case) is read straight into place
+        self._read_direct = (len(self._reads) == 1 and self._reads[0].kind == "Real")
+        self._writes, self._write_places = _batches(self, [variables[n] for n in spec.writes])
+        self._write_direct = (self._writes[0] if len(self._writes) == 1
+                              and self._writes[0].kind == "Real" else None)
+        self._start_writes = _batches(self, [variables[n] for n in spec.start_writes])
+        self._texts_in = _Strings(self, [variables[n].valueReference for n in spec.text_reads])
+        self._texts_out = _Strings(self, [variables[n].valueReference
+                                          for n in spec.text_writes])
+        self._do_step = self.call("fmi2DoStep")
+        self._step_size = ctypes.c_double(0.0)
+        self._get_state = self.call("fmi2GetFMUstate")
+        self._set_state = self.call("fmi2SetFMUstate")
+        self._free_state = self.call("fmi2FreeFMUstate")
+        self._call("fmi2SetupExperiment", lambda: self.fmu.setupExperiment(
+            startTime=spec.start_time, stopTime=spec.stop_time))
+        self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
+        self._set_parameters(spec.parameters, variables)
+
+    # --- the checkpoint every FMI call passes ----------------------------------------
+    def _fail(self, label: str, detail: str, status: int = 3):
+        """Raise the error of a call that returned ``status`` (fmi2Discard or worse):
+        InputError while initialising, when the instance is freed at once."""
+        reason = logged_error(self.name)
+        if status == 4:
+            # FMI 2.0 allows no further call after fmi2Fatal, not even a free (and
+            # pythonfmu 0.7 has released the instance's Python objects when it returns
+            # it: its fmi2FreeInstance would release them twice)
+            self.fatal = True
+        if self._initializing:
+            self._release()
+            raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
+                             f"initialised with these parameters: "
+                             f"{reason or f'{label} failed: {detail}'}")
+        # a discarded step (fmi2Discard from fmi2DoStep) may pass when it is smaller:
+        # the coupling restores the step's start and cuts it where it can
+        error = StepFailure if label == "fmi2DoStep" and "fmi2Discard" in detail else \
+            SimulationError
+        raise error(f"component '{self.name}': {label} failed: {detail}"
+                    + (f" ({reason})" if reason else ""), time=self.time)
+
+    def _call(self, label: str, function, *args):
+        """Call through fmpy's convenience layer (set-up, rare calls)."""
+        try:
+            result = self._timed(label, function, *args)
+        except (InputError, SimulationError):
+            raise
+        except FMICallException as error:
+            self._fail(label, str(error), error.status)
+        except Exception as error:  # fmpy's "Failed to instantiate", ctypes errors
+            self._fail(label, str(error))
+        if self._initializing and _ERRORS.get(self.name):
+            self._fail(label, "it logged an error and returned fmi2OK")
+        return result
+
+    def _release(self) -> None:
+        """Free the instance that failed in initialization (fmi2FreeInstance; fmpy then
+        closes the library), or only close the library when fmi2Instantiate made none;
+        nothing after fmi2Fatal.  This object may live on (a traceback holds it): the
+        instance is marked gone so that no call can reach it."""
+        if not self.fatal:
+            try:
+                if self.fmu.component is not None:
+                    self.fmu.freeInstance()
+                else:
+                    self.fmu.freeLibrary()
+            except Exception:  # the refusal being reported matters more than a leak
+                pass
+        self.fmu.component = None
+
+    def call(self, name: str) -> _Call:
+        """The time loop's binding of FMI function ``name`` (one per name)."""
+        if name not in self._calls:
+            self._calls[name] = _Call(self, name)
+        return self._calls[name]
+
+    def statistics(self) -> dict:
+        """FMI function -> [calls, seconds], set-up and time loop together."""
+        counters = {name: list(entry) for name, entry in self.counters.items()}
+        for name, call in self._calls.items():
+            if call.calls:
+                entry = counters.setdefault(name, [0, 0.0])
+                entry[0] += call.calls
+                entry[1] += call.seconds
+        return counters
+
+    def _set_parameters(self, parameters: dict, variables: dict) -> None:
+        setters = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
+                   "Enumeration": self.fmu.setInteger, "Boolean": self.fmu.setBoolean,
+                   "String": self.fmu.setString}
+        for name, (_, value) in parameters.items():
+            variable = variables[name]
+            self._call("fmi2Set" + variable.type, setters[variable.type],
+                       [variable.valueReference], [value])
+
+    def finish_initialization(self) -> None:
+        """Leave initialization mode (the start forces set so far are the FMU's)."""
+        self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
+        self._initializing = False
+
+    # --- Subsystem -------------------------------------------------------------------
+    def save_state(self):
+        # Free the held state before taking the next: asking an FMU to overwrite a state in
+        # place (FMI 2.0 allows it) leaks the old one in pythonfmu, which always allocates.
+        if self._state is not None:
+            self._free_state(ctypes.byref(self._state))
+            self._state = None
+        state = fmi2FMUstate()
+        self._get_state(ctypes.byref(state))
+        self._state = state
+
+    def restore_state(self):
+        self._set_state(self._state)
+
+    def set_forces(self, forces):
+        self._forces.write(forces)
+
+    def do_step(self, time, step_size):
+        self.time = time
+        self._stepped = True
+        self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
+
+    def exchange(self, time, step_size):
+        self.time = time
+        if step_size != self._step_size.value:
+            self._step_size = ctypes.c_double(step_size)
+        self._do_step(ctypes.c_double(time), self._step_size, 1)
+        if self._read_direct:
+            return self._reads[0].read().copy()
+        return self.read_outputs()
+
+    def kinematics(self):
+        n = len(self.interface)
+        if not n:  # an unglued component: nothing to read
+            return (np.zeros(0),) * 3
+        # until the first step (initialization, the start check) every kind is read
+        batch, kinds = self._kinematics_needed if self._stepped else self._kinematics_all
+        values = batch.read()
+        result, start = [], 0
+        for present in kinds:
+            if present:
+                result.append(values[start:start + n].copy())
+                start += n
+            else:
+                result.append(None)
+        return tuple(result)
+
+    def read_outputs(self) -> np.ndarray:
+        if self._read_direct:
+            return self._reads[0].read().copy()
+        for batch, places in zip(self._reads, self._read_places):
+            self._read_values[places] = batch.read()
+        return self._read_values.copy()
+
+    def read_texts(self) -> list[str]:
+        return self._texts_in.read()
+
+    def write_texts(self, values) -> None:
+        self._texts_out.write(values)
+
+    def write_start_inputs(self, values) -> None:
+        """Set what connections feed at initialization (``spec.start_writes`` order)."""
+        for batch, places in zip(*self._start_writes):
+            batch.write(values[places])
+
+    def write_inputs(self, values) -> None:
+        if self._write_direct:  # one Real batch: the values are in its order
+            batch = self._write_direct
+            batch.array[:] = values
+            batch.set(batch.vrs, batch.count, batch.values)
+            return
+        for batch, places in zip(self._writes, self._write_places):
+            batch.write(values[places])
+
+    def terminate(self):
+        """fmi2Terminate and fmi2FreeInstance (after an error too: FMI 2.0 allows both;
+        after fmi2Fatal nothing); a failure here is the caller's to report, never to
+        replace the error that ended the run."""
+        if self.fmu.component is None or self.fatal:
+            return
+        _MESSAGES.pop(self.name, None)  # what it logs now is about the cleanup
+        try:
+            if self._state is not None:
+                self.fmu.freeFMUstate(self._state)
+                self._state = None
+            if not self._initializing:  # fmi2Terminate is for the step mode
+                self.fmu.terminate()
+        except Exception as error:  # fmpy raises FMICallException
+            reason = logged_error(self.name)
+            raise SimulationError(f"component '{self.name}': {error}"
+                                  + (f" ({reason})" if reason else "")) from None
+        finally:
+            self.fmu.freeInstance()

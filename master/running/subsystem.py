@@ -1,0 +1,199 @@
+"""The handle through which the couplings drive a subsystem.
+
+The algorithm never sees an FMU: it sees a :class:`Subsystem` with a small,
+batched interface (one call moves every glued dof of the subsystem): save and
+restore state, set interface forces, step, read interface kinematics, read
+outputs and write inputs.  :class:`~dsim.master.running.fmu.FmuSubsystem` implements it over
+fmpy; :class:`CoreSubsystem` over an in-process physics core (algorithm tests
+without FMI); a backend decides where each one runs.
+"""
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from collections import defaultdict
+
+import numpy as np
+
+Kinematics = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+class Subsystem(ABC):
+    """One subsystem.  ``interface`` lists its glued (port, dof) pairs: the order of
+    the force vector it takes and of the kinematics it returns (empty when it is in
+    no joint); ``output_names`` the variables :meth:`read_outputs` returns."""
+
+    name: str
+    interface: tuple[tuple[str, str], ...] = ()
+    output_names: tuple[str, ...] = ()
+
+    def __init__(self):
+        self._dirty = False
+        #: FMI function (or core method) -> [calls, seconds]
+        self.counters: dict[str, list] = defaultdict(lambda: [0, 0.0])
+
+    def _timed(self, label: str, function, *args):
+        start = time.perf_counter()
+        try:
+            return function(*args)
+        finally:
+            entry = self.counters[label]
+            entry[0] += 1
+            entry[1] += time.perf_counter() - start
+
+    # --- what an implementation provides ------------------------------------------
+    @abstractmethod
+    def save_state(self) -> None:
+        """Remember the current state as the start of the macro step."""
+
+    @abstractmethod
+    def restore_state(self) -> None:
+        """Go back to the state saved by :meth:`save_state`."""
+
+    @abstractmethod
+    def set_forces(self, forces: np.ndarray) -> None:
+        """Interface forces (N, N.m) in ``interface`` order."""
+
+    @abstractmethod
+    def do_step(self, time: float, step_size: float) -> None:
+        """Advance from ``time`` by ``step_size`` (s)."""
+
+    @abstractmethod
+    def kinematics(self) -> Kinematics:
+        """Interface positions, velocities, accelerations (None where absent)."""
+
+    def read_outputs(self) -> np.ndarray:
+        """Values of ``output_names`` now (float; Integer and Boolean as numbers)."""
+        return np.zeros(0)
+
+    def write_inputs(self, values: np.ndarray) -> None:
+        """Set the inputs that causal connections feed (in the subsystem's order)."""
+
+    def read_texts(self) -> list[str]:
+        """Values of the String variables the subsystem reads after every step."""
+        return []
+
+    def write_texts(self, values) -> None:
+        """Set the String inputs that connections feed."""
+
+    def write_start_inputs(self, values: np.ndarray) -> None:
+        """Set what connections feed at initialization (fixed parameters too)."""
+        self.write_inputs(values)
+
+    def terminate(self) -> None:
+        """Release what the subsystem holds."""
+
+    def statistics(self) -> dict:
+        """FMI function (or core method) -> [calls, seconds]."""
+        return {name: list(entry) for name, entry in self.counters.items()}
+
+    def finish_initialization(self) -> None:
+        """Leave initialization mode (nothing to do for an in-process core)."""
+
+    # --- what the couplings call ----------------------------------------------------
+    def begin_step(self) -> None:
+        """Start a macro step: the current state is the one to come back to."""
+        self.save_state()
+        self._dirty = False
+
+    def trial_step(self, forces: np.ndarray, time: float, step_size: float) -> Kinematics:
+        """Step from the saved state with ``forces`` and return the kinematics.
+        The first trial of a macro step needs no restore."""
+        if self._dirty:
+            self.restore_state()
+        kinematics = self.advance(forces, time, step_size)
+        self._dirty = True
+        return kinematics
+
+    def advance(self, forces: np.ndarray, time: float, step_size: float) -> Kinematics:
+        """Step with ``forces`` from where the subsystem is, with no rollback, and
+        return the kinematics."""
+        self.set_forces(forces)
+        self.do_step(time, step_size)
+        self._dirty = False
+        return self.kinematics()
+
+    def exchange(self, time: float, step_size: float) -> np.ndarray:
+        """One plain step (a subsystem in no joint: never saved nor restored), then
+        its outputs."""
+        self.do_step(time, step_size)
+        return self.read_outputs()
+
+    def flexibility(self, forces: np.ndarray, time: float, step_size: float,
+                    deltas: np.ndarray, base: Kinematics) -> list[np.ndarray]:
+        """Interface flexibility by perturbation (eq. 4.45/4.46): for each glued
+        dof k, re-step from the saved state with force k raised by ``deltas[k]``;
+        returns [du/df, dv/df, da/df], each n x n (column k: response to force k).
+        ``base`` is the response to ``forces`` itself."""
+        n = len(forces)
+        result = [np.zeros((n, n)) for _ in range(3)]
+        for k in range(n):
+            perturbed = forces.copy()
+            perturbed[k] += deltas[k]
+            response = self.trial_step(perturbed, time, step_size)
+            for matrix, new, old in zip(result, response, base):
+                if new is not None and old is not None:
+                    matrix[:, k] = (new - old) / deltas[k]
+        return result
+
+    def start_flexibility(self, forces: np.ndarray, deltas: np.ndarray) -> np.ndarray:
+        """d a / d f at the start time, without stepping (initialization mode): for
+        each glued dof k, write the forces with entry k raised by ``deltas[k]`` and
+        read the accelerations; the forces are written back at the end."""
+        n = len(forces)
+        base = self.kinematics()[2]
+        result = np.zeros((n, n))
+        for k in range(n):
+            perturbed = np.array(forces, dtype=float)
+            perturbed[k] += deltas[k]
+            self.set_forces(perturbed)
+            result[:, k] = (self.kinematics()[2] - base) / deltas[k]
+        self.set_forces(forces)
+        return result
+
+
+class CoreSubsystem(Subsystem):
+    """A physics core (:class:`dsim.fmus.interface.InterfaceCore`) driven in process,
+    glued at the named subset of its interface.  Until
+    :meth:`finish_initialization` it behaves as an FMU in initialization mode: the
+    start accelerations follow the forces written."""
+
+    def __init__(self, name: str, core, interface=None, start_time: float = 0.0):
+        super().__init__()
+        self.name = name
+        self.core = core
+        self.interface = tuple(core.interface if interface is None else interface)
+        self._index = [core.interface.index(pair) for pair in self.interface]
+        self._all_forces = np.zeros(len(core.interface))
+        self._saved = None
+        self._start_time = start_time
+        self._initializing = True
+        core.set_interface_forces(self._all_forces)
+        core.initialize(start_time)
+        self.output_names = tuple(core.outputs())
+
+    def finish_initialization(self) -> None:
+        self._initializing = False
+
+    def save_state(self):
+        self._saved = self._timed("get_state", self.core.get_state)
+
+    def restore_state(self):
+        self._timed("set_state", self.core.set_state, self._saved)
+
+    def set_forces(self, forces):
+        self._all_forces[self._index] = forces
+        self.core.set_interface_forces(self._all_forces)
+        if self._initializing:
+            self.core.initialize(self._start_time)
+
+    def do_step(self, time, step_size):
+        self._timed("step", self.core.step, time, step_size)
+
+    def kinematics(self):
+        u, v, a = self.core.interface_kinematics()
+        return u[self._index], v[self._index], a[self._index]
+
+    def read_outputs(self):
+        values = self.core.outputs()
+        return np.array([values[name] for name in self.output_names], dtype=float)

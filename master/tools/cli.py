@@ -1,0 +1,647 @@
+"""``dsim``: run, inspect and build glued co-simulations (a thin layer over the
+Python API of :mod:`dsim.master.api`).
+
+Exit codes: 0 success, 1 the simulation failed, 2 bad input or usage,
+128 + signal when interrupted (SIGINT: 130, SIGTERM: 143).
+"""
+from __future__ import annotations
+
+import argparse
+import io
+import sys
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from dsim.master.errors import InputError, SimulationError
+from dsim.master.settings import SETTINGS, choices
+
+
+def _summary(result, plot: Path | None) -> str:
+    data = result.statistics
+    components = max(len(data["components"]), 1)
+    lines = [
+        f"scene       {data['scene']}  ({data['file']}), {data['coupling']} coupling, "
+        f"{data['backend']} backend",
+        f"time        {data['start_time']:g} .. {data['stop_time']:g} s, "
+        f"step {data['master']['step']:g} s, {data['steps']} steps",
+        f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
+        f"(max {data['iterations']['max_per_step']}), "
+        f"Lambda refreshes {data['lambda_refreshes']}, "
+        f"doSteps per FMU per step {data['do_steps_per_step'] / components:.2f}",
+        f"wall time   {data['wall_seconds']:.3f} s "
+        f"({data['seconds_in_fmus']:.3f} s inside FMUs)",
+    ]
+    signals = result.signals
+    names = [n for n in signals if n != "time"]
+    if names and len(signals["time"]):
+        width = max(len(n) for n in names)
+        lines.append(f"{'column':<{width}}  {'final':>13}  {'max |value|':>13}")
+        for name in names[:12]:
+            lines.append(f"{name:<{width}}  {signals[name][-1]:>13.6g}  "
+                         f"{abs(signals[name]).max():>13.6g}")
+        if len(names) > 12:
+            lines.append(f"... {len(names) - 12} more columns in the CSV")
+    for kind in ("csv", "statistics", "plot", "mat"):
+        if kind in result.files:
+            lines.append(f"{'results' if kind == 'csv' else kind:<11} {result.files[kind]}")
+    return "\n".join(lines)
+
+
+def _cmd_run(args) -> int:
+    from dsim.master.api import simulate
+    from dsim.master.recording.observers import ProgressBar
+
+    out = Path(args.out or f"{Path(args.scene).stem}.csv")
+    settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
+    if args.isolate:
+        if settings["backend"] not in (None, "isolated"):
+            raise InputError(f"--isolate runs every FMU in its own local worker process (the "
+                             f"isolated backend): it cannot be combined with --backend "
+                             f"{settings['backend']}")
+        settings["backend"] = "isolated"
+    progress = ProgressBar(Path(args.scene).stem)
+    result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
+                      force=args.force, strict=args.strict, **_run_choices(args), **settings)
+    if result.status != "completed":
+        label = "simulation failed" if result.status == "failed" else "interrupted"
+        print(f"dsim: {label}: {result.message}", file=sys.stderr)
+        if "csv" in result.files:
+            print(f"dsim: the {result.steps} converged steps are in {result.files['csv']}, "
+                  f"statistics in {result.files.get('statistics', 'nowhere')}", file=sys.stderr)
+    for warning in result.warnings[len(progress.shown):]:  # those said at the end
+        print(f"dsim: warning: {warning}", file=sys.stderr)
+    if result.status == "completed" and not args.quiet:
+        print(_summary(result, args.plot))
+    return result.exit_code
+
+
+def port_summary(ports: dict) -> str:
+    """The ports a joint can glue (a force input on every dof), a node set's slots
+    S[1] .. S[n] as one entry: ``P(x), port1[1..5](x y)``."""
+    slots: dict[str, list[int]] = {}
+    dofs_of: dict[str, str] = {}
+    for port, dofs in ports.items():
+        if not dofs or not all("f" in kinds for kinds in dofs.values()):
+            continue  # outputs only (a probe): nothing to glue
+        base, bracket, index = port.partition("[")
+        key = base if bracket and index[:-1].isdigit() else port
+        slots.setdefault(key, [])
+        if key != port:
+            slots[key].append(int(index[:-1]))
+        dofs_of[key] = " ".join(sorted(dofs))
+    return ", ".join(
+        (f"{key}[{min(numbers)}..{max(numbers)}]" if numbers else key) + f"({dofs_of[key]})"
+        for key, numbers in sorted(slots.items()))
+
+
+def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> list[str]:
+    """``dsim info``'s table of what a run may set in component ``index`` of ``plan``
+    (name, type, unit, start, min..max, causality and variability, description);
+    inputs the master writes itself (glued port forces, connected inputs) are left
+    out, and past ``shown`` inputs the rest is counted unless ``every``."""
+    from dsim.master.planning.parameters import master_writes, settable_variables
+
+    spec = plan.specs[index]
+    written = master_writes(spec, plan.scene.component(spec.name).source)
+    found = [v for v in settable_variables(spec.path, spec.name) if v.name not in written]
+    inputs = [v for v in found if v.causality == "input"]
+    listed = [v for v in found if v.causality != "input"] + (
+        inputs if every else inputs[:shown])
+    if not listed:
+        return ["can be set: nothing"]
+    bound = plan.scene.component(spec.name).parameters
+    width = max(len(v.name) for v in listed)
+
+    def short(value) -> str:
+        text = "-" if value in (None, "") else str(value)
+        return text if len(text) <= 16 else text[:13] + "..."
+
+    lines = [f"can be set (--set {spec.name}.NAME=VALUE; start: the FMU's, scene: what the "
+             "scene binds):"]
+    for v in listed:
+        limits = f" [{v.min or '-inf'}, {v.max or 'inf'}]" if v.min or v.max else ""
+        if v.items:
+            limits = " {" + ", ".join(f"{name}={value}" for name, value in v.items) + "}"
+        scene = f" scene {short(bound[v.name][1])}" if v.name in bound else ""
+        lines.append(f"  {v.name:<{width}}  {v.type:<7} {v.unit or '-':<6} "
+                     f"{v.causality}/{v.variability}  start {short(v.start)}{scene}{limits}"
+                     + (f"  ({v.description})" if v.description else ""))
+    if len(inputs) > len(listed) - (len(found) - len(inputs)):
+        hidden = len(inputs) - (len(listed) - (len(found) - len(inputs)))
+        lines.append(f"  ... {hidden} more inputs no joint or connection writes "
+                     "(dsim info --all lists them)")
+    return lines
+
+
+def _cmd_info(args) -> int:
+    from dsim.master.api import prepare
+    from dsim.master.planning.parameters import joint_coefficients
+    from dsim.master.reading.ports import model_description
+    from dsim.master.running.fmu import can_save_state
+
+    from dsim.master.reading.ssp import ssd_files
+
+    checked = prepare(args.scene, ssd=args.ssd)
+    scene = checked.scene
+    structures = ssd_files(args.scene)
+    if len(structures) > 1:
+        print(f"system structures: {', '.join(structures)} (this is "
+              f"{args.ssd or 'SystemStructure.ssd'}; --ssd NAME reads another)")
+    print(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s"
+          + ("" if scene.experiment else " (no DefaultExperiment: dsim's default span)"))
+    print(f"SSP version {scene.ssp_version or 'not declared'}")
+    m = scene.master
+    print(f"master: {checked.coupling} coupling, step {m.step:g} s (from {scene.step_from}), "
+          f"tolerance {m.tolerance:g} (relative {m.relative_tolerance:g}), maxIterations "
+          f"{m.max_iterations}, predictor {m.predictor}, refresh {m.refresh} (after "
+          f"{m.refresh_after}), start {m.start}, perturbation {m.perturbation:g}")
+    print(f"components ({len(scene.components)}):")
+    for index, component in enumerate(scene.components):
+        description = model_description(component.source)
+        cs = description.coSimulation
+        flags = [f"state {'yes' if can_save_state(component.source) else 'NO'}",
+                 f"serialize {'yes' if cs.canSerializeFMUstate else 'no'}",
+                 f"variable step {'yes' if cs.canHandleVariableCommunicationStepSize else 'no'}"]
+        role = ("glued: iterated with rollback" if index in checked.glued
+                else "free: one doStep per macro step, never rolled back")
+        port_text = port_summary(checked.ports[component.path])
+        print(f"  {component.path}: {component.source.name} "
+              f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
+        print(f"      {role}")
+        if component.path in scene.placements:
+            print(f"      placed on Ray resource {scene.placements[component.path]} "
+                  "(--backend ray)")
+        print(f"      ports: {port_text or 'none'}")
+        for name, file in component.files.items():
+            print(f"      scene file: {name} = {component.parameters[name][1]} "
+                  f"({file.stat().st_size} bytes)")
+        records = [name for path, name in checked.recorded if path == component.path]
+        print(f"      records: {', '.join(records) or 'nothing'}")
+        for line in settable_lines(checked, index, args.all):
+            print(f"      {line}")
+    print(f"joints ({len(scene.joints)}):")
+    for joint in scene.joints:
+        law = ""
+        if joint.kind == "flexible":
+            law = f" k0={joint.k0} k1={joint.k1} c0={joint.c0} c1={joint.c1}"
+        if joint.measure == "penalized":
+            law += f" xi={joint.xi} omega={joint.omega}"
+        settable = joint_coefficients(joint)
+        print(f"  {joint.name}: {'.'.join(joint.a)} -> {'.'.join(joint.b)} dofs "
+              f"{' '.join(joint.dofs)}, {joint.kind}, {joint.measure}{law}"
+              + (f" (--set {joint.name}.{settable[0]}=VALUE: {' '.join(settable)})"
+                 if settable else ""))
+    print(f"causal connections: {len(scene.connections)}")
+    return 0
+
+
+def _cmd_validate(args) -> int:
+    from dsim.master.tools.validate import validate
+
+    settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
+    found = validate(args.scene, strict=args.strict, **_run_choices(args), **settings)
+    for problem in found.errors:
+        print(f"dsim: error: {problem}", file=sys.stderr)
+    for warning in found.warnings:
+        print(f"dsim: warning: {warning}", file=sys.stderr)
+    if found.ok:
+        print(found.summary)
+    return 0 if found.ok else 2
+
+
+def comparison_lines(comparison) -> list[str]:
+    """The table of a comparison: per column the largest difference, the band and
+    what set it (rtol, or a floor: ulps, kernel noise), the reference's peak, and the
+    first and worst time outside the band."""
+    width = max(len(d.column) for d in comparison.differences)
+    lines = [f"{'column':<{width}}  {'max |diff|':>11}  {'allowed':>11}  {'band':>5}  "
+             f"{'ref peak':>11}  verdict"]
+    for d in comparison.differences:
+        verdict = "ok" if d.passed else (
+            f"DIFFERS from t = {d.first[0]:.6g} s (worst at t = {d.worst[0]:.6g} s: "
+            f"{d.worst[1]:.6g} against {d.worst[2]:.6g})")
+        lines.append(f"{d.column:<{width}}  {d.max_difference:>11.3e}  {d.allowed:>11.3e}  "
+                     f"{d.source:>5}  {d.reference_peak:>11.3e}  {verdict}")
+    return lines
+
+
+def _cmd_plot(args) -> int:
+    from fnmatch import fnmatch
+
+    from dsim.master.recording.output_files import write_whole
+    from dsim.master.recording.results import plot_overlay, read_columns
+
+    files = [Path(a) for a in args.items if a.lower().endswith(".csv")]
+    patterns = [a for a in args.items if not a.lower().endswith(".csv")]
+    if not files:
+        raise InputError("dsim plot: give at least one results CSV")
+    results = {}
+    for path in files:
+        label = path.stem if path.stem not in results else str(path)
+        results[label] = {name: values for name, values in read_columns(path).items()
+                          if values.dtype != object}  # text columns have no curve
+    columns = list(dict.fromkeys(n for signals in results.values() for n in signals
+                                 if n != "time"))
+
+    def matches(name, pattern):  # a name as written ('x[2]'), or a glob ('j1.*')
+        return name == pattern or fnmatch(name, pattern)
+
+    names = [n for n in columns if not patterns or any(matches(n, p) for p in patterns)]
+    unmatched = [p for p in patterns if not any(matches(n, p) for n in columns)]
+    if unmatched or not names:
+        raise InputError(f"dsim plot: no column matches {', '.join(unmatched) or 'anything'} "
+                         f"(columns: {', '.join(columns)})")
+    out = Path(args.out or files[0].with_suffix(".png"))
+    image = io.BytesIO()
+    plot_overlay(results, names, image, args.title or "")
+    write_whole(out, image.getvalue(), files)
+    print(f"plot        {out} ({len(names[:8])} signals of {len(results)} results"
+          + (f"; {len(names) - 8} more not drawn" if len(names) > 8 else "") + ")")
+    return 0
+
+
+def _cmd_compare(args) -> int:
+    from dsim.master.tools.compare import band_origin, compare_files
+    from dsim.master.tools.regress import read_noise
+
+    columns = args.columns.split(",") if args.columns else None
+    noise = read_noise(args.noise) if args.noise else None
+    comparison = compare_files(args.result, args.reference, columns, args.rtol, args.atol,
+                               noise)
+    print("\n".join(comparison_lines(comparison)))
+    floors = [f"{d.column}: {band_origin(d)}" for d in comparison.differences
+              if d.source != "rtol"]
+    if floors:
+        print("bands set by a floor (round-off, not rtol): " + "; ".join(floors))
+    if comparison.short:
+        print(f"dsim: {args.result} ends at t = {comparison.result_end:g} s, before the "
+              f"reference ({comparison.reference_end:g} s)", file=sys.stderr)
+    failed = comparison.failed
+    if failed:
+        print(f"dsim: {len(failed)} of {len(comparison.differences)} columns differ from "
+              f"{args.reference}", file=sys.stderr)
+    return 0 if comparison.passed else 1
+
+
+def _cmd_sweep(args) -> int:
+    from dsim.master.tools.design import DESIGNS, parse_vary
+    from dsim.master.tools.sweep import (TIGHTEST, Sweep, cheapest, command_line, read_sweep_file,
+                                         run_sweep)
+
+    sweep = read_sweep_file(args.sweep) if args.sweep else Sweep()
+    for keyword in SETTINGS:
+        text = getattr(args, keyword, None)
+        if text is not None:
+            values = [v.strip() for v in text.split(",") if v.strip()]
+            if len(values) == 1 and keyword not in sweep.grid:
+                sweep.fixed[keyword] = values[0]
+            else:
+                sweep.grid[keyword] = values
+    if args.design:
+        sweep.design = args.design
+    if args.samples is not None:
+        sweep.samples = args.samples
+    if args.seed is not None:
+        sweep.seed = args.seed
+    if sweep.design != "grid" and sweep.seed is None:
+        sweep.seed = 0  # a sampled design is reproducible without being asked
+    if args.vary:
+        if sweep.design not in DESIGNS:
+            raise InputError(f"--design {sweep.design}: not one of {', '.join(DESIGNS)}")
+        problems, vary = [], []
+        for text in args.vary:
+            try:
+                vary.append(parse_vary(text, sweep.design != "grid"))
+            except InputError as error:
+                problems += error.problems
+        if problems:
+            raise InputError(problems)
+        given = {f.name for f in vary}
+        sweep.vary = [f for f in sweep.vary if f.name not in given] + vary
+    if args.kpi:
+        sweep.kpis = list(dict.fromkeys(list(sweep.kpis) + args.kpi))
+    if args.reference:
+        sweep.reference = args.reference if args.reference == TIGHTEST else Path(args.reference)
+    if args.columns:
+        sweep.columns = args.columns.split(",")
+    out = Path(args.out or f"{Path(args.scene).stem}_sweep")
+
+    def progress(done, total, point):
+        kpis = "".join(f", {k} {v:.4g}" for k, v in point.kpis.items())
+        error = f", error {point.error:.2e}" if point.error == point.error else ""
+        print(f"point {done}/{total}: {point.label}: {point.status}"
+              f"{error}{kpis}, {point.wall_seconds:.2f} s", file=sys.stderr)
+
+    def resumed(finished, total):
+        print(f"resume      {finished} of {total} points already finished in {out}: "
+              f"running the other {total - finished}", file=sys.stderr)
+
+    points, interrupted = run_sweep(args.scene, sweep, out, progress, bars=True,
+                                    resumed=resumed)
+    written = [out / name for name in ("sweep.csv", "sweep.md", "sweep.png", "kpis.png",
+                                       "scatter.png", "sensitivity.md")
+               if (out / name).is_file()]
+    print(f"sweep       {len(points)} points: {', '.join(str(w) for w in written)}")
+    failed = [p for p in points if p.status != "completed"]
+    if failed:
+        print(f"failed      {len(failed)} of {len(points)} points did not complete "
+              f"(their rows say why): points {', '.join(str(p.index) for p in failed[:12])}"
+              f"{' ...' if len(failed) > 12 else ''}")
+    front = sorted((p for p in points if p.pareto), key=lambda p: p.wall_seconds)
+    for point in front:
+        print(f"pareto      {point.label}: error {point.error:.2e}, {point.wall_seconds:.2f} s")
+    _print_rankings(out)
+    if args.target_error is not None:
+        best = cheapest(points, args.target_error)
+        if best is None:
+            print(f"target      no measured point has an error of at most "
+                  f"{args.target_error:g}")
+        else:
+            print(f"target      the cheapest point with an error of at most "
+                  f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
+                  f"{best.wall_seconds:.2f} s)")
+            print(f"run it      {command_line(args.scene, best, sweep.fixed)}")
+    if interrupted:
+        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}; "
+              "run the same command again to finish the others", file=sys.stderr)
+        return 128 + interrupted
+    return 0
+
+
+def _print_rankings(out: Path) -> None:
+    """The factors of each KPI ranked by the sweep's sensitivity table."""
+    from dsim.master.tools.sensitivity import Index, ranking
+    from dsim.master.tools.sweep_folder import read_sensitivity
+
+    rows = read_sensitivity(out)
+    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
+               for r in rows]
+    for kpi in dict.fromkeys(i.kpi for i in indices):
+        order = ranking(indices, kpi)
+        if order:
+            print(f"ranking     {kpi}: {' > '.join(order)}")
+
+
+def _cmd_regress(args) -> int:
+    from dsim.master.tools.kernel_study import choose_kernels
+    from dsim.master.tools.regress import (KernelChoice, find_cases, junit_xml, run_cases,
+                                           summary_lines)
+
+    if (args.kernels or args.no_kernel_study) and not args.update:
+        raise InputError("--kernels and --no-kernel-study choose the kernel study of "
+                         "--update: give --update too")
+    if args.kernels and args.no_kernel_study:
+        raise InputError("--kernels and --no-kernel-study contradict each other: give one")
+    kernels = KernelChoice(not args.no_kernel_study, choose_kernels(
+        [k.strip() for k in args.kernels.split(",") if k.strip()]) if args.kernels else None)
+    cases, without = find_cases(args.folder, args.baselines, args.scene or (), args.update)
+    if not cases:
+        raise InputError(f"{args.folder}: no scene has a baseline in "
+                         f"{args.baselines or Path(args.folder) / 'baselines'} "
+                         "(write them with --update)")
+
+    def progress(outcome):
+        verdict = outcome.status + (f": {outcome.message}" if outcome.message else "")
+        print(f"{outcome.case.name}: {verdict}", file=sys.stderr)
+
+    outcomes = run_cases(cases, args.results, args.update, args.rtol, args.atol, progress,
+                         kernels)
+    print("\n".join(summary_lines(outcomes)))
+    if without:
+        print(f"without a baseline (not run): {', '.join(without)}")
+    if args.junit:
+        junit_xml(outcomes, args.junit)
+    bad = [o for o in outcomes if o.status not in ("passed", "updated")]
+    if bad:
+        print(f"dsim: {len(bad)} of {len(outcomes)} scenes did not pass: "
+              f"{', '.join(o.case.name for o in bad)}", file=sys.stderr)
+    return 1 if bad else 0
+
+
+def _run_choices(args) -> dict:
+    """The keywords of :func:`dsim.master.api.prepare` that ``--set``, ``--set-file``,
+    ``--outputs`` and ``--output-interval`` give."""
+    from dsim.master.reading.parameter_input import given_parameters
+
+    return {"parameters": given_parameters(args.set_file, args.set),
+            "outputs": args.outputs, "output_interval": args.output_interval}
+
+
+def _add_run_choices(run_parser) -> None:
+    """Options that choose a run's model parameters and what it records (run,
+    validate): docs/parameters.md, docs/results.md."""
+    run_parser.add_argument("--set", action="append", metavar="NAME=VALUE",
+                            help="a start value for this run, on top of the scene's "
+                            "bindings and --parameter-set: COMPONENT.VARIABLE=VALUE "
+                            "(nested components by their dotted path) or JOINT.k0=VALUE "
+                            "(k0 k1 c0 c1 xi omega); again for more (`dsim info` lists what "
+                            "can be set)")
+    run_parser.add_argument("--set-file", action="append", metavar="FILE",
+                            help="start values from a file: an SSP parameter set (.ssv), "
+                            "name,value rows (.csv) or a JSON object (.json); --set wins "
+                            "over it")
+    run_parser.add_argument("--outputs", action="append", metavar="PATTERN",
+                            help="record only the columns matching this glob (right.x*, "
+                            "'j1.*'); again for more (default: every recorded column)")
+    run_parser.add_argument("--output-interval", metavar="DT",
+                            help="record a row every DT seconds, a whole multiple of the "
+                            "macro step, and the last step (default: every step)")
+
+
+def _add_settings(run_parser) -> None:
+    """One option per setting of :mod:`dsim.master.settings` (checked there, not here)."""
+    for keyword, setting in SETTINGS.items():
+        names = [setting.option] + (["--tol"] if keyword == "tolerance" else [])
+        text = setting.help
+        if setting.rule == "choice":
+            text += f" ({', '.join(choices(keyword))})"
+        run_parser.add_argument(*names, dest=keyword, metavar=keyword.upper()
+                                if setting.rule != "choice" else "NAME", help=text)
+
+
+#: what --strict does (run and validate)
+STRICT_HELP = ("refuse (exit 2) what is otherwise a warning: a rule the files break that "
+               "does not change what the run computes")
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command-line parser."""
+    main_parser = argparse.ArgumentParser(
+        prog="dsim", description="Co-simulation master: glues FMI 2.0 FMUs of an SSP file "
+        "with the T-T gluing algorithm.")
+    commands = main_parser.add_subparsers(dest="command", required=True)
+    run_parser = commands.add_parser("run", help="run a scene (.ssp, folder or .ssd)")
+    run_parser.add_argument("scene")
+    _add_settings(run_parser)
+    _add_run_choices(run_parser)
+    run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here); the "
+                            "statistics JSON goes beside it")
+    run_parser.add_argument("--plot", help="write a PNG plot of the results")
+    run_parser.add_argument("--mat", help="write the results as a MATLAB .mat file too")
+    run_parser.add_argument("--quiet", action="store_true", help="no summary")
+    run_parser.add_argument("--force", action="store_true", help="run even when the "
+                            "results CSV would not fit the free disk space")
+    run_parser.add_argument("--isolate", action="store_true",
+                            help="run every FMU in its own worker process on this machine "
+                            "(--backend isolated; needs dsim[ray]): an FMU that crashes ends "
+                            "the run with a message, never dsim")
+    run_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    run_parser.set_defaults(handler=_cmd_run)
+    validate_parser = commands.add_parser(
+        "validate", help="every check of dsim run, without running: one line per finding, "
+        "exit 2 when the scene cannot run")
+    validate_parser.add_argument("scene")
+    _add_settings(validate_parser)
+    _add_run_choices(validate_parser)
+    validate_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    validate_parser.set_defaults(handler=_cmd_validate)
+    plot_parser = commands.add_parser(
+        "plot", help="a PNG of chosen signals of one or more results CSVs, overlaid")
+    plot_parser.add_argument("items", nargs="+", metavar="RESULT.csv|SIGNAL",
+                             help="results CSVs and signal names (glob patterns: 'j1.*')")
+    plot_parser.add_argument("--out", help="the PNG (default: the first CSV's name .png)")
+    plot_parser.add_argument("--title", help="a title")
+    plot_parser.set_defaults(handler=_cmd_plot)
+    sweep_parser = commands.add_parser(
+        "sweep", help="run a scene at every point of a grid of settings or a design of "
+        "experiments over settings and model parameters; measure error, KPIs, wall time, "
+        "iterations and sensitivity (a rerun into the same --out finishes only the missing "
+        "points)")
+    sweep_parser.add_argument("scene")
+    for keyword, setting in SETTINGS.items():
+        sweep_parser.add_argument(setting.option, dest=keyword, metavar="V1,V2",
+                                  help=f"{setting.help} (comma-separated values to sweep)")
+    sweep_parser.add_argument("--sweep", help="a sweep file (JSON: grid, points, settings, "
+                              "reference, columns, vary, design, samples, seed, kpis)")
+    sweep_parser.add_argument("--reference", help="results CSV to measure the error against, "
+                              "or 'tightest' (default: the monolithic twin the scene ships as "
+                              "resources/reference.csv, else the sweep's tightest point; no "
+                              "error where model parameters vary)")
+    sweep_parser.add_argument("--columns", help="comma-separated columns to compare "
+                              "(default: every common column)")
+    sweep_parser.add_argument("--out", help="folder for sweep.csv, sweep.md, the plots, the "
+                              "sensitivity and each point's results (default: SCENE_sweep); "
+                              "the same sweep into the same folder runs only the points "
+                              "missing there")
+    sweep_parser.add_argument("--vary", action="append", metavar="NAME=SPEC",
+                              help="vary a setting or a model parameter (COMPONENT.VARIABLE): "
+                              "a list a,b,c, a range lo:hi:N or lo:hi:log:N on a grid, lo:hi "
+                              "or lo:hi:log for a sampled design (repeatable)")
+    sweep_parser.add_argument("--design", help="grid (the full factorial, default), lhs, "
+                              "sobol, halton (scipy.stats.qmc), saltelli (Sobol' indices) or "
+                              "morris (elementary effects)")
+    sweep_parser.add_argument("--samples", type=int, help="points of a sampled design (sobol "
+                              "and saltelli: a power of 2; saltelli runs N (d + 2) points, "
+                              "morris N (d + 1))")
+    sweep_parser.add_argument("--seed", type=int, help="seed of a sampled design (default 0: "
+                              "the same points every time)")
+    sweep_parser.add_argument("--kpi", action="append", metavar="REDUCTION(COLUMN)",
+                              help="a quantity of interest per point: max, min, maxabs, mean, "
+                              "rms, final, argmax, argmin of a column or a glob of columns "
+                              "(repeatable; docs/doe.md)")
+    sweep_parser.add_argument("--target-error", type=float, help="name the cheapest measured "
+                              "point whose error is at most this, and its command line")
+    sweep_parser.set_defaults(handler=_cmd_sweep)
+    regress_parser = commands.add_parser(
+        "regress", help="run every scene of a folder that has a stored baseline and compare "
+        "(exit 1 on any regression)")
+    regress_parser.add_argument("folder", help="scenes: NAME.ssp archives or NAME/ folders")
+    regress_parser.add_argument("--baselines", help="NAME.csv and NAME.json per scene "
+                                "(default: FOLDER/baselines)")
+    regress_parser.add_argument("--results", help="keep each run's CSV and statistics here")
+    regress_parser.add_argument("--junit", help="write a JUnit XML report")
+    regress_parser.add_argument("--update", action="store_true",
+                                help="store each run as the new baseline instead of comparing "
+                                "(scenes without one get one), and measure in each JSON how "
+                                "far every column moves between OpenBLAS kernels (the "
+                                "bands' floor)")
+    regress_parser.add_argument("--no-kernel-study", action="store_true",
+                                help="with --update: do not run the scenes under other "
+                                "OpenBLAS kernels (the stored noise is kept)")
+    regress_parser.add_argument("--kernels", metavar="K1,K2", help="with --update: the "
+                                "OpenBLAS kernels of the study (default: every one this CPU "
+                                "runs; Prescott, Nehalem, Sandybridge, Haswell, Zen, "
+                                "SkylakeX)")
+    regress_parser.add_argument("--scene", action="append", help="only this scene (again "
+                                "for more)")
+    regress_parser.add_argument("--rtol", type=float, help="override every case's rtol")
+    regress_parser.add_argument("--atol", type=float, help="override every case's atol")
+    regress_parser.set_defaults(handler=_cmd_regress)
+    info_parser = commands.add_parser("info", help="components, capabilities, ports, "
+                                      "joints and master settings of a scene")
+    info_parser.add_argument("scene")
+    info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
+    info_parser.add_argument("--all", action="store_true", help="list every input that "
+                             "can be set (default: the first 12 of each component)")
+    info_parser.set_defaults(handler=_cmd_info)
+    compare_parser = commands.add_parser(
+        "compare", help="compare a results CSV with a reference CSV (exit 1 if it differs)")
+    compare_parser.add_argument("result")
+    compare_parser.add_argument("reference")
+    compare_parser.add_argument("--columns", help="comma-separated columns (default: common)")
+    compare_parser.add_argument("--rtol", type=float, default=1e-6,
+                                help="allowed difference relative to the reference's peak")
+    compare_parser.add_argument("--atol", type=float, default=0.0, help="absolute allowance")
+    compare_parser.add_argument("--noise", metavar="BASELINE.json", help="a baseline JSON of "
+                                "dsim regress: its measured kernel noise is the floor of "
+                                "the bands")
+    compare_parser.set_defaults(handler=_cmd_compare)
+    # commands of other packages (build_fmus: `dsim build-fmus`), so that the master
+    # imports none of them
+    for entry in entry_points(group="dsim.commands"):
+        entry.load()(commands)
+    return main_parser
+
+
+class _Terminated(BaseException):
+    """SIGTERM outside a run (while a scene is read): unwinds like Ctrl-C, so that the
+    folders unpacked so far are removed (a run installs its own handler meanwhile)."""
+
+
+def _on_sigterm(number, frame) -> None:
+    raise _Terminated
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``dsim`` console script."""
+    import signal
+    import threading
+
+    args = parser().parse_args(argv)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if in_main else None
+    try:
+        return args.handler(args)
+    except _Terminated:
+        print("dsim: interrupted by SIGTERM", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    except InputError as error:
+        for problem in error.problems:
+            print(f"dsim: error: {problem}", file=sys.stderr)
+        return 2
+    except SimulationError as error:
+        print(f"dsim: simulation failed: {error}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("dsim: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # output piped into `head` and friends: not an error
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def console() -> None:
+    """The ``dsim`` console script and ``python -m dsim.master.tools.cli``: :func:`main`, then the
+    process ends without the native libraries' exit handlers (:mod:`dsim.master.tools.process_exit`;
+    main itself returns, for callers in this process such as the tests)."""
+    from dsim.master.tools.process_exit import end_process
+
+    end_process(main())
+
+
+if __name__ == "__main__":
+    console()
