@@ -7,7 +7,7 @@ SCENE ?= spring_mass_nonlinear
 
 .PHONY: demo test fmus browser screenshots benchmarks baselines clean
 
-$(VENV)/installed: pyproject.toml
+$(VENV)/installed: pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test,serve]'

@@ -93,10 +93,20 @@ def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Pa
         for name in fmu_packages(identifier, root):
             shutil.copytree(root / "fmus" / name, package / name,
                             ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-        FmuBuilder.build_FMU(root / FMU_SCRIPTS[identifier], dest=target,
-                             project_files=[package],
-                             canGetAndSetFMUstate=True,
-                             canSerializeFMUstate=True)
+        # pythonfmu imports the script to find its model class, from the script's own
+        # folder: the script sits beside that copy, where `fmus` is top-level as in the
+        # FMU (installed, fmus is dsim.fmus); what the import left behind goes after
+        script = Path(temp) / Path(FMU_SCRIPTS[identifier]).name
+        shutil.copy2(root / FMU_SCRIPTS[identifier], script)
+        path, modules = list(sys.path), set(sys.modules)
+        try:
+            FmuBuilder.build_FMU(script, dest=target, project_files=[package],
+                                 canGetAndSetFMUstate=True, canSerializeFMUstate=True)
+        finally:
+            sys.path[:] = path
+            for name in set(sys.modules) - modules:
+                if name == script.stem or name == "fmus" or name.startswith("fmus."):
+                    del sys.modules[name]
     _complete_model_description(target)
     return target
 

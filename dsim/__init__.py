@@ -5,26 +5,50 @@ SSP 1.0 systems, T-T gluing).
     result = dsim.simulate("build/ssp/spring_mass_nonlinear.ssp", stop=2.0, tolerance=1e-10)
     result.status, result["right.x[2]"], result.statistics["iterations"]
 
-See docs/api.md.  The implementation lives in the ``master`` package; this one is
-its public face.
-"""
-from dsim.master import __version__
-from dsim.master.api import prepare, simulate
-from dsim.master.errors import InputError, SimulationError
-from dsim.master.planning.plan import Plan
-from dsim.master.reading.ssp import load_scene
-from dsim.master.recording.observers import (CsvRecorder, MemoryRecorder, Observer, PlotWriter,
-                                             ProgressBar, RunInfo, StatisticsWriter, StepRecord)
-from dsim.master.recording.results import RunResult, read_columns, read_csv
-from dsim.master.running.backends import BACKENDS, Backend
-from dsim.master.running.couplings import COUPLINGS, Coupling, StepReport
-from dsim.master.running.couplings.convergence import CONVERGENCE_TESTS
-from dsim.master.running.couplings.predictors import PREDICTORS
-from dsim.master.running.couplings.refresh import REFRESH_POLICIES
-from dsim.master.running.execution import Execution
+See docs/api.md.  ``dsim`` is the one installed package: the master is
+``dsim.master``, the subsystem models ``dsim.fmus``, the FMU and scene builder
+``dsim.build_fmus``, the web front end ``dsim.serve`` (docs/architecture.md).  This
+module is the public face: each name below is the master's own object.
 
-__all__ = ["BACKENDS", "Backend", "COUPLINGS", "CONVERGENCE_TESTS", "Coupling", "CsvRecorder",
-           "Execution", "InputError", "MemoryRecorder", "Observer", "PREDICTORS", "Plan",
-           "PlotWriter", "ProgressBar", "REFRESH_POLICIES", "RunInfo", "RunResult",
-           "SimulationError", "StatisticsWriter", "StepRecord", "StepReport", "load_scene",
-           "prepare", "read_columns", "read_csv", "simulate", "__version__"]
+The names are imported when first used (PEP 562), so that ``import dsim.fmus...``
+(or an FMU-side tool) does not load the whole master, and so that every module of
+the package can be imported on its own, in any order.
+"""
+from importlib import import_module
+
+from dsim.master import __version__
+
+#: public name -> the module of dsim.master that defines it
+_WHERE = {
+    "prepare": "api", "simulate": "api",
+    "BACKENDS": "running.backends", "Backend": "running.backends",
+    "COUPLINGS": "running.couplings", "Coupling": "running.couplings",
+    "StepReport": "running.couplings",
+    "CONVERGENCE_TESTS": "running.couplings.convergence",
+    "PREDICTORS": "running.couplings.predictors",
+    "REFRESH_POLICIES": "running.couplings.refresh",
+    "InputError": "errors", "SimulationError": "errors",
+    "Execution": "running.execution",
+    "CsvRecorder": "recording.observers", "MemoryRecorder": "recording.observers",
+    "Observer": "recording.observers", "PlotWriter": "recording.observers",
+    "ProgressBar": "recording.observers", "RunInfo": "recording.observers",
+    "StatisticsWriter": "recording.observers", "StepRecord": "recording.observers",
+    "Plan": "planning.plan",
+    "RunResult": "recording.results", "read_columns": "recording.results",
+    "read_csv": "recording.results",
+    "load_scene": "reading.ssp",
+}
+
+__all__ = sorted(_WHERE) + ["__version__"]
+
+
+def __getattr__(name: str):
+    if name not in _WHERE:
+        raise AttributeError(f"module 'dsim' has no attribute '{name}'")
+    value = getattr(import_module(f"dsim.master.{_WHERE[name]}"), name)
+    globals()[name] = value  # once: the next access is an ordinary attribute
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

@@ -28,12 +28,10 @@ KILL_GRACE = 5.0
 
 
 def child_env() -> dict:
-    """The environment of a child process: this package importable (also from a
-    checkout that is not installed) and numeric libraries on one thread each, since
-    runs are already processes side by side."""
+    """The environment of a child process (this interpreter, so the dsim installed
+    here) with numeric libraries on one thread each, since runs are already processes
+    side by side."""
     env = dict(os.environ)
-    root = str(Path(__file__).resolve().parent.parent)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
     env.setdefault("OMP_NUM_THREADS", "1")
     return env
 

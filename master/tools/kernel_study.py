@@ -109,14 +109,12 @@ _PROBE = ("import json; from dsim.master.tools.kernel_study import openblas_core
 
 def kernel_environment(kernel: str | None) -> dict:
     """This process's environment for a subprocess under ``kernel`` (None: the CPU's
-    default), importing this checkout's master."""
+    default).  The subprocess runs this interpreter, so it imports the dsim installed
+    here (a wheel, or the checkout's editable install)."""
     env = dict(os.environ)
     env.pop("OPENBLAS_CORETYPE", None)
     if kernel:
         env["OPENBLAS_CORETYPE"] = kernel
-    # the subprocess imports this checkout's master, installed or not
-    root = str(Path(__file__).resolve().parent.parent)
-    env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in [env.get("PYTHONPATH")] if p])
     return env
 
 
