@@ -1,8 +1,10 @@
-"""Write the shipped scene folders of ssp/ (SystemStructure.ssd + .ssv files).
+"""The scene writer (:class:`SceneWriter`: SystemStructure.ssd + .ssv files) and the
+spring-mass and chain scenes.
 
-The folders are committed; this module is how they were made and how a scene
-family (chain_<n>) is regenerated at another size:
-``python -m dsim.build_fmus.scenes``.  Parameters are those of SCENES.md.
+The folders of ssp/ are committed; the scene modules of build_fmus are how they were
+made and how a family (chain_<n>) is regenerated at another size:
+``python -m dsim.build_fmus.write_scenes`` writes them all.  Parameters are those of
+SCENES.md.
 """
 from __future__ import annotations
 
@@ -207,26 +209,19 @@ def chain(n: int) -> SceneWriter:
     return scene
 
 
-def write_all(root: Path = ROOT) -> None:
-    """(Re)write every generated scene folder."""
+def write_spring_mass_scenes(root: Path = ROOT) -> None:
+    """(Re)write the spring_mass_* scene folders under ``root``/ssp."""
     p = SPRING_MASS
     for nonlinear in (False, True):
         scene = spring_mass(nonlinear)
         scene.write(root / "ssp" / scene.name, 0.0, p["stop"], step=p["step"],
                     tolerance=p["tolerance"], maxIterations=20, predictor="linear",
                     refreshAfter=10)
+
+
+def write_chain_scenes(root: Path = ROOT) -> None:
+    """(Re)write the chain_<n> scene folders under ``root``/ssp."""
     for n in (10, 100, 1000):
         scene = chain(n)
         scene.write(root / "ssp" / scene.name, 0.0, CHAIN["stop"], step=CHAIN["step"],
                     tolerance=1e-13, maxIterations=20, predictor="linear", refreshAfter=10)
-    from dsim.build_fmus.four_post_scenes import write_four_post_scenes
-    from dsim.build_fmus.frame_scenes import write_frame_scenes
-    from dsim.build_fmus.linkage_scenes import write_all as write_linkage_scenes
-
-    write_frame_scenes(root)
-    write_linkage_scenes(root)
-    write_four_post_scenes(root)
-
-
-if __name__ == "__main__":
-    write_all()

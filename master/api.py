@@ -14,9 +14,10 @@ from dsim.master.reading.ssp import load_scene
 from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter, ProgressBar,
                                              StatisticsWriter)
 from dsim.master.recording.results import RunResult
+from dsim.master.running.backends.base import BACKEND_OPTIONS
 from dsim.master.running.execution import Execution
 from dsim.master.scene import Scene
-from dsim.master.settings import BACKEND_OPTIONS, resolve
+from dsim.master.settings import resolve
 
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,

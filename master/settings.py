@@ -101,12 +101,6 @@ SETTINGS = {s.keyword: s for s in (
             "files (dsim info lists them; default SystemStructure.ssd)"),
 )}
 
-#: the settings a backend takes (not the master's), with the backends that take each
-BACKEND_OPTIONS = {"address": "only the ray backend takes it (--backend ray)",
-                   "call_timeout": "only the ray and isolated backends take it (--backend "
-                                   "ray, --isolate): an FMU in dsim's own process cannot be "
-                                   "stopped"}
-
 #: glue:Master attribute -> setting
 BY_ATTRIBUTE = {s.attribute: s for s in SETTINGS.values() if s.attribute}
 

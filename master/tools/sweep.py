@@ -31,6 +31,7 @@ from dsim.master.errors import InputError
 from dsim.master.settings import SETTINGS, convert
 from dsim.master.tools.design import SALIB, Design, Factor, parse_vary, split
 from dsim.master.tools.kpi import parse_all
+from dsim.master.tools.sweep_point import PointRun, keywords
 from dsim.master.tools.sweep_plots import plot_points  # noqa: F401  (its place before the split)
 from dsim.master.tools.sweep_table import MEASURES, Point, SweepTable, markdown  # noqa: F401
 
@@ -219,24 +220,6 @@ def command_line(scene, point: Point, fixed: dict) -> str:
     for key, value in parameters.items():
         words += ["--set", f"{key}={value}"]
     return " ".join(shlex.quote(w) for w in words)
-
-
-@dataclass
-class PointRun:
-    """How one point ran: its :class:`~dsim.master.recording.results.RunResult` (None for bad input),
-    the problems of bad input, wall seconds and where its results are."""
-
-    result: object = None
-    problems: list = field(default_factory=list)
-    wall_seconds: float = math.nan
-    results: Path | None = None
-
-
-def keywords(configuration: dict) -> dict:
-    """The keywords of ``dsim.simulate``/``prepare`` for a point: its settings, and its
-    model parameters as ``parameters`` (left out when there are none)."""
-    settings, parameters = split(configuration)
-    return {**settings, "parameters": parameters} if parameters else settings
 
 
 def run_point(scene, settings: dict, results: Path, bars: bool = False) -> PointRun:

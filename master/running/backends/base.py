@@ -4,6 +4,13 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 
+#: the settings a backend takes (not the master's: dsim.master.settings names them all),
+#: with the backends that take each
+BACKEND_OPTIONS = {"address": "only the ray backend takes it (--backend ray)",
+                   "call_timeout": "only the ray and isolated backends take it (--backend "
+                                   "ray, --isolate): an FMU in dsim's own process cannot be "
+                                   "stopped"}
+
 
 class Backend(ABC):
     """The subsystems of one run, wherever they live.
@@ -22,8 +29,6 @@ class Backend(ABC):
     def problems(cls, **options) -> list[str]:
         """What is wrong with running on this backend with ``options`` (the run
         options that are not master settings, such as ``address``), one line each."""
-        from dsim.master.settings import BACKEND_OPTIONS
-
         return [f"setting {key}: {BACKEND_OPTIONS[key]}"
                 for key, value in options.items() if value is not None]
 

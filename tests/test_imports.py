@@ -1,0 +1,143 @@
+"""One import name, no import circles: the package's modules as the installed
+``dsim`` sees them (docs/architecture.md).
+
+* the static import graph of every module (function-level imports included) has no
+  circle;
+* every module imports on its own, first, in a fresh interpreter;
+* nothing in the repository imports the folders' old top-level names (``master``,
+  ``fmus``, ``build_fmus``, ``dsim_serve``), which would load a module twice under two
+  names.  The pythonfmu scripts are the exception: inside an FMU, ``fmus`` is the
+  top-level package beside them.
+"""
+from __future__ import annotations
+
+import ast
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+#: import name -> folder (as setup.py maps them)
+FOLDERS = {"dsim": "dsim", "dsim.master": "master", "dsim.fmus": "fmus",
+           "dsim.build_fmus": "build_fmus", "dsim.serve": "dsim_serve"}
+OLD_NAMES = {"master", "fmus", "build_fmus", "dsim_serve"}
+
+
+def fmu_script(path: Path) -> bool:
+    """A pythonfmu script: the FMU's own top-level module (``fmus`` is real there)."""
+    return path.name.endswith("_fmu.py") and "fmus" in path.relative_to(ROOT).parts[:1]
+
+
+def package_modules() -> dict[str, Path]:
+    """Every module of the package (dotted name -> file), FMU scripts aside."""
+    modules = {}
+    for name, folder in FOLDERS.items():
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            if "__pycache__" in path.parts or fmu_script(path):
+                continue
+            parts = path.relative_to(ROOT / folder).with_suffix("").parts
+            dotted = ".".join((name,) + parts)
+            modules[dotted.removesuffix(".__init__")] = path
+    return modules
+
+
+def imports(module: str, path: Path, known: dict) -> set[str]:
+    """The package modules ``module`` imports (anywhere in it, relative imports
+    resolved; ``from X import name`` counts X.name when that is a module)."""
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            for alias in node.names:
+                found.add(f"{base}.{alias.name}" if f"{base}.{alias.name}" in known else base)
+    return {name for name in found if name in known and name != module}
+
+
+def test_the_import_graph_has_no_circle():
+    modules = package_modules()
+    graph = {name: imports(name, path, modules) for name, path in modules.items()}
+    circles, state = [], {}
+
+    def visit(name, trail):  # depth first; a grey node met again closes a circle
+        state[name] = "grey"
+        for other in sorted(graph[name]):
+            if state.get(other) == "grey":
+                circles.append(trail[trail.index(other):] + [other])
+            elif other not in state:
+                visit(other, trail + [other])
+        state[name] = "black"
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+    assert circles == [], "\n".join(" -> ".join(c) for c in circles)
+    assert len(graph) > 100  # the whole package was read
+
+
+# One fresh interpreter imports the third-party libraries once, then forks a child per
+# module: each child imports its module first among dsim's, with nothing of dsim loaded.
+_CHILDREN = textwrap.dedent("""
+    import importlib, os, sys
+    import numpy, scipy.linalg, scipy.sparse, lxml.etree, fmpy  # shared, for speed
+    bad = 0
+    for name in sys.argv[1:]:
+        pid = os.fork()
+        if pid == 0:
+            try:
+                importlib.import_module(name)
+                loaded = sorted(m for m in sys.modules
+                                if m.split(".")[0] in ("master", "fmus", "build_fmus",
+                                                       "dsim_serve", "examples"))
+                if loaded:
+                    raise ImportError("old top-level names loaded: " + ", ".join(loaded))
+            except BaseException as error:
+                print(f"{name}: {type(error).__name__}: {error}", flush=True)
+                os._exit(1)
+            os._exit(0)
+        bad += os.waitpid(pid, 0)[1] != 0
+    sys.exit(1 if bad else 0)
+""")
+
+
+def test_every_module_imports_alone_in_a_fresh_interpreter(tmp_path):
+    names = [n for n in package_modules() if not n.endswith("__main__")]
+    # from an empty folder, with the repository off the path: the installed dsim
+    done = subprocess.run([sys.executable, "-I", "-c", _CHILDREN, *names], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "MPLBACKEND": "Agg"})
+    assert done.returncode == 0, done.stdout + done.stderr[-3000:]
+
+
+def test_nothing_imports_the_old_top_level_names():
+    offenders = []
+    for folder in ("dsim", "master", "fmus", "build_fmus", "dsim_serve", "examples", "tests",
+                   "benchmarks"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            if "__pycache__" in path.parts or fmu_script(path):
+                continue
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                         [node.module] if isinstance(node, ast.ImportFrom) and not node.level
+                         else [])
+                offenders += [f"{path.relative_to(ROOT)}:{node.lineno}: {n}" for n in names
+                              if n and n.split(".")[0] in OLD_NAMES]
+    assert offenders == []
+
+
+def test_the_fmu_scripts_import_fmus_as_the_fmu_holds_it():
+    """The other side of the rule: an FMU's script imports ``fmus`` (its resources),
+    never dsim, which an FMU's host need not have."""
+    scripts = sorted(p for p in (ROOT / "fmus").rglob("*_fmu.py"))
+    assert len(scripts) == 4
+    for script in scripts:
+        roots = {(n.module or "").split(".")[0] for n in ast.walk(ast.parse(script.read_text()))
+                 if isinstance(n, ast.ImportFrom) and not n.level}
+        assert "fmus" in roots and "dsim" not in roots, script
