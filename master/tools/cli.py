@@ -7,7 +7,6 @@ Exit codes: 0 success, 1 the simulation failed, 2 bad input or usage,
 from __future__ import annotations
 
 import argparse
-import io
 import sys
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -75,123 +74,10 @@ def _cmd_run(args) -> int:
     return result.exit_code
 
 
-def port_summary(ports: dict) -> str:
-    """The ports a joint can glue (a force input on every dof), a node set's slots
-    S[1] .. S[n] as one entry: ``P(x), port1[1..5](x y)``."""
-    slots: dict[str, list[int]] = {}
-    dofs_of: dict[str, str] = {}
-    for port, dofs in ports.items():
-        if not dofs or not all("f" in kinds for kinds in dofs.values()):
-            continue  # outputs only (a probe): nothing to glue
-        base, bracket, index = port.partition("[")
-        key = base if bracket and index[:-1].isdigit() else port
-        slots.setdefault(key, [])
-        if key != port:
-            slots[key].append(int(index[:-1]))
-        dofs_of[key] = " ".join(sorted(dofs))
-    return ", ".join(
-        (f"{key}[{min(numbers)}..{max(numbers)}]" if numbers else key) + f"({dofs_of[key]})"
-        for key, numbers in sorted(slots.items()))
-
-
-def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> list[str]:
-    """``dsim info``'s table of what a run may set in component ``index`` of ``plan``
-    (name, type, unit, start, min..max, causality and variability, description);
-    inputs the master writes itself (glued port forces, connected inputs) are left
-    out, and past ``shown`` inputs the rest is counted unless ``every``."""
-    from dsim.master.planning.parameters import master_writes, settable_variables
-
-    spec = plan.specs[index]
-    written = master_writes(spec, plan.scene.component(spec.name).source)
-    found = [v for v in settable_variables(spec.path, spec.name) if v.name not in written]
-    inputs = [v for v in found if v.causality == "input"]
-    listed = [v for v in found if v.causality != "input"] + (
-        inputs if every else inputs[:shown])
-    if not listed:
-        return ["can be set: nothing"]
-    bound = plan.scene.component(spec.name).parameters
-    width = max(len(v.name) for v in listed)
-
-    def short(value) -> str:
-        text = "-" if value in (None, "") else str(value)
-        return text if len(text) <= 16 else text[:13] + "..."
-
-    lines = [f"can be set (--set {spec.name}.NAME=VALUE; start: the FMU's, scene: what the "
-             "scene binds):"]
-    for v in listed:
-        limits = f" [{v.min or '-inf'}, {v.max or 'inf'}]" if v.min or v.max else ""
-        if v.items:
-            limits = " {" + ", ".join(f"{name}={value}" for name, value in v.items) + "}"
-        scene = f" scene {short(bound[v.name][1])}" if v.name in bound else ""
-        lines.append(f"  {v.name:<{width}}  {v.type:<7} {v.unit or '-':<6} "
-                     f"{v.causality}/{v.variability}  start {short(v.start)}{scene}{limits}"
-                     + (f"  ({v.description})" if v.description else ""))
-    if len(inputs) > len(listed) - (len(found) - len(inputs)):
-        hidden = len(inputs) - (len(listed) - (len(found) - len(inputs)))
-        lines.append(f"  ... {hidden} more inputs no joint or connection writes "
-                     "(dsim info --all lists them)")
-    return lines
-
-
 def _cmd_info(args) -> int:
-    from dsim.master.api import prepare
-    from dsim.master.planning.parameters import joint_coefficients
-    from dsim.master.reading.ports import model_description
-    from dsim.master.running.fmu import can_save_state
+    from dsim.master.tools.info import scene_info
 
-    from dsim.master.reading.ssp import ssd_files
-
-    checked = prepare(args.scene, ssd=args.ssd)
-    scene = checked.scene
-    structures = ssd_files(args.scene)
-    if len(structures) > 1:
-        print(f"system structures: {', '.join(structures)} (this is "
-              f"{args.ssd or 'SystemStructure.ssd'}; --ssd NAME reads another)")
-    print(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s"
-          + ("" if scene.experiment else " (no DefaultExperiment: dsim's default span)"))
-    print(f"SSP version {scene.ssp_version or 'not declared'}")
-    m = scene.master
-    print(f"master: {checked.coupling} coupling, step {m.step:g} s (from {scene.step_from}), "
-          f"tolerance {m.tolerance:g} (relative {m.relative_tolerance:g}), maxIterations "
-          f"{m.max_iterations}, predictor {m.predictor}, refresh {m.refresh} (after "
-          f"{m.refresh_after}), start {m.start}, perturbation {m.perturbation:g}")
-    print(f"components ({len(scene.components)}):")
-    for index, component in enumerate(scene.components):
-        description = model_description(component.source)
-        cs = description.coSimulation
-        flags = [f"state {'yes' if can_save_state(component.source) else 'NO'}",
-                 f"serialize {'yes' if cs.canSerializeFMUstate else 'no'}",
-                 f"variable step {'yes' if cs.canHandleVariableCommunicationStepSize else 'no'}"]
-        role = ("glued: iterated with rollback" if index in checked.glued
-                else "free: one doStep per macro step, never rolled back")
-        port_text = port_summary(checked.ports[component.path])
-        print(f"  {component.path}: {component.source.name} "
-              f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
-        print(f"      {role}")
-        if component.path in scene.placements:
-            print(f"      placed on Ray resource {scene.placements[component.path]} "
-                  "(--backend ray)")
-        print(f"      ports: {port_text or 'none'}")
-        for name, file in component.files.items():
-            print(f"      scene file: {name} = {component.parameters[name][1]} "
-                  f"({file.stat().st_size} bytes)")
-        records = [name for path, name in checked.recorded if path == component.path]
-        print(f"      records: {', '.join(records) or 'nothing'}")
-        for line in settable_lines(checked, index, args.all):
-            print(f"      {line}")
-    print(f"joints ({len(scene.joints)}):")
-    for joint in scene.joints:
-        law = ""
-        if joint.kind == "flexible":
-            law = f" k0={joint.k0} k1={joint.k1} c0={joint.c0} c1={joint.c1}"
-        if joint.measure == "penalized":
-            law += f" xi={joint.xi} omega={joint.omega}"
-        settable = joint_coefficients(joint)
-        print(f"  {joint.name}: {'.'.join(joint.a)} -> {'.'.join(joint.b)} dofs "
-              f"{' '.join(joint.dofs)}, {joint.kind}, {joint.measure}{law}"
-              + (f" (--set {joint.name}.{settable[0]}=VALUE: {' '.join(settable)})"
-                 if settable else ""))
-    print(f"causal connections: {len(scene.connections)}")
+    print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all)))
     return 0
 
 
@@ -226,37 +112,14 @@ def comparison_lines(comparison) -> list[str]:
 
 
 def _cmd_plot(args) -> int:
-    from fnmatch import fnmatch
-
-    from dsim.master.recording.output_files import write_whole
-    from dsim.master.recording.results import plot_overlay, read_columns
+    from dsim.master.tools.plot import overlay_files
 
     files = [Path(a) for a in args.items if a.lower().endswith(".csv")]
     patterns = [a for a in args.items if not a.lower().endswith(".csv")]
-    if not files:
-        raise InputError("dsim plot: give at least one results CSV")
-    results = {}
-    for path in files:
-        label = path.stem if path.stem not in results else str(path)
-        results[label] = {name: values for name, values in read_columns(path).items()
-                          if values.dtype != object}  # text columns have no curve
-    columns = list(dict.fromkeys(n for signals in results.values() for n in signals
-                                 if n != "time"))
-
-    def matches(name, pattern):  # a name as written ('x[2]'), or a glob ('j1.*')
-        return name == pattern or fnmatch(name, pattern)
-
-    names = [n for n in columns if not patterns or any(matches(n, p) for p in patterns)]
-    unmatched = [p for p in patterns if not any(matches(n, p) for n in columns)]
-    if unmatched or not names:
-        raise InputError(f"dsim plot: no column matches {', '.join(unmatched) or 'anything'} "
-                         f"(columns: {', '.join(columns)})")
-    out = Path(args.out or files[0].with_suffix(".png"))
-    image = io.BytesIO()
-    plot_overlay(results, names, image, args.title or "")
-    write_whole(out, image.getvalue(), files)
-    print(f"plot        {out} ({len(names[:8])} signals of {len(results)} results"
-          + (f"; {len(names) - 8} more not drawn" if len(names) > 8 else "") + ")")
+    done = overlay_files(files, patterns, args.out, args.title or "")
+    print(f"plot        {done.out} ({len(done.drawn)} signals of {done.results} results"
+          + (f"; {len(done.names) - len(done.drawn)} more not drawn"
+             if len(done.names) > len(done.drawn) else "") + ")")
     return 0
 
 

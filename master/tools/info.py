@@ -1,0 +1,128 @@
+"""``dsim info``: what a scene is made of, as text: its span and master settings, each
+component (FMU, capabilities, whether it is glued, ports, scene files, what it records,
+what a run may set) and each joint, from the checked plan
+(:func:`dsim.master.api.prepare`)."""
+from __future__ import annotations
+
+from dsim.master.api import prepare
+from dsim.master.planning.parameters import (joint_coefficients, master_writes,
+                                             settable_variables)
+from dsim.master.reading.ports import model_description
+from dsim.master.reading.ssp import ssd_files
+from dsim.master.running.fmu import can_save_state
+
+
+def port_summary(ports: dict) -> str:
+    """The ports a joint can glue (a force input on every dof), a node set's slots
+    S[1] .. S[n] as one entry: ``P(x), port1[1..5](x y)``."""
+    slots: dict[str, list[int]] = {}
+    dofs_of: dict[str, str] = {}
+    for port, dofs in ports.items():
+        if not dofs or not all("f" in kinds for kinds in dofs.values()):
+            continue  # outputs only (a probe): nothing to glue
+        base, bracket, index = port.partition("[")
+        key = base if bracket and index[:-1].isdigit() else port
+        slots.setdefault(key, [])
+        if key != port:
+            slots[key].append(int(index[:-1]))
+        dofs_of[key] = " ".join(sorted(dofs))
+    return ", ".join(
+        (f"{key}[{min(numbers)}..{max(numbers)}]" if numbers else key) + f"({dofs_of[key]})"
+        for key, numbers in sorted(slots.items()))
+
+
+def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> list[str]:
+    """``dsim info``'s table of what a run may set in component ``index`` of ``plan``
+    (name, type, unit, start, min..max, causality and variability, description);
+    inputs the master writes itself (glued port forces, connected inputs) are left
+    out, and past ``shown`` inputs the rest is counted unless ``every``."""
+    spec = plan.specs[index]
+    written = master_writes(spec, plan.scene.component(spec.name).source)
+    found = [v for v in settable_variables(spec.path, spec.name) if v.name not in written]
+    inputs = [v for v in found if v.causality == "input"]
+    listed = [v for v in found if v.causality != "input"] + (
+        inputs if every else inputs[:shown])
+    if not listed:
+        return ["can be set: nothing"]
+    bound = plan.scene.component(spec.name).parameters
+    width = max(len(v.name) for v in listed)
+
+    def short(value) -> str:
+        text = "-" if value in (None, "") else str(value)
+        return text if len(text) <= 16 else text[:13] + "..."
+
+    lines = [f"can be set (--set {spec.name}.NAME=VALUE; start: the FMU's, scene: what the "
+             "scene binds):"]
+    for v in listed:
+        limits = f" [{v.min or '-inf'}, {v.max or 'inf'}]" if v.min or v.max else ""
+        if v.items:
+            limits = " {" + ", ".join(f"{name}={value}" for name, value in v.items) + "}"
+        scene = f" scene {short(bound[v.name][1])}" if v.name in bound else ""
+        lines.append(f"  {v.name:<{width}}  {v.type:<7} {v.unit or '-':<6} "
+                     f"{v.causality}/{v.variability}  start {short(v.start)}{scene}{limits}"
+                     + (f"  ({v.description})" if v.description else ""))
+    if len(inputs) > len(listed) - (len(found) - len(inputs)):
+        hidden = len(inputs) - (len(listed) - (len(found) - len(inputs)))
+        lines.append(f"  ... {hidden} more inputs no joint or connection writes "
+                     "(dsim info --all lists them)")
+    return lines
+
+
+def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[str]:
+    """The lines ``dsim info`` prints for ``scene_file`` (an .ssp archive, a scene folder
+    or an .ssd file; ``ssd``: which system structure of it; ``every``: list every input
+    a run may set).  Raises InputError as a run would."""
+    lines: list[str] = []
+    say = lines.append
+    checked = prepare(scene_file, ssd=ssd)
+    scene = checked.scene
+    structures = ssd_files(scene_file)
+    if len(structures) > 1:
+        say(f"system structures: {', '.join(structures)} (this is "
+            f"{ssd or 'SystemStructure.ssd'}; --ssd NAME reads another)")
+    say(f"scene {scene.name}: {scene.start_time:g} .. {scene.stop_time:g} s"
+        + ("" if scene.experiment else " (no DefaultExperiment: dsim's default span)"))
+    say(f"SSP version {scene.ssp_version or 'not declared'}")
+    m = scene.master
+    say(f"master: {checked.coupling} coupling, step {m.step:g} s (from {scene.step_from}), "
+        f"tolerance {m.tolerance:g} (relative {m.relative_tolerance:g}), maxIterations "
+        f"{m.max_iterations}, predictor {m.predictor}, refresh {m.refresh} (after "
+        f"{m.refresh_after}), start {m.start}, perturbation {m.perturbation:g}")
+    say(f"components ({len(scene.components)}):")
+    for index, component in enumerate(scene.components):
+        description = model_description(component.source)
+        cs = description.coSimulation
+        flags = [f"state {'yes' if can_save_state(component.source) else 'NO'}",
+                 f"serialize {'yes' if cs.canSerializeFMUstate else 'no'}",
+                 f"variable step {'yes' if cs.canHandleVariableCommunicationStepSize else 'no'}"]
+        role = ("glued: iterated with rollback" if index in checked.glued
+                else "free: one doStep per macro step, never rolled back")
+        port_text = port_summary(checked.ports[component.path])
+        say(f"  {component.path}: {component.source.name} "
+            f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
+        say(f"      {role}")
+        if component.path in scene.placements:
+            say(f"      placed on Ray resource {scene.placements[component.path]} "
+                "(--backend ray)")
+        say(f"      ports: {port_text or 'none'}")
+        for name, file in component.files.items():
+            say(f"      scene file: {name} = {component.parameters[name][1]} "
+                f"({file.stat().st_size} bytes)")
+        records = [name for path, name in checked.recorded if path == component.path]
+        say(f"      records: {', '.join(records) or 'nothing'}")
+        for line in settable_lines(checked, index, every):
+            say(f"      {line}")
+    say(f"joints ({len(scene.joints)}):")
+    for joint in scene.joints:
+        law = ""
+        if joint.kind == "flexible":
+            law = f" k0={joint.k0} k1={joint.k1} c0={joint.c0} c1={joint.c1}"
+        if joint.measure == "penalized":
+            law += f" xi={joint.xi} omega={joint.omega}"
+        settable = joint_coefficients(joint)
+        say(f"  {joint.name}: {'.'.join(joint.a)} -> {'.'.join(joint.b)} dofs "
+            f"{' '.join(joint.dofs)}, {joint.kind}, {joint.measure}{law}"
+            + (f" (--set {joint.name}.{settable[0]}=VALUE: {' '.join(settable)})"
+               if settable else ""))
+    say(f"causal connections: {len(scene.connections)}")
+    return lines
