@@ -1,6 +1,11 @@
 """Build every FMU of fmus/ with pythonfmu and pack every scene of ssp/ into an
 .ssp archive holding its FMUs; skip what is up to date.
 
+Both folders travel with the installed package (dsim.fmus, and dsim.ssp as data), so
+``dsim build-fmus --out DIR`` works from a wheel as from a checkout: DIR/fmus/*.fmu,
+DIR/ssp/*.ssp and DIR/references/*.csv (the monolithic twins packed into the scenes).
+The default DIR is build/ in a checkout, ./build when dsim is installed.
+
 pythonfmu writes no ModelStructure/InitialUnknowns, which FMI 2.0 requires for
 outputs that are calculated at initialization (``fmpy validate`` flags it), so
 the built modelDescription.xml is completed here.
@@ -17,6 +22,7 @@ from pathlib import Path
 
 from lxml import etree
 
+#: the folder that holds fmus/ and ssp/: the checkout, or the installed dsim package
 ROOT = Path(__file__).resolve().parent.parent
 
 #: FMU model identifier -> the pythonfmu script that defines it.
@@ -33,6 +39,20 @@ SSD_NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
 
 def _newest(paths) -> float:
     return max((p.stat().st_mtime for p in paths if p.is_file()), default=0.0)
+
+
+def default_out(root: Path = ROOT) -> Path:
+    """Where ``dsim build-fmus`` builds without --out: build/ of a checkout, or ./build
+    when dsim is installed (never inside the installed package)."""
+    return root / "build" if (root / "pyproject.toml").is_file() else Path.cwd() / "build"
+
+
+def _shown(path: Path) -> str:
+    """A path as the build's messages show it: from the current folder when inside it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
 
 
 def _sources(root: Path) -> list[Path]:
@@ -111,15 +131,18 @@ def build_fmu(identifier: str, root: Path = ROOT, out: Path | None = None) -> Pa
     return target
 
 
-def build_fmus(root: Path = ROOT, force: bool = False, log=print) -> list[Path]:
-    """Build every FMU whose sources changed since it was built."""
+def build_fmus(root: Path = ROOT, force: bool = False, log=print,
+               out: Path | None = None) -> list[Path]:
+    """Build every FMU whose sources changed since it was built, into ``out``/fmus
+    (default ``root``/build/fmus)."""
+    fmu_dir = Path(out or root / "build") / "fmus"
     newest = _newest(_sources(root))
     built = []
     for identifier in FMU_SCRIPTS:
-        target = root / "build" / "fmus" / f"{identifier}.fmu"
+        target = fmu_dir / f"{identifier}.fmu"
         if force or not target.is_file() or target.stat().st_mtime < newest:
-            log(f"building {target.relative_to(root)}")
-            build_fmu(identifier, root)
+            log(f"building {_shown(target)}")
+            build_fmu(identifier, root, fmu_dir)
         built.append(target)
     return built
 
@@ -147,26 +170,30 @@ def pack_scene(folder: Path, fmu_dir: Path, out: Path) -> Path:
     return target
 
 
-def pack_scenes(root: Path = ROOT, force: bool = False, log=print) -> list[Path]:
-    """Pack every scene folder of ssp/ that changed since it was packed."""
-    fmu_dir = root / "build" / "fmus"
+def pack_scenes(root: Path = ROOT, force: bool = False, log=print,
+                out: Path | None = None) -> list[Path]:
+    """Pack every scene folder of ``root``/ssp that changed since it was packed, with
+    the FMUs of ``out``/fmus, into ``out``/ssp (default ``root``/build)."""
+    out = Path(out or root / "build")
+    fmu_dir, references = out / "fmus", out / "references"
     newest_fmu = _newest(fmu_dir.glob("*.fmu"))
     packed = []
-    for folder in sorted(p for p in (root / "ssp").iterdir() if (p / "SystemStructure.ssd").is_file()):
-        target = root / "build" / "ssp" / f"{folder.name}.ssp"
+    for folder in sorted(p for p in (root / "ssp").iterdir()
+                         if (p / "SystemStructure.ssd").is_file()):
+        target = out / "ssp" / f"{folder.name}.ssp"
         newest = max(_newest(folder.rglob("*")), newest_fmu)
         if force or not target.is_file() or target.stat().st_mtime < newest:
-            log(f"packing {target.relative_to(root)}")
+            log(f"packing {_shown(target)}")
             try:
-                write_twin(folder.name, root / "build" / "references")
+                write_twin(folder.name, references)
             except ArithmeticError as error:
                 # the twin is a reference for sweeps, not part of the scene: the scene
                 # is packed without one and the build goes on (dsim sweep then needs
                 # --reference); the tests compute the twins again and say what failed
-                (root / "build" / "references" / f"{folder.name}.csv").unlink(missing_ok=True)
+                (references / f"{folder.name}.csv").unlink(missing_ok=True)
                 log(f"dsim build-fmus: {folder.name}: no monolithic reference packed "
                     f"(its computation failed: {error})")
-            pack_scene(folder, fmu_dir, root / "build" / "ssp")
+            pack_scene(folder, fmu_dir, out / "ssp")
         packed.append(target)
     return packed
 
@@ -182,15 +209,17 @@ def write_twin(scene: str, out: Path) -> None:
 
 
 def _command(args) -> int:
-    return _build_all(args.force)
+    return _build_all(args.force, args.out)
 
 
-def _build_all(force: bool) -> int:
-    """Build the FMUs and pack the scenes; a failure is one line and exit 1 (a build
-    that cannot run pythonfmu or write build/ is not a bug of the user's input)."""
+def _build_all(force: bool, out: str | None = None) -> int:
+    """Build the FMUs and pack the scenes into ``out`` (default: :func:`default_out`);
+    a failure is one line and exit 1 (a build that cannot run pythonfmu or write its
+    folder is not a bug of the user's input)."""
+    out = Path(out) if out else default_out()
     try:
-        build_fmus(force=force)
-        pack_scenes(force=force)
+        build_fmus(force=force, out=out)
+        pack_scenes(force=force, out=out)
     except (OSError, RuntimeError, etree.LxmlError,
             zipfile.BadZipFile) as error:
         print(f"dsim build-fmus: failed: {error}", file=sys.stderr)
@@ -202,16 +231,23 @@ def register_command(commands) -> None:
     """Add ``dsim build-fmus`` to the command line (entry point ``dsim.commands``)."""
     build_parser = commands.add_parser("build-fmus", help="build dsim's FMUs from fmus/ and "
                                        "pack the scenes of ssp/ (skips what is up to date)")
-    build_parser.add_argument("--force", action="store_true", help="rebuild everything")
+    _add_options(build_parser)
     build_parser.set_defaults(handler=_command)
+
+
+def _add_options(parser) -> None:
+    parser.add_argument("--force", action="store_true", help="rebuild everything")
+    parser.add_argument("--out", metavar="DIR", help="build into DIR/fmus, DIR/ssp and "
+                        "DIR/references (default: build/ of the checkout, or ./build "
+                        "when dsim is installed)")
 
 
 def main(argv=None) -> int:
     """Command line: build FMUs then pack scenes."""
     parser = argparse.ArgumentParser(prog="dsim build-fmus", description=__doc__.split("\n")[0])
-    parser.add_argument("--force", action="store_true", help="rebuild everything")
+    _add_options(parser)
     args = parser.parse_args(argv)
-    return _build_all(args.force)
+    return _build_all(args.force, args.out)
 
 
 if __name__ == "__main__":
