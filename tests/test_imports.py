@@ -82,6 +82,93 @@ def test_the_import_graph_has_no_circle():
     assert len(graph) > 100  # the whole package was read
 
 
+def _bound(path: Path) -> set[str] | None:
+    """The names a module binds at its top level (None: any, it has a module
+    ``__getattr__``)."""
+    bound: set[str] = set()
+
+    def visit(body):
+        for node in body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                bound.add(node.name)
+            elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                for target in targets:
+                    bound.update(n.id for n in ast.walk(target) if isinstance(n, ast.Name))
+            elif isinstance(node, (ast.Import, ast.ImportFrom)):
+                bound.update((a.asname or a.name).split(".")[0] for a in node.names)
+            elif isinstance(node, (ast.If, ast.Try, ast.With)):
+                visit(node.body)
+                visit(getattr(node, "orelse", []))
+                for handler in getattr(node, "handlers", []):
+                    visit(handler.body)
+
+    visit(ast.parse(path.read_text()).body)
+    return None if "__getattr__" in bound else bound
+
+
+def test_every_name_imported_from_the_package_exists():
+    """``from dsim.master.x import name``: x binds name, or x.name is a module (a name
+    a move left behind fails here, also inside a function no test calls)."""
+    modules = package_modules()
+    bound = {name: _bound(path) for name, path in modules.items()}
+    missing = []
+    importers = dict(modules)  # and the repository's own users of the package
+    for folder in ("examples", "tests", "benchmarks"):
+        importers.update({f"{folder}/{p.name}": p for p in sorted((ROOT / folder).rglob("*.py"))
+                          if "__pycache__" not in p.parts})
+    for name, path in importers.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            if base not in modules or bound[base] is None:
+                continue
+            missing += [f"{name}:{node.lineno}: {base} has no {a.name}" for a in node.names
+                        if a.name != "*" and a.name not in bound[base]
+                        and f"{base}.{a.name}" not in modules]
+    assert missing == []
+
+
+#: master/'s folders, each importing only those before it (docs/architecture.md); the
+#: modules of master/ itself: errors and scene import no folder, settings only running/'s
+#: registries (to name valid choices), api every folder but tools/, and tools/ the api
+LAYERS = ["recording", "reading", "running", "planning", "tools"]
+MAY_IMPORT = {"errors": set(), "scene": set(), "settings": {"running"},
+              "api": set(LAYERS[:-1]), "__init__": set()}
+
+
+def _folder(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[:2] != ["dsim", "master"]:
+        return None
+    return parts[2] if len(parts) > 2 else "__init__"
+
+
+def test_each_folder_of_the_master_imports_only_the_folders_before_it():
+    modules = package_modules()
+    wrong = []
+    for name, path in modules.items():
+        folder = _folder(name)
+        if folder is None:
+            continue
+        allowed = MAY_IMPORT.get(folder, set(LAYERS[:LAYERS.index(folder)]) if folder in
+                                 LAYERS else set())
+        if folder == "tools":
+            allowed = allowed | {"api"}  # the tools are callers of the API
+        for other in imports(name, path, modules):
+            target = _folder(other)
+            if target in (None, folder, "__init__", "errors", "scene", "settings") or (
+                    target in allowed):
+                continue
+            wrong.append(f"{name} -> {other}")
+    assert wrong == []
+
+
 # One fresh interpreter imports the third-party libraries once, then forks a child per
 # module: each child imports its module first among dsim's, with nothing of dsim loaded.
 _CHILDREN = textwrap.dedent("""

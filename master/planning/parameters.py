@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from dsim.master.errors import InputError
+from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 
 #: where a value given for the run came from (``Component.origins``), and how
 #: messages name it
@@ -249,25 +250,11 @@ def _joint_value(joint, coefficient: str, value) -> tuple[object, str | None]:
 
 
 # --- the scene with the values applied ----------------------------------------------
-def scene_file(base: Path, name: str, value: str, where: str):
-    """(the scene file a String value ``resources/...`` names, or None; the problem,
-    or None): an FMU only knows its own resources, so the master hands it the
-    absolute path of a file of the scene (docs/ssp_support.md)."""
-    resources = base.resolve() / "resources"
-    file = (base / value).resolve()
-    if not file.is_relative_to(resources):
-        return None, f"{where}: parameter '{name}' = '{value}' leaves the scene's resources folder"
-    if not file.is_file():
-        return None, f"{where}: parameter '{name}' = '{value}': the scene has no such file"
-    return file, None
-
-
 def with_parameters(scene, parameters: dict):
     """``scene`` with ``parameters`` (full name -> Python value or text) applied on
     top of every binding; what is wrong with them is added to ``scene.problems`` (one
     line each), so that the plan reports them with its own findings."""
     from dsim.master.reading.ports import variables_by_name
-    from dsim.master.reading.ssp import SCENE_RESOURCES
 
     if not parameters:
         return scene

@@ -21,7 +21,7 @@ from pathlib import Path
 from lxml import etree
 
 from dsim.master.errors import InputError
-from dsim.master.planning.parameters import scene_file
+from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 from dsim.master.reading.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from dsim.master.reading.ssp_hierarchy import (Binding, RawConnection, resolve_bindings,
                                                resolve_connections)
@@ -382,9 +382,6 @@ class _Reader:
                 self.files.append(file)
         return files
 
-
-#: the prefix of a String parameter value that names a file of the scene
-SCENE_RESOURCES = "resources/"
 
 #: start and stop time (s) of a scene without a DefaultExperiment (dsim info says so)
 DEFAULT_START, DEFAULT_STOP = 0.0, 1.0
