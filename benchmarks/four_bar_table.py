@@ -18,7 +18,8 @@ would (the spectral radius through the loaded scene's component parameters, as a
 parameter set would).  A run that fails (status ``failed``, exit code 1 on the command
 line) is reported as failed at its step and time, with the counts up to the failure.
 Each run's force error is against its own twin: the monolithic four bar that solves
-the same discrete equations (examples/four_bar.py), with the same spectral radius.
+the same discrete equations (build_fmus/twins/four_bar.py), with the same spectral
+radius.
 
     python -m benchmarks.four_bar_table [--out docs/four_bar_table.md] [--stop 2]
 """
@@ -32,7 +33,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from dsim.build_fmus.linkage_scenes import FOUR_BAR
-from examples.twins import four_bar_twin
+from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
 from dsim.master.reading.ssp import load_scene
 from dsim.master.tools.sweep import error_against
@@ -216,7 +217,7 @@ INTRODUCTION = (
     "seed's counts (Matlab ode45/ode15s parts, its own run length) are shown for "
     "reference; only the pattern compares, not the numbers. The error column compares "
     "the joint force at A with the run's twin at the same step, relative to its peak "
-    "(examples/four_bar.py): the monolithic four bar that solves the same discrete "
+    "(build_fmus/twins/four_bar.py): the monolithic four bar that solves the same discrete "
     "equations (fixed scene: revolutes A and B as position-level rows, generalized-alpha "
     "with the run's rho_inf; penalized: Baumgarte rows, trapezoidal; flexible: bushings, "
     "trapezoidal). Wall times are from a machine shared with other work.")

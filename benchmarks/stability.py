@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from examples.testbed import Testbed, energy, monolithic, write_scene
-from examples.twins import four_bar_twin
+from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
 from dsim.master.tools.sweep import error_against
 

@@ -14,8 +14,8 @@ import platform
 import time
 from pathlib import Path
 
-from examples.frame import OUTPUT as FRAME_OUTPUT
-from examples.spring_mass import monolithic as spring_mass_monolithic
+from dsim.build_fmus.twins import FRAME_OUTPUT
+from dsim.build_fmus.twins.spring_mass import monolithic as spring_mass_monolithic
 from dsim.fmus.elastic.frame import STEP_SIZE, monolithic_frame
 from dsim.master.api import simulate
 from dsim.master.tools.sweep import error_against

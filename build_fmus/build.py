@@ -165,7 +165,7 @@ def pack_scene(folder: Path, fmu_dir: Path, out: Path) -> Path:
                                         f"built FMU ({fmu} missing)")
             archive.write(fmu, source)
         reference = fmu_dir.parent / "references" / f"{folder.name}.csv"
-        if reference.is_file():  # the monolithic twin's results (examples/twins.py)
+        if reference.is_file():  # the monolithic twin's results (build_fmus/twins/)
             archive.write(reference, "resources/reference.csv")
     return target
 
@@ -199,9 +199,9 @@ def pack_scenes(root: Path = ROOT, force: bool = False, log=print,
 
 
 def write_twin(scene: str, out: Path) -> None:
-    """Write the scene's monolithic twin (examples/twins.py) as ``out/SCENE.csv``,
-    where it has one."""
-    from examples.twins import TWINS, twin_csv
+    """Write the scene's monolithic twin (:mod:`dsim.build_fmus.twins`) as
+    ``out/SCENE.csv``, where it has one."""
+    from dsim.build_fmus.twins import TWINS, twin_csv
 
     if scene in TWINS:
         out.mkdir(parents=True, exist_ok=True)

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from dsim.build_fmus.twins import FRAME_OUTPUT as OUTPUT
 from dsim.fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
 
 ROOT = Path(__file__).resolve().parent.parent
-OUTPUT = "cross_front.load.u_x"
 
 
 def compare(csv_path, reference=None) -> dict:

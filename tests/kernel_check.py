@@ -14,7 +14,7 @@ SCENES = ("four_bar_singular_fixed", "four_bar_singular_flexible", "four_bar_sin
 
 
 def main(out: Path) -> int:
-    from examples.twins import TWINS, twin_csv
+    from dsim.build_fmus.twins import TWINS, twin_csv
     from dsim.master.tools.cli import main as dsim
 
     out.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,7 @@ from tests.conftest import ROOT
 def _four_bar_through(steps: int, perturb=None):
     """The monolithic parallelogram four bar (index-3 rows, H = 0.01 s) over ``steps``
     steps; ``perturb(bar)`` may change it first."""
-    from examples.four_bar import whole_model
+    from dsim.build_fmus.twins.four_bar import whole_model
 
     bar = whole_model("fixed")
     if perturb:
@@ -90,7 +90,7 @@ def test_interface_newton_accepts_the_round_off_floor_and_counts_it(built, tmp_p
 def test_a_failed_reference_does_not_stop_the_build(built, tmp_path, monkeypatch):
     """The twin of a scene fails to compute (as the four bar's did on some CPUs): the
     build says so in one line, packs the scene without a reference and goes on."""
-    import examples.twins as twins
+    import dsim.build_fmus.twins as twins
     from dsim.build_fmus.build import pack_scenes
     from dsim.fmus.linkage import LinkageConvergenceError
 

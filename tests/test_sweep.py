@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from examples.spring_mass import monolithic
+from dsim.build_fmus.twins.spring_mass import monolithic
 from dsim.master.tools.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,12 +1,13 @@
 """Monolithic twins as results files: the same columns a glued run records, computed
-by each scene's monolithic reference (examples/*.py) at a tenth of the scene's step.
+by each scene's monolithic reference (the modules of this package, and
+:func:`dsim.fmus.elastic.frame.monolithic_frame`) at a tenth of the scene's step.
 
 ``dsim build-fmus`` packs them into the scenes as ``resources/reference.csv``, which
 ``dsim sweep`` measures its points against by default (docs/sweep.md): a run's error
 against it is the gluing error plus the time discretization's, what a user trading
 step size for speed needs to see.  At a tenth of the step the twin's own
 discretization error is a hundredth of a run's at the scene's step (the rules are
-second order).  ``python -m examples.twins SCENE --out FILE.csv`` writes one.
+second order).  ``python -m dsim.build_fmus.twins SCENE --out FILE.csv`` writes one.
 """
 from __future__ import annotations
 
@@ -18,20 +19,21 @@ import numpy as np
 from dsim.build_fmus.linkage_scenes import FOUR_BAR
 from dsim.build_fmus.scenes import CHAIN, SPRING_MASS
 
-
 #: the twin's step as a fraction of the scene's
 REFINEMENT = 10
+#: the frame scenes' recorded load-point displacement (examples/frame.py compares it)
+FRAME_OUTPUT = "cross_front.load.u_x"
 
 
 def _spring_mass(nonlinear: bool) -> dict:
-    from examples.spring_mass import monolithic
+    from dsim.build_fmus.twins.spring_mass import monolithic
 
     times, x = monolithic(nonlinear, step=SPRING_MASS["step"] / REFINEMENT)
     return {"time": times, "left.x[1]": x[:, 0], "right.x[1]": x[:, 1], "right.x[2]": x[:, 2]}
 
 
 def _chain(n: int) -> dict:
-    from examples.chain import monolithic
+    from dsim.build_fmus.twins.chain import monolithic
 
     times, x = monolithic(n, step=CHAIN["step"] / REFINEMENT)
     return {"time": times, **{f"m{i}.x[1]": x for i in range(1, n + 1)}}
@@ -40,9 +42,9 @@ def _chain(n: int) -> dict:
 def four_bar_twin(scene: str, refinement: int = REFINEMENT,
                   spectral_radius: float | None = None) -> dict:
     """The twin of four_bar_singular_<scene> (``fixed``, ``penalized`` or ``flexible``;
-    examples/four_bar.py) at the scene's step divided by ``refinement``, its rule's
+    build_fmus/twins/four_bar.py) at the scene's step divided by ``refinement``, its rule's
     spectral radius overridden by ``spectral_radius``: the columns a glued run records."""
-    from examples.four_bar import monolithic
+    from dsim.build_fmus.twins.four_bar import monolithic
 
     r = monolithic(scene, step=FOUR_BAR["step"] / refinement,
                    spectral_radius=spectral_radius)
@@ -51,11 +53,10 @@ def four_bar_twin(scene: str, refinement: int = REFINEMENT,
 
 
 def _frame() -> dict:
-    from examples.frame import OUTPUT
     from dsim.fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
 
     r = monolithic_frame(step_size=STEP_SIZE / REFINEMENT, stop_time=STOP_TIME)
-    return {"time": r.time, OUTPUT: r.load_u_x}
+    return {"time": r.time, FRAME_OUTPUT: r.load_u_x}
 
 
 #: scene -> its twin's columns (name -> values, one per twin step); the other scenes'
@@ -95,6 +96,3 @@ def main(argv=None) -> int:
     print(f"wrote {args.out}")
     return 0
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())
