@@ -3,17 +3,10 @@ its singular (collinear) configurations, against the whole mechanism in one
 :class:`~dsim.fmus.linkage.core.Linkage` (the scenes' twins,
 :mod:`dsim.build_fmus.twins.four_bar`).
 
-Monolithic references, one per scene (``TWINS``): ``fixed`` -- revolutes A and B as
-position-level (index-3) rows, which is what fixed glue joints on the displacement
-measure are, and the generalized-alpha rule of the scene's parts (spectral radius
-``FOUR_BAR["spectral_radius"]``); ``penalized`` -- revolutes A and B as the parts'
-own Baumgarte rows (the penalized measure), trapezoidal rule; ``flexible`` -- A and B
-as Kelvin-Voigt bushings (k = 1e6 N/m, c = 2 0.707 1e3 N.s/m), the monolithic twin
-of the flexible glue joints, started with the fixed mechanism's velocities (the
-glued parts start from them too), trapezoidal rule.  H = 0.01 s.  Each twin solves
-the discrete equations its glued scene solves, so glued minus twin is the gluing's
-error.  Reactions / bushing forces on the coupler at A compare with the CSV's
-``A.f_x``, ``A.f_y`` (port b of joint A is coupler.A).
+The monolithic references, one per scene (fixed, penalized, flexible joints), and
+what each solves, are described in :mod:`dsim.build_fmus.twins.four_bar`.  Forces on the
+coupler at A compare with the CSV's ``A.f_x``, ``A.f_y`` (port b of joint A is
+coupler.A).
 
 ``python -m examples.four_bar [--joints fixed|penalized|flexible] [--tol 1e-8]`` runs
 the glued scene, prints the differences and writes a PNG into results/; a fixed run
