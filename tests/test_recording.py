@@ -31,6 +31,24 @@ def test_outputs_choose_the_columns_of_the_csv_the_result_and_the_plot(built, tm
     assert np.array_equal(memory["left.x[1]"], full["left.x[1]"])
 
 
+def test_outputs_plot_and_kpis_read_a_column_pattern_alike(built, tmp_path, capsys):
+    """One rule for a column pattern everywhere: * and ? are wildcards, brackets are
+    part of the names (``right.x[*]`` is every right.x, ``x[12]`` no class of 1 or 2)."""
+    from dsim.master.tools.kpi import parse
+
+    scene = built["ssp"] / "spring_mass_linear.ssp"
+    result = dsim.simulate(scene, stop=0.1, outputs="right.x[*]", out=tmp_path / "r.csv")
+    assert list(result.signals) == ["time", "right.x[1]", "right.x[2]"]
+    assert parse("maxabs(right.x[*])").columns(result.signals) == ["right.x[1]", "right.x[2]"]
+    assert main(["plot", str(tmp_path / "r.csv"), "right.x[*]", "--out",
+                 str(tmp_path / "r.png")]) == 0
+    assert "2 signals of 1 results" in capsys.readouterr().out
+    assert main(["run", str(scene), "--stop", "0.1", "--outputs", "right.x[12]",
+                 "--out", str(tmp_path / "s.csv")]) == 2
+    assert "outputs: pattern 'right.x[12]' matches no recorded column" in capsys.readouterr().err
+    assert parse("max(right.x[12])").columns(result.signals) == []
+
+
 def test_output_interval_records_exact_grid_points_and_the_last_step(built, tmp_path):
     scene = built["ssp"] / "spring_mass_linear.ssp"
     full = dsim.simulate(scene, stop=1.0)

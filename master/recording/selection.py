@@ -15,15 +15,25 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from fnmatch import fnmatchcase
+from functools import lru_cache
 
 import numpy as np
 
 
-def _matches(name: str, pattern: str) -> bool:
-    """A column name as written (``right.x[2]``: brackets are not a glob class here),
-    or a glob over names (``j1.*``, ``*.u_x``)."""
-    return name == pattern or fnmatchcase(name, pattern)
+@lru_cache(maxsize=256)
+def _literal_brackets(pattern: str) -> str:
+    # brackets are part of dsim's column names (x[2]): each one matches itself
+    return re.sub(r"([\[\]])", r"[\1]", pattern)
+
+
+def column_matches(name: str, pattern: str) -> bool:
+    """Whether results column ``name`` is the one ``pattern`` names (``right.x[2]``) or
+    one of those its glob names (``*`` and ``?`` are wildcards: ``j1.*``, ``right.x[*]``;
+    brackets are literal, not a glob class).  The one rule for ``--outputs``, ``dsim
+    plot`` and ``--kpi``."""
+    return name == pattern or fnmatchcase(name, _literal_brackets(pattern))
 
 
 def select_columns(patterns, columns, text_columns) -> tuple[np.ndarray | None,
@@ -40,7 +50,7 @@ def select_columns(patterns, columns, text_columns) -> tuple[np.ndarray | None,
     for pattern in patterns:
         if not isinstance(pattern, str) or not pattern.strip():
             problems.append(f"outputs: pattern {pattern!r} is not a column name or glob")
-        elif not any(_matches(name, pattern) for name in every):
+        elif not any(column_matches(name, pattern) for name in every):
             close = difflib.get_close_matches(pattern, every[:50000], n=3, cutoff=0.4)
             problems.append(f"outputs: pattern '{pattern}' matches no recorded column"
                             + (f" (closest: {', '.join(close)})" if close else
@@ -49,9 +59,9 @@ def select_columns(patterns, columns, text_columns) -> tuple[np.ndarray | None,
     if problems:
         return None, None, problems
     chosen = [i for i, name in enumerate(columns)
-              if any(_matches(name, p) for p in patterns)]
+              if any(column_matches(name, p) for p in patterns)]
     texts = tuple(i for i, name in enumerate(text_columns)
-                  if any(_matches(name, p) for p in patterns))
+                  if any(column_matches(name, p) for p in patterns))
     return np.array(chosen, dtype=int), texts, []
 
 

@@ -18,7 +18,6 @@ column ``x[2]``.
 """
 from __future__ import annotations
 
-import fnmatch
 import math
 import re
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dsim.master.errors import InputError
+from dsim.master.recording.selection import column_matches
 
 REDUCTIONS = ("max", "min", "maxabs", "mean", "rms", "final", "argmax", "argmin")
 _FORM = re.compile(r"\s*([a-z]+)\s*\(\s*(.+?)\s*\)\s*")
@@ -45,11 +45,9 @@ class Kpi:
 
     def columns(self, names) -> list[str]:
         """The columns of ``names`` the pattern names."""
-        if "*" in self.pattern or "?" in self.pattern:
-            # brackets are part of dsim's column names (x[2]): escaped, not a glob class
-            pattern = re.sub(r"([\[\]])", r"[\1]", self.pattern)
-            return [n for n in names if n != "time" and fnmatch.fnmatchcase(n, pattern)]
-        return [self.pattern] if self.pattern in names else []
+        # a glob pools result columns, not the time axis; "time" by name is itself
+        return [n for n in names if column_matches(n, self.pattern)
+                and (n != "time" or n == self.pattern)]
 
     def value(self, signals: dict) -> float:
         """The KPI of a run's signals (``{"time": array, column: array}``); ValueError

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import io
 from dataclasses import dataclass
-from fnmatch import fnmatch
 from pathlib import Path
 
 from dsim.master.errors import InputError
 from dsim.master.recording.output_files import write_whole
 from dsim.master.recording.results import plot_overlay, read_columns
+from dsim.master.recording.selection import column_matches
 
 #: panels of one plot (plot_overlay draws the first this many signals)
 MAX_PANELS = 8
@@ -23,12 +23,6 @@ class Overlay:
     names: list[str]
     drawn: list[str]
     results: int
-
-
-def _matches(name: str, pattern: str) -> bool:
-    """A name as written (``x[2]``: brackets are not a glob class here), or a glob
-    (``j1.*``)."""
-    return name == pattern or fnmatch(name, pattern)
 
 
 def overlay_files(files, patterns=(), out=None, title: str = "") -> Overlay:
@@ -46,8 +40,9 @@ def overlay_files(files, patterns=(), out=None, title: str = "") -> Overlay:
                           if values.dtype != object}  # text columns have no curve
     columns = list(dict.fromkeys(n for signals in results.values() for n in signals
                                  if n != "time"))
-    names = [n for n in columns if not patterns or any(_matches(n, p) for p in patterns)]
-    unmatched = [p for p in patterns if not any(_matches(n, p) for n in columns)]
+    names = [n for n in columns
+             if not patterns or any(column_matches(n, p) for p in patterns)]
+    unmatched = [p for p in patterns if not any(column_matches(n, p) for n in columns)]
     if unmatched or not names:
         raise InputError(f"dsim plot: no column matches {', '.join(unmatched) or 'anything'} "
                          f"(columns: {', '.join(columns)})")
