@@ -101,11 +101,17 @@ def _finish_for_the_dead(path: Path, info: os.stat_result) -> None:
         os.unlink(path)
 
 
+def partial_of(target) -> Path:
+    """The temporary name a run writes ``target`` under: ``.NAME.partial`` beside it."""
+    target = Path(target)
+    return target.with_name(f".{target.name}.partial")
+
+
 def finish_dead_partial(target: Path) -> bool:
     """End the temporary file of ``target`` that a killed run left (its lock free) as
     that run would have: rows renamed to ``target``, an empty file removed.  Whether
     there was one; a live run's file is left alone."""
-    partial = Path(target).with_name(f".{Path(target).name}.partial")
+    partial = partial_of(target)
     info = lock_is_free(partial)
     if info is None or not _same(partial, info):
         return False
@@ -140,7 +146,7 @@ class OutputFile:
 
     def __init__(self, target, inputs=()):
         self.target = Path(target)
-        self.partial = self.target.with_name(f".{self.target.name}.partial")
+        self.partial = partial_of(self.target)
         self.inputs = list(inputs)
         self._fd: int | None = None
         self._info: os.stat_result | None = None
