@@ -116,15 +116,11 @@ def _settable(plan, index: int) -> list[dict]:
     """What a run may set in component ``index`` (``dsim info``'s list): the
     parameters, and the inputs that no joint or connection writes, with the value
     the scene binds."""
-    from dsim.master.planning.parameters import master_writes, settable_variables
+    from dsim.master.planning.parameters import free_settable
 
-    spec = plan.specs[index]
-    component = plan.scene.components[index]
-    written = master_writes(spec, component.source)
+    component = plan.scene.component(plan.specs[index].name)
     rows = []
-    for v in settable_variables(spec.path, spec.name):
-        if v.name in written:
-            continue
+    for v in free_settable(plan, index):
         bound = component.parameters.get(v.name)
         rows.append({"name": v.name, "type": v.type, "causality": v.causality,
                      "variability": v.variability, "unit": v.unit, "start": v.start,

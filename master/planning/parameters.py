@@ -354,6 +354,15 @@ def master_writes(spec, path: Path) -> set[str]:
     return names
 
 
+def free_settable(plan, index: int) -> list[Settable]:
+    """What a run may set in component ``index`` of ``plan`` (``dsim info``'s list and
+    the web form's rows): its settable variables but the inputs the master writes
+    itself (:func:`master_writes`)."""
+    spec = plan.specs[index]
+    written = master_writes(spec, plan.scene.component(spec.name).source)
+    return [v for v in settable_variables(spec.path, spec.name) if v.name not in written]
+
+
 def written_by_master(scene, specs, usable: dict) -> list[str]:
     """Problems of values given for a run (``scene.overrides``) to inputs the master
     writes itself: a glued port's force (the joints set it every step) or an input a

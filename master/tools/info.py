@@ -5,8 +5,7 @@ what a run may set) and each joint, from the checked plan
 from __future__ import annotations
 
 from dsim.master.api import prepare
-from dsim.master.planning.parameters import (joint_coefficients, master_writes,
-                                             settable_variables)
+from dsim.master.planning.parameters import free_settable, joint_coefficients
 from dsim.master.reading.ports import model_description
 from dsim.master.reading.ssp import ssd_files
 from dsim.master.running.fmu import can_save_state
@@ -37,8 +36,7 @@ def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> li
     inputs the master writes itself (glued port forces, connected inputs) are left
     out, and past ``shown`` inputs the rest is counted unless ``every``."""
     spec = plan.specs[index]
-    written = master_writes(spec, plan.scene.component(spec.name).source)
-    found = [v for v in settable_variables(spec.path, spec.name) if v.name not in written]
+    found = free_settable(plan, index)
     inputs = [v for v in found if v.causality == "input"]
     listed = [v for v in found if v.causality != "input"] + (
         inputs if every else inputs[:shown])
