@@ -97,20 +97,12 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
 
 
 def job_sweep(spec: dict):
-    """The :class:`~dsim.master.tools.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`)."""
-    from pathlib import Path
+    """The :class:`~dsim.master.tools.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`):
+    a sweep file's object whose fixed settings are stored as ``fixed``."""
+    from dsim.master.tools.sweep import sweep_of
 
-    from dsim.master.tools.design import parse_vary
-    from dsim.master.tools.sweep import TIGHTEST, Sweep
-
-    design = spec.get("design") or "grid"
-    reference = spec.get("reference")
-    return Sweep(grid=spec["grid"], fixed=spec.get("fixed", {}),
-                 reference=Path(reference) if reference and reference != TIGHTEST
-                 else reference,
-                 vary=[parse_vary(v, design != "grid") for v in spec.get("vary", [])],
-                 design=design, samples=spec.get("samples"), seed=spec.get("seed"),
-                 kpis=list(spec.get("kpis", [])))
+    data = {key: value for key, value in spec.items() if key != "fixed"}
+    return sweep_of({**data, "settings": spec.get("fixed", {})})
 
 
 def _parameters(text: str, variables: dict, where: str, problems: list) -> list:

@@ -97,9 +97,15 @@ def read_sweep_file(path) -> Sweep:
     if unknown:
         raise InputError(f"{path}: unknown keys {', '.join(sorted(unknown))} (known: "
                          f"{', '.join(FILE_KEYS)})")
+    return sweep_of(data, path.parent)
+
+
+def sweep_of(data: dict, folder: Path | None = None) -> Sweep:
+    """The :class:`Sweep` of a sweep file's object (keys :data:`FILE_KEYS`, not checked
+    here), its reference path taken relative to ``folder`` where one is given."""
     reference = data.get("reference")
     if reference and reference != TIGHTEST:
-        reference = path.parent / reference
+        reference = folder / reference if folder is not None else Path(reference)
     design = str(data.get("design", "grid"))
     vary = [parse_vary(str(v), design != "grid") for v in data.get("vary", [])]
     return Sweep(dict(data.get("grid", {})), list(data.get("points", [])),
