@@ -67,20 +67,22 @@ def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     """The summary of an FMU's modelDescription that a model's page shows, after
     dsim's checks of an FMU (:func:`dsim.master.reading.fmu_archive.fmu_problem`)."""
     from dsim.master.reading.fmu_archive import fmu_problem
-    from dsim.master.reading.ports import conventional_ports, model_description
+    from dsim.master.reading.fmi_description import describe
+    from dsim.master.reading.ports import conventional_ports
 
     names = check_archive(path, "FMU", max_unpacked)
     problem = fmu_problem(path, load=False)
     if problem:
         raise Refused(problem)
-    description = model_description(path)
-    cs = description.coSimulation
+    description = describe(path)
+    cs = description.coSimulation or description.modelExchange
     platforms = sorted({n.split("/")[1] for n in names
                         if n.startswith("binaries/") and n.count("/") >= 2})
     return {
         "kind": "fmu",
         "modelName": description.modelName,
         "fmiVersion": description.fmiVersion,
+        "interfaces": list(description.interfaces),
         "guid": description.guid,
         "description": description.description or "",
         "generationTool": description.generationTool or "",
@@ -95,7 +97,7 @@ def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
                        if description.defaultExperiment else None),
         "variables": [{"name": v.name, "causality": v.causality,
                        "variability": v.variability, "type": v.type,
-                       "unit": v.unit or (v.declaredType.unit if v.declaredType else None),
+                       "unit": v.unit,
                        "start": _start(v), "description": v.description or ""}
                       for v in description.modelVariables],
         "ports": {port: sorted(dofs) for port, dofs in conventional_ports(path).items()},

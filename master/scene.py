@@ -75,8 +75,11 @@ class Component:
     #: String parameters naming a file of the scene (``resources/...``) -> that file
     files: dict = field(default_factory=dict)
     #: the interface the SSD asks for (``implementation``: "", CoSimulation,
-    #: ModelExchange or any); dsim runs co-simulation
+    #: ModelExchange or any)
     implementation: str = ""
+    #: the Model Exchange integrator's settings the SSD gives, as (name, value) pairs
+    #: (:mod:`dsim.master.reading.ssp_solver`)
+    solver: tuple = ()
 
 
 @dataclass(frozen=True)

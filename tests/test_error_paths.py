@@ -18,7 +18,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
-from dsim.master.running.fmu import _MESSAGES
+from dsim.master.running.fmi.messages import _MESSAGES
 from dsim.master.tools.cli import main
 from tests.scene_files import component, edited_archive, scene_folder, ssd
 from tests.test_nothing_lost import ROOT, block_scene

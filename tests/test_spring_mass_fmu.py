@@ -5,7 +5,8 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
 from dsim.master.reading.ports import PortDof, conventional_ports
-from dsim.master.running.fmu import FmuSubsystem, SubsystemSpec
+from dsim.master.running.fmi import SubsystemSpec
+from dsim.master.running.fmi.cs2 import FmuSubsystem
 
 
 def test_fmpy_validate_finds_no_problem(built):

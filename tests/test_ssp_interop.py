@@ -319,11 +319,28 @@ def fake_fmu(path, description: str):
 
 
 @pytest.mark.parametrize("kind, expected", [
-    ("fmi3", "block.fmu: an FMI 3.0 FMU: dsim runs FMI 2.0 co-simulation FMUs"),
-    ("me", "block.fmu: a Model Exchange FMU without co-simulation: dsim runs FMI 2.0 "
-           "co-simulation FMUs")])
+    ("fmi1me", "block.fmu: an FMI 1.0 ModelExchange FMU: dsim runs FMI 1.0 co-simulation "
+               "and FMI 2.0 and 3.0 co-simulation and Model Exchange FMUs"),
+    ("clock", "block.fmu: variable 'tick' is a Clock: dsim does not run clocked FMI 3.0 "
+              "FMUs (clocks and clocked partitions)"),
+    ("fmi3", "block.fmu: no binary for this platform (binaries/x86_64-linux/b.so missing; "
+             "the FMU has no binaries)"),
+    ("me", "block.fmu: no binary for this platform (binaries/linux64/b.so missing; the FMU "
+           "has no binaries)")])
 def test_fmus_dsim_does_not_run_are_one_line(tmp_path, capsys, kind, expected):
+    """What dsim refuses of an FMU's kind is one line: FMI 1.0 Model Exchange, clocks;
+    FMI 3.0 and Model Exchange FMUs are run (these fakes are refused for their missing
+    binary, after the kind was accepted)."""
     description = {
+        "fmi1me": '<?xml version="1.0"?><fmiModelDescription fmiVersion="1.0" '
+                  'modelName="b" modelIdentifier="b" guid="{x}" numberOfContinuousStates="0" '
+                  'numberOfEventIndicators="0"><ModelVariables/></fmiModelDescription>',
+        "clock": '<?xml version="1.0"?><fmiModelDescription fmiVersion="3.0" modelName="b" '
+                 'instantiationToken="{x}"><CoSimulation modelIdentifier="b"/><ModelVariables>'
+                 '<Float64 name="time" valueReference="0" causality="independent" '
+                 'variability="continuous"/><Clock name="tick" valueReference="1" '
+                 'causality="input" variability="discrete" intervalVariability="triggered"/>'
+                 '</ModelVariables><ModelStructure/></fmiModelDescription>',
         "fmi3": '<?xml version="1.0"?><fmiModelDescription fmiVersion="3.0" modelName="b" '
                 'instantiationToken="{x}"><CoSimulation modelIdentifier="b"/><ModelVariables>'
                 '<Float64 name="time" valueReference="0" causality="independent" '
@@ -339,7 +356,7 @@ def test_fmus_dsim_does_not_run_are_one_line(tmp_path, capsys, kind, expected):
     folder = write_scene(tmp_path / "scene", system(block("b1")), {"block.fmu": fmu})
     assert main(["run", str(folder), "--quiet", "--out", str(tmp_path / "o.csv")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].endswith(expected)
+    assert len(lines) == 1 and lines[0].endswith(expected), lines
 
 
 def test_an_fmu_without_state_saving_takes_part_causally_in_a_glued_scene(

@@ -72,20 +72,14 @@ class Settable:
 
 
 def _declared(variable, attribute: str):
-    """A variable's attribute, else its declared type's (FMI 2.0: the type's applies)."""
+    """A variable's attribute (the description has resolved its declared type's)."""
     own = getattr(variable, attribute, None)
-    if own not in (None, ""):
-        return own
-    declared = variable.declaredType
-    return getattr(declared, attribute, None) if declared is not None else None
+    return None if own in (None, "") else own
 
 
 def items_of(variable) -> tuple[tuple[str, int], ...]:
     """(name, value) of an Enumeration variable's items (its declared type's)."""
-    declared = variable.declaredType
-    if variable.type != "Enumeration" or declared is None:
-        return ()
-    return tuple((item.name, int(item.value)) for item in declared.items)
+    return tuple(variable.items) if variable.type == "Enumeration" else ()
 
 
 def refusal(variable) -> str | None:
@@ -108,10 +102,10 @@ def refusal(variable) -> str | None:
 def settable_variables(path: Path, component: str) -> list[Settable]:
     """Every variable of the FMU at ``path`` that a run may set, in the order of its
     modelDescription."""
-    from dsim.master.reading.ports import model_description
+    from dsim.master.reading.fmi_description import describe
 
     result = []
-    for variable in model_description(path).modelVariables:
+    for variable in describe(path).modelVariables:
         if refusal(variable) is not None or variable.type not in KEPT_TYPE:
             continue
         result.append(Settable(component, variable.name, variable.type, variable.causality,
@@ -254,7 +248,7 @@ def with_parameters(scene, parameters: dict):
     """``scene`` with ``parameters`` (full name -> Python value or text) applied on
     top of every binding; what is wrong with them is added to ``scene.problems`` (one
     line each), so that the plan reports them with its own findings."""
-    from dsim.master.reading.ports import variables_by_name
+    from dsim.master.reading.fmi_description import variables_by_name
 
     if not parameters:
         return scene
@@ -345,11 +339,11 @@ def joint_coefficients(joint) -> tuple[str, ...]:
 def master_writes(spec, path: Path) -> set[str]:
     """Names of the inputs of one subsystem that the master writes itself: its glued
     port forces (every step) and the variables connections feed."""
-    from dsim.master.reading.ports import model_description
+    from dsim.master.reading.fmi_description import describe
 
     forces = {dof.force for dof in spec.port_dofs}
     names = set(spec.start_writes) | set(spec.text_writes) | set(spec.writes)
-    names |= {v.name for v in model_description(path).modelVariables
+    names |= {v.name for v in describe(path).modelVariables
               if v.type == "Real" and v.causality == "input" and v.valueReference in forces}
     return names
 

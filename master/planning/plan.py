@@ -18,14 +18,17 @@ from dsim.master.errors import InputError
 from dsim.master.planning.assembly import assemble
 from dsim.master.planning.parameters import written_by_master
 from dsim.master.reading.fmu_archive import fmu_problem
-from dsim.master.reading.ports import (NEEDED, component_ports, description_warning,
-                                       joint_port_dofs, model_description, variables_by_name)
+from dsim.master.reading.fmi_description import (CO_SIMULATION, can_roll_back,
+                                                chosen_interface, describe,
+                                                description_warning)
+from dsim.master.reading.ports import NEEDED, component_ports, joint_port_dofs
 from dsim.master.reading.ssp_values import TYPES
 from dsim.master.reading.units import conversion, fmu_units, variable_unit
 from dsim.master.recording.selection import record_every, select_columns
 from dsim.master.running.connections import (Transfer, build_text_transfer, build_transfer,
                                              check_connections)
-from dsim.master.running.fmu import SubsystemSpec, can_save_state
+from dsim.master.running.fmi import SubsystemSpec
+from dsim.master.running.fmi.integrator import solver_problem
 from dsim.master.running.timeline import is_whole
 from dsim.master.scene import Scene
 from dsim.master.settings import check_span
@@ -109,33 +112,38 @@ class Plan:
         return files + list(self.scene.inputs)
 
 
-def _usable(scene: Scene, problems: list, warnings: list,
+def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
             load_libraries: bool = True) -> dict:
     """component path -> its variables by name, for the components whose FMU can be
     used; every other component gets one problem line (``load_libraries``: also load
-    each library in a child process, see :func:`dsim.master.reading.fmu_archive.fmu_problem`)."""
+    each library in a child process, see :func:`dsim.master.reading.fmu_archive.fmu_problem`).
+    ``chosen`` receives each usable component's interface (CoSimulation or
+    ModelExchange: what the SSD's ``implementation`` asks for, else co-simulation
+    where the FMU has it)."""
     usable = {}
     for component in scene.components:
         if not component.source.is_file():
             continue  # the reader has said so
         problem = fmu_problem(component.source, load_libraries)
         where = f"{component.location}: FMU {component.source.name}"
-        model_exchange = component.implementation == "ModelExchange"
-        if problem and model_exchange and problem.startswith("a Model Exchange FMU"):
-            problems.append(f"{component.location}: implementation=\"ModelExchange\": dsim "
-                            "runs co-simulation only, and FMU "
-                            f"{component.source.name} has no CoSimulation interface")
-        elif problem:
+        if problem:
             problems.append(f"{where}: {problem}")
-        else:
-            usable[component.path] = variables_by_name(component.source)
-            tolerated = description_warning(component.source)
-            if tolerated:
-                warnings.append(f"{where}: {tolerated}")
-            if model_exchange:  # SSP lets the SSD choose; dsim has no integrator of its own
-                warnings.append(f"{component.location}: implementation=\"ModelExchange\": "
-                                "dsim runs co-simulation; the FMU's CoSimulation interface "
-                                "is run instead")
+            continue
+        description = describe(component.source)
+        try:
+            chosen[component.path] = chosen_interface(description, component.implementation)
+        except ValueError as error:
+            problems.append(f"{where}: {error}")
+            continue
+        usable[component.path] = description.by_name
+        tolerated = description_warning(component.source)
+        if tolerated:
+            warnings.append(f"{where}: {tolerated}")
+        binary = [name for name, kind in description.unsupported.items() if kind == "Binary"]
+        if binary:
+            warnings.append(f"{where}: {len(binary)} Binary variable(s) ({', '.join(binary[:3])}"
+                            f"{', ...' if len(binary) > 3 else ''}) are neither recorded nor "
+                            "connectable: dsim exchanges numbers and strings")
     return usable
 
 
@@ -224,7 +232,7 @@ def _check_parameters(scene: Scene, usable: dict, problems: list, warnings: list
                                 f"{variable.initial}: FMI 2.0 lets no master set it")
 
 
-def _sides(scene: Scene, ports: dict, problems: list) -> dict:
+def _sides(scene: Scene, ports: dict, problems: list, chosen: dict) -> dict:
     sides = {}
     for joint in scene.joints:
         if joint.a[0] not in ports or joint.b[0] not in ports:
@@ -237,17 +245,27 @@ def _sides(scene: Scene, ports: dict, problems: list) -> dict:
                             "squares on translations only (dofs x y z)")
         sides[joint.name] = (a, b)
         for path in (joint.a[0], joint.b[0]):
-            if not can_save_state(scene.component(path).source) and (
+            if path in chosen and not can_roll_back(scene.component(path).source,
+                                                    chosen[path]) and (
                     scene.master.coupling != "explicit"):
                 problems.append(f"{joint.location}: component '{path}' cannot save and "
-                                "restore its state (canGetAndSetFMUstate is false), so it "
-                                "cannot be iterated in a joint: it can take part through "
-                                "causal connections, or in a joint with the explicit coupling "
-                                "(coupling='explicit', no rollback)")
+                                "restore its state (" + _why_no_rollback(
+                                    scene.component(path).source, chosen[path])
+                                + "), so it cannot be iterated in a joint: it can take part "
+                                "through causal connections, or in a joint with the explicit "
+                                "coupling (coupling='explicit', no rollback)")
     return sides
 
 
-def _capabilities(scene: Scene, usable: dict, problems: list) -> None:
+def _why_no_rollback(source, interface: str) -> str:
+    """Why an FMU cannot go back to a saved state, in its FMI version's words."""
+    description = describe(source)
+    if description.major == 1:
+        return "an FMI 1.0 co-simulation FMU: FMI 1.0 has no FMU state"
+    return "canGetAndSetFMUstate is false"
+
+
+def _capabilities(scene: Scene, usable: dict, problems: list, chosen: dict) -> None:
     """What an FMU's co-simulation capabilities forbid this run: a shortened last step
     for an FMU that needs a fixed one, two instances of an FMU that allows one."""
     step = scene.master.step
@@ -256,8 +274,9 @@ def _capabilities(scene: Scene, usable: dict, problems: list) -> None:
     for component in scene.components:
         if component.path not in usable:
             continue
-        cs = model_description(component.source).coSimulation
-        if uneven and not cs.canHandleVariableCommunicationStepSize:
+        cs = describe(component.source).interface(chosen[component.path])
+        if uneven and cs.kind == CO_SIMULATION and not \
+                cs.canHandleVariableCommunicationStepSize:
             problems.append(f"{component.location}: FMU {component.source.name} needs a fixed "
                             "communication step (canHandleVariableCommunicationStepSize="
                             f"false), but {scene.start_time:g} .. {scene.stop_time:g} s is "
@@ -271,6 +290,13 @@ def _capabilities(scene: Scene, usable: dict, problems: list) -> None:
                             "only once per process (canBeInstantiatedOnlyOncePerProcess), and "
                             f"{len(components)} components use it: "
                             f"{', '.join(c.path for c in components)}")
+
+
+def _variable_step(source, interface: str) -> bool:
+    """Whether a component takes communication steps of any size (Model Exchange: the
+    master integrates it, so always)."""
+    found = describe(source).interface(interface)
+    return found.kind != CO_SIMULATION or found.canHandleVariableCommunicationStepSize
 
 
 def _kinds(scene: Scene) -> dict[str, tuple[bool, bool, bool]]:
@@ -333,11 +359,17 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
                         f"{len(scene.joints)} joints: use iterative or explicit")
     warnings = list(scene.warnings)
-    usable = _usable(scene, problems, warnings, load_libraries)
+    chosen: dict = {}
+    usable = _usable(scene, problems, warnings, chosen, load_libraries)
     ports = component_ports(scene, problems, usable)
     _check_connectors(scene, usable, problems, warnings)
     _check_parameters(scene, usable, problems, warnings)
-    _capabilities(scene, usable, problems)
+    _capabilities(scene, usable, problems, chosen)
+    for component in scene.components:
+        for name, value in component.solver:
+            problem = solver_problem(name, value)
+            if problem:
+                problems.append(f"{component.location}: {problem}")
     records, text_records = _records(scene, usable)
     links = check_connections(scene, usable, problems)
     fed: dict = {}
@@ -346,7 +378,7 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
             problems.append(f"{scene.file}: '{'.'.join(link.end)}' is fed twice, by "
                             f"'{'.'.join(fed[link.end])}' and '{'.'.join(link.start)}'")
         fed[link.end] = link.start
-    sides = _sides(scene, ports, problems)
+    sides = _sides(scene, ports, problems, chosen)
     if not scene.experiment:
         warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
                         f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "
@@ -381,12 +413,14 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                 record_index.append(offset + i)
         offset += len(reads[path])
     kinds = _kinds(scene)
+    solvers = {c.path: c.solver for c in scene.components}
     specs = tuple(SubsystemSpec(
         c.path, c.source, tuple(interfaces[c.path]), _with_files(c, usable[c.path]),
         tuple(reads[c.path]), tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
         kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
         tuple(text_reads[c.path]), tuple(text_writes[c.path]),
-        scene.placements.get(c.path, ""), tuple(c.files)) for c in scene.components)
+        scene.placements.get(c.path, ""), tuple(c.files), chosen[c.path],
+        describe(c.source).fmiVersion, solvers.get(c.path, ())) for c in scene.components)
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
     text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
                   text_reads[p].index(n) for p, n in text_recorded]
@@ -406,10 +440,11 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
                 ports, start_transfer, _passes(paths, links), tuple(warnings),
                 bool(scene.joints) and coupling == "explicit" and any(
-                    not can_save_state(scene.components[i].source) for i in glued),
+                    not can_roll_back(scene.components[i].source, chosen[
+                        scene.components[i].path]) for i in glued),
                 text_recorded, tuple(text_index), text_transfer,
-                all(model_description(scene.components[i].source).coSimulation
-                    .canHandleVariableCommunicationStepSize for i in glued),
+                all(_variable_step(scene.components[i].source, chosen[
+                    scene.components[i].path]) for i in glued),
                 backend_options, selected, every,
                 tuple([outputs] if isinstance(outputs, str) else outputs or ()),
                 None if output_interval is None else float(output_interval))

@@ -16,9 +16,10 @@ import sys
 import zipfile
 from pathlib import Path
 
-from fmpy import platform, sharedLibraryExtension
+from fmpy import sharedLibraryExtension
 
 from dsim.master.errors import InputError
+from dsim.master.reading.fmi_description import chosen_interface, describe, library_folder
 from dsim.master.reading.unpacking import check_archive, extract
 
 _UNZIPPED: dict[Path, str] = {}
@@ -56,33 +57,46 @@ def _archive_problem(path: Path) -> str | None:
 
 
 def _description_problem(path: Path) -> str | None:
-    from dsim.master.reading.ports import model_description
-
     try:
-        description = model_description(path)
+        description = describe(path)
     except Exception as error:  # fmpy raises several kinds for a broken description
         return f"unreadable modelDescription.xml ({' '.join(str(error).split())})"
-    if description.fmiVersion != "2.0":
-        return (f"an FMI {description.fmiVersion} FMU: dsim runs FMI 2.0 co-simulation "
+    if description.major not in (1, 2, 3):
+        return (f"an FMI {description.fmiVersion} FMU: dsim runs FMI 1.0, 2.0 and 3.0 "
                 "FMUs")
-    if description.coSimulation is None:
-        return ("a Model Exchange FMU without co-simulation: dsim runs FMI 2.0 "
-                "co-simulation FMUs")
+    try:
+        chosen_interface(description)
+    except ValueError as error:
+        return str(error)
+    clocks = [name for name, kind in description.unsupported.items() if kind == "Clock"]
+    if clocks:
+        return (f"variable '{clocks[0]}' is a Clock: dsim does not run clocked FMI 3.0 "
+                "FMUs (clocks and clocked partitions)")
     return None
 
 
-def _library_member(path: Path) -> str:
-    """The archive member of the library for this platform that the FMU names."""
-    from dsim.master.reading.ports import model_description
-
-    identifier = model_description(path).coSimulation.modelIdentifier
-    return f"binaries/{platform}/{identifier}{sharedLibraryExtension}"
+def _library_members(path: Path) -> list[str]:
+    """The archive members of the libraries for this platform that the FMU names (one
+    per distinct model identifier of its interfaces)."""
+    description = describe(path)
+    identifiers = dict.fromkeys(description.interface(k).modelIdentifier
+                                for k in description.interfaces)
+    folder = library_folder(description)
+    return [f"binaries/{folder}/{identifier}{sharedLibraryExtension}"
+            for identifier in identifiers]
 
 
 def _library_problem(path: Path) -> str | None:
     """Whether the library (there, and whole as bytes: :func:`_library_bytes_problem`)
     loads: in a child process, where a crash is only a message."""
-    member = _library_member(path)
+    for member in _library_members(path):
+        problem = _one_library_problem(path, member)
+        if problem:
+            return problem
+    return None
+
+
+def _one_library_problem(path: Path, member: str) -> str | None:
     try:
         library = Path(unzipped(path)) / member
     except InputError as error:
@@ -103,7 +117,8 @@ def _library_problem(path: Path) -> str | None:
 
 
 #: ELF class and e_machine of each Linux platform of FMI 2.0
-ELF_MACHINES = {"linux64": (2, 62), "linux32": (1, 3)}  # (ELF class, e_machine)
+ELF_MACHINES = {"linux64": (2, 62), "linux32": (1, 3), "x86_64-linux": (2, 62),
+                "x86-linux": (1, 3), "aarch64-linux": (2, 183)}  # (ELF class, e_machine)
 
 
 
@@ -139,18 +154,22 @@ def _elf_problem(data: bytes, platform: str) -> str | None:
 
 
 def _library_bytes_problem(path: Path) -> str | None:
-    """The library of this platform that an FMU names is in the archive and looks
+    """The libraries of this platform that an FMU names are in the archive and look
     whole (:func:`_elf_problem`), read as bytes, never loaded."""
-    member = _library_member(path)
+    folder = library_folder(describe(path))
     with zipfile.ZipFile(path) as archive:
-        if member not in archive.namelist():
-            found = sorted({n.split("/")[1] for n in archive.namelist()
-                            if n.startswith("binaries/") and n.count("/") >= 2})
-            return (f"no binary for this platform ({member} missing; the FMU has "
-                    f"{', '.join(found) or 'no binaries'})")
-        problem = _elf_problem(archive.read(member), platform) if member.endswith(".so") \
-            else None
-    return f"its library {member} {problem}" if problem else None
+        names = archive.namelist()
+        for member in _library_members(path):
+            if member not in names:
+                found = sorted({n.split("/")[1] for n in names
+                                if n.startswith("binaries/") and n.count("/") >= 2})
+                return (f"no binary for this platform ({member} missing; the FMU has "
+                        f"{', '.join(found) or 'no binaries'})")
+            problem = _elf_problem(archive.read(member), folder) \
+                if member.endswith(".so") else None
+            if problem:
+                return f"its library {member} {problem}"
+    return None
 
 
 _CHECKED: dict[tuple[str, bool], str | None] = {}

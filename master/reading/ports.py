@@ -13,12 +13,9 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 
-from fmpy import read_model_description
-from fmpy.model_description import ValidationError
-
+from dsim.master.reading.fmi_description import describe, variables_by_name
 from dsim.master.scene import Joint, PortMap, Scene
 
 PORT_VARIABLE = re.compile(r"^(?P<port>.+)\.(?P<kind>[fuva])_(?P<dof>x|y|z|rx|ry|rz)$")
@@ -40,48 +37,10 @@ class PortDof:
     acceleration: int | None
 
 
-#: what fmpy's checks say of a rule that does not change what the FMU computes
-CONTINUOUS_DISCRETE = 'must have variability != "continuous"'
-#: FMU file -> the rule its description breaks that dsim tolerates (a warning)
-_TOLERATED: dict[Path, str] = {}
-
-
-@lru_cache(maxsize=64)
-def model_description(path: Path):
-    """fmpy's parsed modelDescription.xml of an FMU file (cached per file).
-
-    OpenModelica exports Enumeration (and other non-Real) variables with
-    variability="continuous", which FMI 2.0 forbids but which changes nothing a
-    co-simulation master does with them: such a description is read again without
-    fmpy's semantic checks, and :func:`description_warning` says so."""
-    try:
-        return read_model_description(str(path))
-    except ValidationError as error:
-        if not error.problems or not all(CONTINUOUS_DISCRETE in p for p in error.problems):
-            raise
-        names = [p.split('"')[1] for p in error.problems]
-        _TOLERATED[path] = (f"modelDescription.xml declares {len(names)} non-Real "
-                            "variable(s) variability=\"continuous\" (FMI 2.0 forbids it; "
-                            f"it changes nothing dsim does): {', '.join(names[:3])}"
-                            f"{', ...' if len(names) > 3 else ''}")
-    return read_model_description(str(path), validate=False)
-
-
-def description_warning(path: Path) -> str | None:
-    """The rule ``path``'s modelDescription.xml breaks that dsim tolerates, or None."""
-    model_description(path)
-    return _TOLERATED.get(path)
-
-
-def variables_by_name(path: Path) -> dict:
-    """Name -> fmpy ScalarVariable of an FMU."""
-    return {v.name: v for v in model_description(path).modelVariables}
-
-
 def conventional_ports(path: Path) -> dict[str, dict[str, dict[str, int]]]:
     """port -> dof -> kind (f, u, v, a) -> value reference, from variable names."""
     ports: dict = {}
-    for variable in model_description(path).modelVariables:
+    for variable in describe(path).modelVariables:
         match = PORT_VARIABLE.match(variable.name)
         if match:
             ports.setdefault(match["port"], {}).setdefault(match["dof"], {})[

@@ -25,6 +25,7 @@ from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 from dsim.master.reading.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from dsim.master.reading.ssp_hierarchy import (Binding, RawConnection, resolve_bindings,
                                                resolve_connections)
+from dsim.master.reading.ssp_solver import solver_of
 from dsim.master.reading.ssp_tools import tool_step
 from dsim.master.reading.ssp_values import (NS, TYPES, apply_mapping, parameter_mapping,
                                             parameter_set, transformation, units)
@@ -312,7 +313,8 @@ class _Reader:
         self.bindings_of(element, path, True, depth)
         self.components.append(dict(path=path, source=file, location=where,
                                     connectors=self.connectors_of(element),
-                                    implementation=element.get("implementation", "")))
+                                    implementation=element.get("implementation", ""),
+                                    solver=solver_of(element, self.warnings, where)))
 
     def parameter_set_on_top(self, chosen: str) -> None:
         """Bind a parameter set of the scene above every other binding."""
@@ -362,7 +364,8 @@ class _Reader:
             files = self.scene_files(parameters, origins[c["path"]], c["location"])
             components.append(Component(c["path"], c["source"], parameters,
                                         tuple(c["connectors"].values()), c["location"],
-                                        origins[c["path"]], files, c["implementation"]))
+                                        origins[c["path"]], files, c["implementation"],
+                                        c["solver"]))
         return components, connections
 
     def scene_files(self, parameters: dict, origins: dict, location: str) -> dict[str, Path]:

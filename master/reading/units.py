@@ -7,29 +7,26 @@ is three numbers and two tables, which no maintained package reads from SSP and 
 """
 from __future__ import annotations
 
-from dsim.master.reading.ports import model_description
+from dsim.master.reading.fmi_description import describe as describe_fmu
 from dsim.master.reading.ssp_values import BASE_UNITS
 from dsim.master.scene import Unit
 
 
 def variable_unit(variable) -> str | None:
-    """The unit name of an FMU variable (its own, or its declared type's)."""
-    if variable.unit:
-        return variable.unit
-    declared = variable.declaredType
-    return getattr(declared, "unit", None) if declared is not None else None
+    """The unit name of an FMU variable (its own, or its declared type's: the
+    description resolves it)."""
+    return variable.unit
 
 
 def fmu_units(path) -> dict[str, Unit]:
     """name -> Unit of an FMU's UnitDefinitions."""
     result = {}
-    for unit in model_description(path).unitDefinitions:
-        base = unit.baseUnit
-        if base is None:
+    for unit in describe_fmu(path).unitDefinitions:
+        if unit.exponents is None:
             result[unit.name] = Unit(unit.name, (0,) * len(BASE_UNITS))
         else:
-            result[unit.name] = Unit(unit.name, tuple(getattr(base, b) for b in BASE_UNITS),
-                                     base.factor, base.offset)
+            result[unit.name] = Unit(unit.name, tuple(unit.exponents[b] for b in BASE_UNITS),
+                                     unit.factor, unit.offset)
     return result
 
 

@@ -6,9 +6,12 @@ from __future__ import annotations
 
 from dsim.master.api import prepare
 from dsim.master.planning.parameters import free_settable, joint_coefficients
-from dsim.master.reading.ports import model_description
+from dsim.master.reading.fmi_description import CO_SIMULATION, describe
+from dsim.master.running.fmi.integrator import solver_summary
+
+#: how dsim info names an interface
+INTERFACE_WORDS = {"CoSimulation": "co-simulation", "ModelExchange": "Model Exchange"}
 from dsim.master.reading.ssp import ssd_files
-from dsim.master.running.fmu import can_save_state
 
 
 def port_summary(ports: dict) -> str:
@@ -88,16 +91,24 @@ def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[
         f"{m.refresh_after}), start {m.start}, perturbation {m.perturbation:g}")
     say(f"components ({len(scene.components)}):")
     for index, component in enumerate(scene.components):
-        description = model_description(component.source)
-        cs = description.coSimulation
-        flags = [f"state {'yes' if can_save_state(component.source) else 'NO'}",
-                 f"serialize {'yes' if cs.canSerializeFMUstate else 'no'}",
-                 f"variable step {'yes' if cs.canHandleVariableCommunicationStepSize else 'no'}"]
+        description = describe(component.source)
+        spec = checked.specs[index]
+        found = description.interface(spec.interface)
+        flags = [f"state {'yes' if found.canGetAndSetFMUstate else 'NO'}",
+                 f"serialize {'yes' if found.canSerializeFMUstate else 'no'}"]
+        if spec.interface == CO_SIMULATION:
+            flags.append("variable step "
+                         + ("yes" if found.canHandleVariableCommunicationStepSize else "no"))
+        else:
+            flags.append(f"integrated by dsim ({solver_summary(spec.solver)}); rollback "
+                         + ("by FMU state" if found.canGetAndSetFMUstate
+                            else "by its continuous states"))
         role = ("glued: iterated with rollback" if index in checked.glued
                 else "free: one doStep per macro step, never rolled back")
         port_text = port_summary(checked.ports[component.path])
         say(f"  {component.path}: {component.source.name} "
-            f"[{description.modelName}, FMI {description.fmiVersion}; {', '.join(flags)}]")
+            f"[{description.modelName}, FMI {description.fmiVersion} "
+            f"{INTERFACE_WORDS[spec.interface]}; {', '.join(flags)}]")
         say(f"      {role}")
         if component.path in scene.placements:
             say(f"      placed on Ray resource {scene.placements[component.path]} "

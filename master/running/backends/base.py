@@ -36,7 +36,7 @@ class Backend(ABC):
     @abstractmethod
     def from_specs(cls, specs, **options) -> "Backend":
         """Create every subsystem of a run from its
-        :class:`~dsim.master.running.fmu.SubsystemSpec` (instantiated, in initialization mode)."""
+        :class:`~dsim.master.running.fmi.SubsystemSpec` (instantiated, in initialization mode)."""
 
     @abstractmethod
     def subset(self, indices) -> "Backend":

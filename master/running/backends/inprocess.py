@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dsim.master.running.backends.base import Backend, terminate_all
+from dsim.master.running.fmi import open_subsystem
 
 
 class InProcessBackend(Backend):
@@ -14,12 +15,10 @@ class InProcessBackend(Backend):
 
     @classmethod
     def from_specs(cls, specs, **options) -> "InProcessBackend":
-        from dsim.master.running.fmu import FmuSubsystem
-
         subsystems = []
         try:
             for spec in specs:
-                subsystems.append(FmuSubsystem(spec))
+                subsystems.append(open_subsystem(spec))
         except BaseException:
             cls(subsystems).close()
             raise

@@ -1,7 +1,7 @@
 """The subsystems in Ray actors: other processes, other machines (docs/distributed.md).
 
 Each worker process is a Ray actor (:class:`Host`) that builds its
-:class:`~dsim.master.running.fmu.FmuSubsystem` objects itself from their picklable specs, so an
+:class:`~dsim.master.running.fmi.cs2.FmuSubsystem` objects itself from their picklable specs, so an
 FMU's states never leave the process that holds the instance.  Every batched call of
 the couplings is one remote call per worker (restore, set forces, step and read
 kinematics of each of its subsystems in one message), launched for every worker

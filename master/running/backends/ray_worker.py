@@ -22,13 +22,13 @@ class Host:
 
         import ray
 
-        from dsim.master.running.fmu import FmuSubsystem
+        from dsim.master.running.fmi import open_subsystem
 
         for spec, (fmu, scene_files) in zip(specs, files):
             parameters = {**spec.parameters, **{name: ("String", str(landed(shipped)))
                                                 for name, shipped in scene_files.items()}}
-            self.subsystems.append(FmuSubsystem(replace(spec, path=landed(fmu),
-                                                        parameters=parameters)))
+            self.subsystems.append(open_subsystem(replace(spec, path=landed(fmu),
+                                                          parameters=parameters)))
         return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid()}
 
     def run(self, calls) -> list:

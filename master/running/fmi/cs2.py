@@ -18,19 +18,17 @@ from __future__ import annotations
 
 import ctypes
 import time as clock
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from fmpy import calloc, free
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2FMUstate,
-                       fmi2ValueReference)
+from fmpy.fmi2 import FMU2Slave, fmi2FMUstate, fmi2ValueReference
 
 from dsim.master.errors import InputError, SimulationError, StepFailure
+from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
-from dsim.master.reading.ports import PortDof, model_description, variables_by_name
+from dsim.master.running.fmi.messages import CALLBACKS2, errors_logged, forget, logged_error
+from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
 STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal",
@@ -40,83 +38,6 @@ TYPES = {"Real": (ctypes.c_double, "fmi2GetReal", "fmi2SetReal"),
          "Integer": (ctypes.c_int, "fmi2GetInteger", "fmi2SetInteger"),
          "Enumeration": (ctypes.c_int, "fmi2GetInteger", "fmi2SetInteger"),
          "Boolean": (ctypes.c_int, "fmi2GetBoolean", "fmi2SetBoolean")}
-
-
-def can_save_state(path: Path) -> bool:
-    """Whether the FMU declares canGetAndSetFMUstate (needed for rollback)."""
-    cs = model_description(path).coSimulation
-    return bool(cs and cs.canGetAndSetFMUstate)
-
-
-#: instance name -> the last (fmi2Status, one-line message) pairs it logged
-_MESSAGES: dict[str, list[tuple[int, str]]] = {}
-#: instance name -> how many messages of status fmi2Error or worse it logged
-_ERRORS: dict[str, int] = {}
-
-
-def _log(environment, instance, status, category, message):
-    name = (instance or b"").decode("utf-8", "replace")
-    text = " ".join((message or b"").decode("utf-8", "replace").split())
-    _MESSAGES[name] = (_MESSAGES.get(name, []) + [(int(status), text)])[-20:]
-    if status >= 3:
-        _ERRORS[name] = _ERRORS.get(name, 0) + 1
-
-
-# One callbacks structure for the whole process, alive as long as it is: fmpy's proxy
-# (which formats the variadic message) keeps a single global pointer to the logger.
-_CALLBACKS = fmi2CallbackFunctions()
-_CALLBACKS.logger = fmi2CallbackLoggerTYPE(_log)
-_CALLBACKS.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-_CALLBACKS.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-try:
-    from fmpy.logging import addLoggerProxy as _add_logger_proxy
-    _add_logger_proxy(ctypes.byref(_CALLBACKS))
-except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
-    pass
-
-
-def logged_error(instance: str) -> str:
-    """The first error an instance logged (fmi2Error before fmi2Fatal), or ''."""
-    messages = _MESSAGES.get(instance, [])
-    for level in (3, 4, 2):
-        for status, text in messages:
-            if status == level and text:
-                return text
-    return ""
-
-
-@dataclass(frozen=True)
-class SubsystemSpec:
-    """Everything needed to create one FMU subsystem, wherever it runs (picklable).
-
-    ``reads`` names the variables read after every step (recorded outputs and
-    causal connection sources), ``writes`` the inputs that causal connections set.
-    """
-
-    name: str
-    path: Path
-    port_dofs: tuple[PortDof, ...]
-    parameters: dict
-    reads: tuple[str, ...]
-    writes: tuple[str, ...]
-    start_time: float
-    stop_time: float
-    location: str = ""
-    #: the kinematic kinds (u, v, a) the joints need from the first step on (before
-    #: it, for the start forces and their check, every kind the FMU has is read)
-    kinds: tuple[bool, bool, bool] = (True, True, True)
-    #: the variables connections set at initialization (``writes`` and the fixed
-    #: parameters connections feed)
-    start_writes: tuple[str, ...] = ()
-    #: String variables read after every step (recorded, or feeding a connection), and
-    #: the String inputs connections set
-    text_reads: tuple[str, ...] = ()
-    text_writes: tuple[str, ...] = ()
-    #: the Ray resource whose node runs the instance (``glue:Placement``; '' anywhere)
-    placement: str = ""
-    #: the String parameters whose value is the absolute path of a scene file (a
-    #: remote backend ships the file and rewrites the value)
-    files: tuple[str, ...] = ()
 
 
 class _Call:
@@ -144,7 +65,7 @@ class _Call:
             self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}", status)
         # a pythonfmu FMU cannot return fmi2Error: it refuses its parameters by logging
         # one while the call returns fmi2OK (after initialization a log is only a log)
-        if self.owner._initializing and _ERRORS.get(self.owner.name):
+        if self.owner._initializing and errors_logged(self.owner.name):
             self.owner._fail(self.name, f"it logged an error and returned "
                                         f"{STATUS.get(status, status)}", 3)
 
@@ -230,8 +151,8 @@ class FmuSubsystem(Subsystem):
         self.name = spec.name
         self.path = Path(spec.path)
         self.spec = spec
-        description = model_description(self.path)
-        variables = variables_by_name(self.path)
+        description = describe(self.path)
+        variables = description.by_name
         port_dofs = spec.port_dofs
         self.interface = tuple((p.port, p.dof) for p in port_dofs)
         self.output_names = tuple(spec.reads)
@@ -250,13 +171,12 @@ class FmuSubsystem(Subsystem):
                              f"{error}") from None
         self._calls: dict[str, _Call] = {}
         self.handle = None
-        _MESSAGES.pop(spec.name, None)
-        _ERRORS.pop(spec.name, None)
+        forget(spec.name)
         # until finish_initialization() the instance is in initialization mode, where a
         # failing call means the model refused the scene's parameters: bad input
         self._initializing = True
         self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
-            callbacks=_CALLBACKS, loggingOn=True))
+            callbacks=CALLBACKS2, loggingOn=True))
         self.handle = ctypes.c_void_p(self.fmu.component)
         self._forces = _Batch(self, "Real", [p.force for p in port_dofs])
         # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
@@ -322,7 +242,7 @@ class FmuSubsystem(Subsystem):
             self._fail(label, str(error), error.status)
         except Exception as error:  # fmpy's "Failed to instantiate", ctypes errors
             self._fail(label, str(error))
-        if self._initializing and _ERRORS.get(self.name):
+        if self._initializing and errors_logged(self.name):
             self._fail(label, "it logged an error and returned fmi2OK")
         return result
 
@@ -451,7 +371,7 @@ class FmuSubsystem(Subsystem):
         replace the error that ended the run."""
         if self.fmu.component is None or self.fatal:
             return
-        _MESSAGES.pop(self.name, None)  # what it logs now is about the cleanup
+        forget(self.name)  # what it logs now is about the cleanup
         try:
             if self._state is not None:
                 self.fmu.freeFMUstate(self._state)

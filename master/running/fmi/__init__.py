@@ -1,0 +1,39 @@
+"""The FMI boundary of the running layer: one adapter per FMI version and interface,
+each a :class:`~dsim.master.running.subsystem.Subsystem` (save and restore state, set
+forces, step, read kinematics, read outputs, write inputs), chosen by
+:func:`open_subsystem` from a picklable :class:`SubsystemSpec`.  The couplings, the
+backends (in-process, isolated, Ray) and the recording see only the Subsystem.
+
+==================  ==============================  ===========================
+FMI version         co-simulation                   Model Exchange
+==================  ==============================  ===========================
+1.0                 :mod:`.cs1` (no state save)     refused (not run)
+2.0                 :mod:`.cs2`                     :mod:`.model_exchange`
+3.0                 :mod:`.cs3`                     :mod:`.model_exchange`
+==================  ==============================  ===========================
+"""
+from __future__ import annotations
+
+from dsim.master.running.fmi.spec import SubsystemSpec
+from dsim.master.running.subsystem import Subsystem
+
+__all__ = ["SubsystemSpec", "open_subsystem"]
+
+
+def open_subsystem(spec: SubsystemSpec) -> Subsystem:
+    """Instantiate the FMU of ``spec`` in its FMI version and interface, in
+    initialization mode with its parameters set."""
+    # each adapter binds its FMI version's functions: imported when one is opened, so
+    # that a run of FMI 2.0 co-simulation FMUs loads no other binding
+    major = spec.fmi_version.split(".")[0]
+    if spec.interface == "ModelExchange":
+        from dsim.master.running.fmi.model_exchange import ModelExchangeSubsystem
+        return ModelExchangeSubsystem(spec)
+    if major == "1":
+        from dsim.master.running.fmi.cs1 import CoSimulation1Subsystem
+        return CoSimulation1Subsystem(spec)
+    if major == "3":
+        from dsim.master.running.fmi.cs3 import CoSimulation3Subsystem
+        return CoSimulation3Subsystem(spec)
+    from dsim.master.running.fmi.cs2 import FmuSubsystem
+    return FmuSubsystem(spec)

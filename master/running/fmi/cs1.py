@@ -1,0 +1,63 @@
+"""An FMI 1.0 co-simulation FMU as a subsystem, through fmpy's FMI 1.0 binding.
+
+FMI 1.0 has no FMU state: such a component takes part through causal connections
+(one step per communication point) or in a joint of the explicit coupling; the plan
+refuses it in an iterated role with one line naming it.  FMI 1.0 has no
+initialization mode either: parameters and start values are set after
+``fmiInstantiateSlave`` and ``fmiInitializeSlave`` runs when dsim leaves its own
+initialization (after the start values the connections carry are written).
+"""
+from __future__ import annotations
+
+from dsim.master.errors import SimulationError
+from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.messages import CALLBACKS1
+
+
+class CoSimulation1Subsystem(FmpyAdapter):
+    """An FMI 1.0 co-simulation FMU."""
+
+    prefix = "fmi"
+
+    def _open(self, folder):
+        from fmpy.fmi1 import FMU1Slave
+
+        return FMU1Slave(guid=self.description.guid, unzipDirectory=folder,
+                         modelIdentifier=self.description.coSimulation.modelIdentifier,
+                         instanceName=self.name)
+
+    def _instantiate(self):
+        self.fmu.instantiate(functions=CALLBACKS1, loggingOn=True)
+        if not self.fmu.component:
+            raise RuntimeError("fmiInstantiateSlave returned no instance")
+
+    def _enter_initialization(self):
+        """FMI 1.0 has no initialization mode: values are set before fmiInitializeSlave."""
+
+    def _getter(self, fmi_type):
+        method = getattr(self.fmu, "get" + {"Enumeration": "Integer"}.get(fmi_type, fmi_type))
+        return lambda vrs, count: method(vrs)
+
+    def _setter(self, fmi_type):
+        return getattr(self.fmu, "set" + {"Enumeration": "Integer"}.get(fmi_type, fmi_type))
+
+    def finish_initialization(self) -> None:
+        self._checked("initialize slave", self.fmu.initialize, self.spec.start_time,
+                      self.spec.stop_time)
+        self._initializing = False
+
+    def save_state(self):
+        raise SimulationError(f"component '{self.name}': an FMI 1.0 FMU cannot save its "
+                              "state, so it cannot be iterated", time=self.time)
+
+    def restore_state(self):
+        self.save_state()
+
+    def begin_step(self) -> None:
+        """Nothing to save: the explicit coupling never rolls an FMI 1.0 FMU back."""
+        self._dirty = False
+
+    def do_step(self, time, step_size):
+        self.time = time
+        self._stepped = True
+        self._checked("step", self.fmu.doStep, time, step_size, True)

@@ -1,0 +1,302 @@
+"""A Model Exchange FMU (FMI 2.0 or 3.0) as a subsystem: dsim integrates it between
+communication points (:mod:`.integrator`) and handles its events as the standard says.
+
+One communication step t -> t + H:
+
+- the real inputs (glued port forces, connected inputs) move linearly from their
+  values at t to the values written for t + H when they are *end-of-step* values
+  (a joint's forces always are: the gluing solves for the force at t + H; a
+  connection's are when the coupling iterates connections), and are held at the
+  written value otherwise (a plain exchange writes the value the source had at t);
+- the integrator runs segment by segment: up to the next time event (the FMU's
+  ``nextEventTime``) or the step's end, stopping early at a state event (a sign
+  change of an event indicator, located to the solver's tolerance); after each
+  segment ``CompletedIntegratorStep`` may ask for a step event;
+- at an event: event mode, the discrete-state iteration until the FMU needs no more,
+  continuous-time mode, and the integrator restarts from the states the event left.
+
+Rollback (the coupling's save and restore): the FMU state where the FMU can get and
+set it (``canGetAndSetFMUstate``), with what the adapter itself keeps (time, the
+inputs at the step's start, the next time event).  Without it the continuous states
+are restored, which is exact for a model whose discrete states change only at
+events: a trial step in which an event fired cannot be taken back, and fails with
+one line naming the component and the time.
+"""
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+from dsim.master.errors import SimulationError
+from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.integrator import SolverSettings, make_integrator
+from dsim.master.running.fmi.messages import CALLBACKS2, logger3
+
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+
+
+class ModelExchangeSubsystem(FmpyAdapter):
+    """An FMI 2.0 or 3.0 Model Exchange FMU, integrated by dsim."""
+
+    def __init__(self, spec):
+        self.fmi3 = spec.fmi_version.startswith("3")
+        self.prefix = "fmi3" if self.fmi3 else "fmi2"
+        super().__init__(spec)
+        description = self.description
+        self.nx = len(description.states) if description.states else 0
+        self.nz = description.numberOfEventIndicators
+        self.settings = SolverSettings.of(spec.solver)
+        self._x = np.zeros(self.nx)
+        self._dx = np.zeros(self.nx)
+        self._z = np.zeros(self.nz)
+        self._nominal = np.ones(self.nx)
+        # real inputs the master writes: forces first, then connected Real inputs
+        real_writes = [n for n in spec.writes if self.variables[n].type == "Real"]
+        self._input_vrs = list(self._force_vrs) + [self.variables[n].valueReference
+                                                   for n in real_writes]
+        self._input_places = [spec.writes.index(n) for n in real_writes]
+        self._start = np.zeros(len(self._input_vrs))  # inputs at the step's start
+        self._end = np.zeros(len(self._input_vrs))    # ... and written for its end
+        self._ramp = False
+        #: the coupling writes end-of-step values of connected inputs (iterated
+        #: connections): they are interpolated too, as the forces always are
+        self.interpolate_inputs = False
+        self._step_start = spec.start_time
+        self._step_size = 0.0
+        self._next_event = None
+        self._saved = None
+        self._fmu_state = None
+        self.can_save = bool(description.modelExchange.canGetAndSetFMUstate)
+        self._events_in_step = 0
+        self.integrator = None
+
+    # --- FMI version specifics --------------------------------------------------------
+    def _open(self, folder):
+        from fmpy.fmi2 import FMU2Model
+        from fmpy.fmi3 import FMU3Model
+
+        kind = FMU3Model if self.fmi3 else FMU2Model
+        return kind(guid=self.description.guid, unzipDirectory=folder,
+                    modelIdentifier=self.description.modelExchange.modelIdentifier,
+                    instanceName=self.name)
+
+    def _instantiate(self):
+        if self.fmi3:
+            self.fmu.instantiate(loggingOn=True, logMessage=logger3(self.name))
+        else:
+            self.fmu.instantiate(callbacks=CALLBACKS2, loggingOn=True)
+
+    def _enter_initialization(self):
+        spec = self.spec
+        if self.fmi3:
+            self.fmu.enterInitializationMode(startTime=spec.start_time,
+                                             stopTime=spec.stop_time)
+        else:
+            self.fmu.setupExperiment(startTime=spec.start_time, stopTime=spec.stop_time)
+            self.fmu.enterInitializationMode()
+
+    def _getter(self, fmi_type):
+        if self.fmi3:
+            return getattr(self.fmu, "get" + fmi_type)
+        method = getattr(self.fmu, "get" + {"Enumeration": "Integer"}.get(fmi_type, fmi_type))
+        return lambda vrs, count: method(vrs)
+
+    def _setter(self, fmi_type):
+        return getattr(self.fmu, "set" + ({"Enumeration": "Integer"}.get(fmi_type, fmi_type)))
+
+    def _update_discrete_states(self):
+        """One pass of the event iteration: (more passes needed, terminate, states
+        changed, next event time or None)."""
+        if self.fmi3:
+            more, stop, _, changed, defined, when = self.fmu.updateDiscreteStates()
+        else:
+            more, stop, _, changed, defined, when = self.fmu.newDiscreteStates()
+        return more, stop, changed, (when if defined else None)
+
+    # --- the ODE view the integrator drives -------------------------------------------
+    def set_time(self, t: float) -> None:
+        """Set the FMU's time and the inputs interpolated to it."""
+        self.fmu.setTime(t)
+        if self._ramp:
+            weight = (t - self._step_start) / self._step_size
+            values = self._start + weight * (self._end - self._start)
+            self.fmu.setFloat64(self._input_vrs, values) if self.fmi3 else \
+                self.fmu.setReal(self._input_vrs, values)
+
+    def get_x(self) -> np.ndarray:
+        self.fmu.getContinuousStates(self._x.ctypes.data_as(_DOUBLE_P), self.nx)
+        return self._x
+
+    def set_x(self, x) -> None:
+        x = np.ascontiguousarray(x, dtype=float)
+        self.fmu.setContinuousStates(x.ctypes.data_as(_DOUBLE_P), self.nx)
+
+    def get_dx(self) -> np.ndarray:
+        pointer = self._dx.ctypes.data_as(_DOUBLE_P)
+        if self.fmi3:
+            self.fmu.getContinuousStateDerivatives(pointer, self.nx)
+        else:
+            self.fmu.getDerivatives(pointer, self.nx)
+        return self._dx
+
+    def get_z(self) -> np.ndarray:
+        if self.nz:
+            self.fmu.getEventIndicators(self._z.ctypes.data_as(_DOUBLE_P), self.nz)
+        return self._z
+
+    def nominals(self) -> np.ndarray:
+        if self.nx:
+            self.fmu.getNominalsOfContinuousStates(self._nominal.ctypes.data_as(_DOUBLE_P),
+                                                   self.nx)
+        return self._nominal
+
+    # --- modes and events -------------------------------------------------------------
+    def finish_initialization(self) -> None:
+        """Leave initialization mode, run the event iteration the standard asks for
+        there, and enter continuous-time mode."""
+        self._checked("exit initialization mode", self.fmu.exitInitializationMode)
+        self._initializing = False
+        # FMI 2.0 and 3.0 alike: leaving initialization mode enters event mode
+        self._checked("event iteration", self._event_iteration)
+        self._start = self._current_inputs()
+        self._end = self._start.copy()
+        self.integrator = make_integrator(self, self.settings)
+
+    def _current_inputs(self) -> np.ndarray:
+        if not self._input_vrs:
+            return np.zeros(0)
+        getter = self.fmu.getFloat64 if self.fmi3 else (lambda vrs, n: self.fmu.getReal(vrs))
+        return np.array(getter(self._input_vrs, len(self._input_vrs)), dtype=float)
+
+    def _event_iteration(self) -> None:
+        """From event mode: update discrete states until the FMU needs no more pass,
+        then continuous-time mode."""
+        for _ in range(1000):
+            more, stop, _, next_event = self._update_discrete_states()
+            if stop:
+                raise SimulationError(f"component '{self.name}': the FMU asked to end the "
+                                      f"simulation at t = {self.time:g} s", time=self.time)
+            if not more:
+                break
+        else:
+            raise SimulationError(f"component '{self.name}': its event iteration did not "
+                                  f"settle in 1000 passes at t = {self.time:g} s",
+                                  time=self.time)
+        self._next_event = next_event
+        self.fmu.enterContinuousTimeMode()
+
+    def _handle_event(self, t: float) -> None:
+        self.fmu.enterEventMode()
+        self._event_iteration()
+        self._events_in_step += 1
+        if self.integrator is not None:
+            self.integrator.reset(t)
+
+    # --- Subsystem --------------------------------------------------------------------
+    def set_forces(self, forces):
+        n = len(self._force_vrs)
+        if not n:
+            return
+        if self._initializing:
+            super().set_forces(forces)
+            return
+        self._end[:n] = forces
+
+    def write_inputs(self, values) -> None:
+        super().write_inputs(values)
+        if not self._initializing and self._input_places:
+            values = np.asarray(values, dtype=float)
+            n = len(self._force_vrs)
+            self._end[n:] = values[self._input_places]
+            if not self.interpolate_inputs:  # a value the source had at t: held
+                self._start[n:] = self._end[n:]
+
+    def save_state(self):
+        self._free_saved()
+        if self.can_save:
+            self._fmu_state = self._checked("get FMU state", self.fmu.getFMUState
+                                            if self.fmi3 else self.fmu.getFMUstate)
+        x = self.get_x().copy() if self.nx else None
+        self._saved = (self.time, x, self._start.copy(), self._next_event)
+        self._events_in_step = 0
+
+    def restore_state(self):
+        time, x, start, next_event = self._saved
+        if self.can_save:
+            setter = self.fmu.setFMUState if self.fmi3 else self.fmu.setFMUstate
+            self._checked("set FMU state", setter, self._fmu_state)
+        else:
+            if self._events_in_step:
+                raise SimulationError(
+                    f"component '{self.name}': an event in an iterated step at "
+                    f"t = {self.time:g} s changed its discrete states, and the FMU cannot "
+                    "save its state (canGetAndSetFMUstate is false): dsim can restore only "
+                    "its continuous states", time=self.time)
+            self.fmu.setTime(time)
+            if x is not None:
+                self.set_x(x)
+        self.time = time
+        self._start = start.copy()
+        self._next_event = next_event
+        self._events_in_step = 0
+
+    def _free_saved(self) -> None:
+        if self._fmu_state is not None:
+            free = self.fmu.freeFMUState if self.fmi3 else self.fmu.freeFMUstate
+            try:
+                free(self._fmu_state)
+            finally:
+                self._fmu_state = None
+
+    def do_step(self, time, step_size):
+        self._stepped = True
+        self._checked("step", self._integrate, time, step_size)
+
+    def _integrate(self, time: float, step_size: float) -> None:
+        stop = time + step_size
+        self._step_start, self._step_size = time, step_size
+        self._ramp = bool(len(self._input_vrs)) and not np.array_equal(self._start, self._end)
+        if not self._ramp and len(self._input_vrs):
+            self.fmu.setFloat64(self._input_vrs, self._end) if self.fmi3 else \
+                self.fmu.setReal(self._input_vrs, self._end)
+        self.set_time(time)
+        self.integrator.reset(time)
+        t = time
+        guard = 0
+        while t < stop:
+            guard += 1
+            if guard > 100000:
+                raise SimulationError(f"component '{self.name}': more than 100000 events "
+                                      f"in one step at t = {t:g} s (chattering)", time=t)
+            target = stop
+            if self._next_event is not None and t <= self._next_event < stop:
+                target = self._next_event
+            if self.nx or self.nz:
+                t, state_event = self.integrator.advance(t, target)
+            else:
+                t, state_event = target, False
+            self.set_time(t)
+            self.time = t
+            step_event, terminate = self.fmu.completedIntegratorStep()
+            if terminate:
+                raise SimulationError(f"component '{self.name}': the FMU asked to end the "
+                                      f"simulation at t = {t:g} s", time=t)
+            time_event = self._next_event is not None and t >= self._next_event
+            if state_event or time_event or step_event:
+                self._handle_event(t)
+            if t >= target and target == stop:
+                break
+        self.time = stop
+        self._start = self._end.copy()
+        self._ramp = False
+
+    def exchange(self, time, step_size):
+        self.do_step(time, step_size)
+        return self.read_outputs()
+
+    def statistics(self) -> dict:
+        counters = super().statistics()
+        if self.integrator is not None:
+            counters["right-hand side evaluations"] = [self.integrator.evaluations, 0.0]
+        return counters

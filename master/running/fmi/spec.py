@@ -1,0 +1,48 @@
+"""What it takes to create one FMU subsystem, wherever it runs: a picklable spec."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from dsim.master.reading.ports import PortDof
+
+
+@dataclass(frozen=True)
+class SubsystemSpec:
+    """Everything needed to create one FMU subsystem, wherever it runs (picklable).
+
+    ``reads`` names the variables read after every step (recorded outputs and
+    causal connection sources), ``writes`` the inputs that causal connections set.
+    """
+
+    name: str
+    path: Path
+    port_dofs: tuple[PortDof, ...]
+    parameters: dict
+    reads: tuple[str, ...]
+    writes: tuple[str, ...]
+    start_time: float
+    stop_time: float
+    location: str = ""
+    #: the kinematic kinds (u, v, a) the joints need from the first step on (before
+    #: it, for the start forces and their check, every kind the FMU has is read)
+    kinds: tuple[bool, bool, bool] = (True, True, True)
+    #: the variables connections set at initialization (``writes`` and the fixed
+    #: parameters connections feed)
+    start_writes: tuple[str, ...] = ()
+    #: String variables read after every step (recorded, or feeding a connection), and
+    #: the String inputs connections set
+    text_reads: tuple[str, ...] = ()
+    text_writes: tuple[str, ...] = ()
+    #: the Ray resource whose node runs the instance (``glue:Placement``; '' anywhere)
+    placement: str = ""
+    #: the String parameters whose value is the absolute path of a scene file (a
+    #: remote backend ships the file and rewrites the value)
+    files: tuple[str, ...] = ()
+
+    #: the interface it runs (CoSimulation or ModelExchange) and its FMI version
+    interface: str = "CoSimulation"
+    fmi_version: str = "2.0"
+    #: the Model Exchange integrator's settings as (name, value) pairs (method,
+    #: rtol, atol, max_step: :mod:`dsim.master.running.fmi.integrator`)
+    solver: tuple = ()
