@@ -292,6 +292,15 @@ def _capabilities(scene: Scene, usable: dict, problems: list, chosen: dict) -> N
                             f"{', '.join(c.path for c in components)}")
 
 
+def _iterated(scene: Scene, links, chosen: dict) -> tuple[int, ...]:
+    """The components whose connections the strong coupling iterates: those that can
+    roll back and take part in a connection moved every step."""
+    connected = {path for link in links if link.every_step
+                 for path in (link.start[0], link.end[0])}
+    return tuple(i for i, c in enumerate(scene.components) if c.path in connected
+                 and can_roll_back(c.source, chosen[c.path]))
+
+
 def _variable_step(source, interface: str) -> bool:
     """Whether a component takes communication steps of any size (Model Exchange: the
     master integrates it, so always)."""
@@ -355,6 +364,10 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     if problem:
         problems.append(problem)
     coupling = scene.master.coupling
+    if scene.joints and coupling == "strong":
+        problems.append(f"{scene.file}: coupling 'strong' iterates connections; the scene's "
+                        f"{len(scene.joints)} joints are glued by the iterative coupling "
+                        "(connections and joints iterated together: not yet)")
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
                         f"{len(scene.joints)} joints: use iterative or explicit")
@@ -436,7 +449,10 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         text_recorded = tuple(text_recorded[i] for i in text_selected)
         text_index = [text_index[i] for i in text_selected]
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
-    return Plan(scene, coupling if scene.joints else "causal", backend, specs,
+    if coupling == "strong":
+        glued = _iterated(scene, numbers, chosen)
+    return Plan(scene, coupling if scene.joints or coupling == "strong" else "causal",
+                backend, specs,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
                 ports, start_transfer, _passes(paths, links), tuple(warnings),
                 bool(scene.joints) and coupling == "explicit" and any(

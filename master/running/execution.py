@@ -214,6 +214,9 @@ class Execution:
                                                  settings, plan.transfer)
         if sensitivity is not None:
             self.coupling.start_sensitivity = sensitivity
+        if plan.coupling == "strong":  # names for the message of an input that fails
+            self.coupling.labels = tuple(f"'{plan.specs[g].name}.{name}'"
+                                         for g in plan.glued for name in plan.specs[g].writes)
         if plan.variable_steps and hasattr(self.coupling, "cut_limit"):
             self.coupling.cut_limit = settings.step_cuts
         self.coupling.start(glued.kinematics() if layout.size else None, forces)

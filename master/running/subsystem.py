@@ -119,6 +119,23 @@ class Subsystem(ABC):
         self.do_step(time, step_size)
         return self.read_outputs()
 
+    def write_input_ramp(self, start: np.ndarray, end: np.ndarray, step_size: float) -> None:
+        """Connected inputs that move from ``start`` (at the step's start) to ``end``
+        (at its end) over the next step of ``step_size`` s: a subsystem that cannot
+        interpolate inputs holds ``end``."""
+        self.write_inputs(end)
+
+    def trial_exchange(self, start, end, time: float, step_size: float) -> np.ndarray:
+        """Step from the saved state (restored when a trial ran since) with connected
+        inputs ramping from ``start`` to ``end`` (None: none), then the outputs."""
+        if self._dirty:
+            self.restore_state()
+        if end is not None:
+            self.write_input_ramp(start, end, step_size)
+        self.do_step(time, step_size)
+        self._dirty = True
+        return self.read_outputs()
+
     def flexibility(self, forces: np.ndarray, time: float, step_size: float,
                     deltas: np.ndarray, base: Kinematics) -> list[np.ndarray]:
         """Interface flexibility by perturbation (eq. 4.45/4.46): for each glued

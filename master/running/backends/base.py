@@ -70,6 +70,12 @@ class Backend(ABC):
         its outputs; the outputs of every subsystem."""
 
     @abstractmethod
+    def trial_exchange(self, time: float, step_size: float, ramps) -> list:
+        """Every subsystem stepped from its saved state with its connected inputs
+        ramping as ``ramps`` say ((start, end) or (None, None) per subsystem); the
+        outputs of each (:meth:`Subsystem.trial_exchange`)."""
+        raise NotImplementedError
+
     def flexibility(self, forces, time: float, step_size: float, deltas, bases) -> list:
         """Each subsystem's interface flexibility [Gu, Gv, Ga] by perturbation."""
 

@@ -50,6 +50,10 @@ class InProcessBackend(Backend):
             subsystems[index].write_inputs(values)
         return [s.exchange(time, step_size) for s in subsystems]
 
+    def trial_exchange(self, time, step_size, ramps):
+        return [s.trial_exchange(start, end, time, step_size)
+                for s, (start, end) in zip(self.subsystems, ramps)]
+
     def flexibility(self, forces, time, step_size, deltas, bases):
         return [s.flexibility(f, time, step_size, d, b)
                 for s, f, d, b in zip(self.subsystems, forces, deltas, bases)]

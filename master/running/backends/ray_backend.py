@@ -283,6 +283,14 @@ class RayBackend(Backend):
             calls.append(("exchange", (time, step_size)))
         return [results[-1] for results in self._run(steps, time)]
 
+    def trial_exchange(self, time, step_size, ramps):
+        n = len(self.members)
+        outputs = self._each("trial_exchange", [r[0] for r in ramps], [r[1] for r in ramps],
+                             [time] * n, [step_size] * n, time=time)
+        for member, values in zip(self.members, outputs):
+            self._cluster.outputs[member] = values
+        return outputs
+
     def flexibility(self, forces, time, step_size, deltas, bases):
         n = len(self.members)
         return self._each("flexibility", forces, [time] * n, [step_size] * n, deltas, bases,

@@ -3,8 +3,10 @@
 from dsim.master.running.couplings.base import CausalCoupling, Coupling, StepReport
 from dsim.master.running.couplings.explicit import ExplicitCoupling
 from dsim.master.running.couplings.iterative import IterativeCoupling
+from dsim.master.running.couplings.strong import StrongCoupling
 
-COUPLINGS = {c.name: c for c in (IterativeCoupling, ExplicitCoupling, CausalCoupling)}
+COUPLINGS = {c.name: c for c in (IterativeCoupling, ExplicitCoupling, CausalCoupling,
+                                 StrongCoupling)}
 
 __all__ = ["COUPLINGS", "CausalCoupling", "Coupling", "ExplicitCoupling",
-           "IterativeCoupling", "StepReport"]
+           "IterativeCoupling", "StepReport", "StrongCoupling"]

@@ -157,6 +157,7 @@ class FmuSubsystem(Subsystem):
         self.interface = tuple((p.port, p.dof) for p in port_dofs)
         self.output_names = tuple(spec.reads)
         self._state = None
+        self._ramp_vrs = None
         self._stepped = False
         #: the FMU returned fmi2Fatal: no call may follow
         self.fatal = False
@@ -364,6 +365,32 @@ class FmuSubsystem(Subsystem):
             return
         for batch, places in zip(self._writes, self._write_places):
             batch.write(values[places])
+
+    def write_input_ramp(self, start, end, step_size) -> None:
+        """Connected inputs at the step's start and end: an FMU that can interpolate
+        inputs (canInterpolateInputs) gets the start values and their slope
+        (fmi2SetRealInputDerivatives, order 1); any other holds the end values."""
+        if self._ramp_vrs is None:
+            self._ramp_vrs = self._real_input_places()
+        places, vrs = self._ramp_vrs
+        if not places:
+            self.write_inputs(end)
+            return
+        self.write_inputs(start)
+        start = np.asarray(start, dtype=float)[places]
+        slope = (np.asarray(end, dtype=float)[places] - start) / step_size
+        self._call("fmi2SetRealInputDerivatives", self.fmu.setRealInputDerivatives,
+                   vrs, [1] * len(vrs), list(slope))
+
+    def _real_input_places(self) -> tuple[list[int], list[int]]:
+        """Where the Real inputs are in ``spec.writes`` and their value references, when
+        the FMU can interpolate inputs (else none)."""
+        cs = describe(self.path).coSimulation
+        if not cs.canInterpolateInputs:
+            return [], []
+        variables = describe(self.path).by_name
+        places = [i for i, n in enumerate(self.spec.writes) if variables[n].type == "Real"]
+        return places, [variables[self.spec.writes[i]].valueReference for i in places]
 
     def terminate(self):
         """fmi2Terminate and fmi2FreeInstance (after an error too: FMI 2.0 allows both;

@@ -212,6 +212,13 @@ class ModelExchangeSubsystem(FmpyAdapter):
             if not self.interpolate_inputs:  # a value the source had at t: held
                 self._start[n:] = self._end[n:]
 
+    def write_input_ramp(self, start, end, step_size) -> None:
+        """Connected inputs at the step's start and end: the integrator interpolates."""
+        self.write_inputs(end)
+        n = len(self._force_vrs)
+        if self._input_places:
+            self._start[n:] = np.asarray(start, dtype=float)[self._input_places]
+
     def save_state(self):
         self._free_saved()
         if self.can_save:
