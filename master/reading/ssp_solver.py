@@ -48,8 +48,11 @@ def solver_of(element, warnings: list, where: str) -> tuple:
     the nearest system around it; () when none says any."""
     current = element
     while current is not None:
-        found = _own_solver(current, warnings, where)
-        if found is not None:
-            return found
+        # only a component or a system carries one (an Elements list is not looked
+        # into: it may hold tens of thousands of components)
+        if _local(current.tag) in ("Component", "System"):
+            found = _own_solver(current, warnings, where)
+            if found is not None:
+                return found
         current = current.getparent()
     return ()

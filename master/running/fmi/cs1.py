@@ -9,8 +9,10 @@ initialization (after the start values the connections carry are written).
 """
 from __future__ import annotations
 
+import ctypes
+
 from dsim.master.errors import SimulationError
-from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
 from dsim.master.running.fmi.messages import CALLBACKS1
 
 
@@ -18,6 +20,7 @@ class CoSimulation1Subsystem(FmpyAdapter):
     """An FMI 1.0 co-simulation FMU."""
 
     prefix = "fmi"
+    _do_step = None
 
     def _open(self, folder):
         from fmpy.fmi1 import FMU1Slave
@@ -60,4 +63,15 @@ class CoSimulation1Subsystem(FmpyAdapter):
     def do_step(self, time, step_size):
         self.time = time
         self._stepped = True
-        self._checked("step", self.fmu.doStep, time, step_size, True)
+        if self._do_step is None:
+            # fmpy 0.3.32 declares fmiDoStep's result a string, which crashes the
+            # process on any status but fmiOK: bound here with its C type
+            self._do_step = getattr(self.fmu.dll, self.description.coSimulation
+                                    .modelIdentifier + "_fmiDoStep")
+            self._do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double,
+                                      ctypes.c_char]
+            self._do_step.restype = ctypes.c_int
+        status = self._timed("step", self._do_step, self.fmu.component, time, step_size,
+                             b"\x01")
+        if status > 1:
+            self._fail("step", f"fmiDoStep returned {STATUS.get(status, status)}", status)
