@@ -55,7 +55,7 @@ def test_a_failed_run_is_a_result_too(built, tmp_path):
     (dict(max_iterations=2.5), "setting max_iterations '2.5' is not an integer"),
     (dict(relative_tolerance=-1), "setting relative_tolerance must be a finite number >= 0"),
     (dict(coupling="sideways"),
-     "setting coupling 'sideways' is not one of: iterative, explicit, causal"),
+     "setting coupling 'sideways' is not one of: iterative, explicit, causal, strong"),
     (dict(predictor="cubic"),
      "setting predictor 'cubic' is not one of: none, constant, linear, quadratic"),
     (dict(refresh="sometimes"),
@@ -150,7 +150,7 @@ def test_an_observer_can_stop_the_run(built):
 
 
 def test_registries_name_the_implementations():
-    assert set(dsim.COUPLINGS) == {"iterative", "explicit", "causal"}
+    assert set(dsim.COUPLINGS) == {"iterative", "explicit", "causal", "strong"}
     assert set(dsim.PREDICTORS) == {"none", "constant", "linear", "quadratic"}
     assert set(dsim.REFRESH_POLICIES) == {"adaptive", "iterations", "step"}
     assert set(dsim.CONVERGENCE_TESTS) == {"residual", "forces"}

@@ -181,7 +181,7 @@ def test_bad_settings_are_refused_before_anything_runs(server):
     answer = client.post(f"/api/scenes/{scene_id}/runs",
                          json={"settings": {"tolerance": "-1", "coupling": "sideways"}})
     assert answer.status_code == 400
-    assert "setting coupling 'sideways' is not one of: iterative, explicit, causal" in \
+    assert "setting coupling 'sideways' is not one of: iterative, explicit, causal, strong" in \
         answer.json()["problems"]
     page = client.post(f"/scenes/{scene_id}/runs", data={"step": "zero"})
     assert page.status_code == 400 and "setting step &#39;zero&#39; is not a number" in page.text
