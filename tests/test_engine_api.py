@@ -95,7 +95,7 @@ def test_the_annotation_the_command_line_and_the_api_check_a_setting_alike(
     assert lines == ["dsim: error: setting tolerance must be a finite number greater than 0, "
                      "got -1",
                      "dsim: error: setting coupling 'sideways' is not one of: iterative, "
-                     "explicit, causal"]
+                     "explicit, causal, strong"]
     assert not (tmp_path / "o.csv").exists()
 
 
