@@ -16,6 +16,7 @@ import numpy as np
 
 from dsim.master.errors import InputError
 from dsim.master.planning.assembly import assemble
+from dsim.master.planning.loops import find_loops
 from dsim.master.planning.parameters import written_by_master
 from dsim.master.reading.fmu_archive import fmu_problem
 from dsim.master.reading.fmi_description import (CO_SIMULATION, can_roll_back,
@@ -82,6 +83,10 @@ class Plan:
     #: what the run was asked to record (the statistics say it)
     outputs: tuple[str, ...] = ()
     output_interval: float | None = None
+    #: the algebraic loops of the connections (:mod:`dsim.master.planning.loops`) and,
+    #: for each, where its inputs are in ``transfer``'s flat values
+    loops: tuple = ()
+    loop_positions: tuple = ()
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -301,6 +306,17 @@ def _iterated(scene: Scene, links, chosen: dict) -> tuple[int, ...]:
                  and can_roll_back(c.source, chosen[c.path]))
 
 
+def _loop_positions(loops, paths: list[str], writes: dict) -> tuple:
+    """For each loop, where its inputs are in the flat values of the every-step
+    transfer (component by component, each in its ``writes`` order)."""
+    offsets, position = {}, 0
+    for path in paths:
+        offsets[path] = position
+        position += len(writes[path])
+    return tuple(tuple(offsets[path] + writes[path].index(name) for path, name in loop.inputs)
+                 for loop in loops)
+
+
 def _variable_step(source, interface: str) -> bool:
     """Whether a component takes communication steps of any size (Model Exchange: the
     master integrates it, so always)."""
@@ -449,6 +465,7 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         text_recorded = tuple(text_recorded[i] for i in text_selected)
         text_index = [text_index[i] for i in text_selected]
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
+    loops = find_loops(scene, numbers, chosen)
     if coupling == "strong":
         glued = _iterated(scene, numbers, chosen)
     return Plan(scene, coupling if scene.joints or coupling == "strong" else "causal",
@@ -463,4 +480,5 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                     scene.components[i].path]) for i in glued),
                 backend_options, selected, every,
                 tuple([outputs] if isinstance(outputs, str) else outputs or ()),
-                None if output_interval is None else float(output_interval))
+                None if output_interval is None else float(output_interval),
+                loops=loops, loop_positions=_loop_positions(loops, paths, writes))

@@ -8,9 +8,9 @@ from collections import Counter
 import numpy as np
 
 #: counter names of the FMI functions (FMU subsystems) and core methods (in-process)
-DO_STEP = ("fmi2DoStep", "step")
-SAVE = ("fmi2GetFMUstate", "get_state")
-RESTORE = ("fmi2SetFMUstate", "set_state")
+DO_STEP = ("fmi2DoStep", "step", "fmi3DoStep", "fmiDoStep", "integrate")
+SAVE = ("fmi2GetFMUstate", "get_state", "fmi3GetFMUState", "save continuous states")
+RESTORE = ("fmi2SetFMUstate", "set_state", "fmi3SetFMUState", "restore continuous states")
 
 
 def _count(functions: dict, names) -> int:
@@ -22,6 +22,7 @@ def _components(execution) -> dict:
         return {}
     result = {}
     backend = execution.backend
+    specs = {spec.name: spec for spec in execution.plan.specs}
     for name, counters, place in zip(backend.names, backend.counters(), backend.places()):
         functions = {f: {"calls": calls, "seconds": seconds}
                      for f, (calls, seconds) in sorted(counters.items())}
@@ -30,6 +31,9 @@ def _components(execution) -> dict:
                         "state_saves": _count(functions, SAVE),
                         "state_restores": _count(functions, RESTORE),
                         "functions": functions}
+        if name in specs:  # which FMI version and interface ran
+            result[name]["fmi_version"] = specs[name].fmi_version
+            result[name]["interface"] = specs[name].interface
         if place is not None:  # a worker process elsewhere: which node, which process
             result[name]["worker"] = dict(place)
     return result

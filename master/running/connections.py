@@ -156,6 +156,14 @@ class Transfer:
     def inputs(self, outputs: np.ndarray) -> list[tuple[int, np.ndarray]]:
         """(subsystem index, its input values) from the flat output vector (KeyError:
         a mapping table has no entry for a value)."""
+        return self.split(self.values(outputs))
+
+    def split(self, values: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        """The flat input values as (subsystem index, its input values)."""
+        return [(index, values[start:stop]) for index, start, stop in self.targets]
+
+    def values(self, outputs: np.ndarray) -> np.ndarray:
+        """Every connected input's value, flat (receiving subsystem by subsystem)."""
         values = outputs[self.gather]
         if not self.identity:
             values = values * self.factor + self.offset
@@ -165,7 +173,7 @@ class Transfer:
                 raise SimulationError(f"connection {label}: its mapping has no entry for "
                                       f"the value {value:g}")
             values[position] = table[value]
-        return [(index, values[start:stop]) for index, start, stop in self.targets]
+        return values
 
     def restricted(self, indices) -> "Transfer":
         """The connections into the subsystems at ``indices``, numbered by their

@@ -32,6 +32,7 @@ from dsim.master.recording.results import RunResult
 from dsim.master.recording.statistics import run_statistics
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.couplings import COUPLINGS
+from dsim.master.running.loops import LoopSolver
 from dsim.master.running.interrupts import SignalWatch
 from dsim.master.running.start import check_start, start_forces
 from dsim.master.running.timeline import size_to, step_count
@@ -214,12 +215,16 @@ class Execution:
                                                  settings, plan.transfer)
         if sensitivity is not None:
             self.coupling.start_sensitivity = sensitivity
+        if plan.loops:
+            self.coupling.loop_solver = LoopSolver(plan.transfer, plan.loops,
+                                                   plan.loop_positions, settings)
         if plan.coupling == "strong":  # names for the message of an input that fails
             self.coupling.labels = tuple(f"'{plan.specs[g].name}.{name}'"
                                          for g in plan.glued for name in plan.specs[g].writes)
         if plan.variable_steps and hasattr(self.coupling, "cut_limit"):
             self.coupling.cut_limit = settings.step_cuts
         self.coupling.start(glued.kinematics() if layout.size else None, forces)
+        self.coupling.solve_loops(self.plan.scene.start_time)
 
     def _start_sensitivity(self, glued, layout, forces):
         """In initialization mode, d a / d f of every glued subsystem (when the explicit
@@ -292,6 +297,7 @@ class Execution:
             if self._text_reads:
                 self._write_texts()
             report = self.coupling.step(time, size, index + 1)
+            self.coupling.solve_loops(end)
             if report.cuts:
                 self._warn_cut(index + 1, end, size / 2 ** report.cuts)
             if report.lost and self.coupling.least_squares_steps <= CUTS_SAID:

@@ -105,6 +105,10 @@ def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[
                             else "by its continuous states"))
         role = ("glued: iterated with rollback" if index in checked.glued
                 else "free: one doStep per macro step, never rolled back")
+        if checked.coupling == "strong":
+            role = ("iterated: its connections solved at each step, with rollback"
+                    if index in checked.glued else "free: one doStep per macro step, its "
+                    "inputs from the step's start (it cannot roll back)")
         port_text = port_summary(checked.ports[component.path])
         say(f"  {component.path}: {component.source.name} "
             f"[{description.modelName}, FMI {description.fmiVersion} "
@@ -133,5 +137,19 @@ def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[
             f"{' '.join(joint.dofs)}, {joint.kind}, {joint.measure}{law}"
             + (f" (--set {joint.name}.{settable[0]}=VALUE: {' '.join(settable)})"
                if settable else ""))
-    say(f"causal connections: {len(scene.connections)}")
+    say(f"causal connections: {len(scene.connections)}" + _connection_roles(checked))
+    for number, loop in enumerate(checked.loops, 1):
+        say(f"  algebraic loop {number}: {loop.label} (solved at each communication point)")
     return lines
+
+
+def _connection_roles(plan) -> str:
+    """How the connections move: exchanged once per step, or iterated (which)."""
+    if not plan.scene.connections:
+        return ""
+    if plan.coupling != "strong":
+        return " (exchanged once per step: values from the step's start, held)"
+    iterated = {plan.specs[i].name for i in plan.glued}
+    count = sum(1 for c in plan.scene.connections if c.end[0] in iterated)
+    return (f" ({count} into iterated components, solved to convergence at each step; "
+            f"{len(plan.scene.connections) - count} exchanged once per step)")

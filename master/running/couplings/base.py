@@ -68,6 +68,9 @@ class Coupling(ABC):
         self.forces = np.zeros(layout.size if layout else 0)
         self.outputs = np.zeros(0)
         self.refreshes = 0
+        #: solves the scene's algebraic loops at each communication point (set by the
+        #: execution when the plan found any: :mod:`dsim.master.running.loops`)
+        self.loop_solver = None
         #: times the gluing matrix was factored
         self.factorizations = 0
         #: seconds spent measuring flexibilities and factoring the gluing matrix
@@ -79,6 +82,16 @@ class Coupling(ABC):
         if forces is not None:
             self.forces = np.array(forces, dtype=float)
         self.read_outputs()
+
+    def solve_loops(self, time: float) -> None:
+        """Solve the algebraic loops at the communication point ``time`` (the outputs
+        then hold the solution)."""
+        if self.loop_solver is None:
+            return
+        parts = self.loop_solver.solve(self.backend, self.outputs, time)
+        if parts is not None:
+            self._outputs_by_subsystem = list(parts)
+            self.outputs = np.concatenate(parts)
 
     def read_outputs(self) -> np.ndarray:
         """Every subsystem's read values (recorded outputs and connection sources),

@@ -28,6 +28,9 @@ class FmpyAdapter(Subsystem):
 
     #: the FMI version's prefix of its function names, for messages ("fmi3", "fmi")
     prefix = "fmi2"
+    #: the counters' names of a step and of a state save and restore (the statistics
+    #: count them: :mod:`dsim.master.recording.statistics`)
+    DO_STEP, GET_STATE, SET_STATE = "fmi2DoStep", "fmi2GetFMUstate", "fmi2SetFMUstate"
 
     def __init__(self, spec: SubsystemSpec):
         super().__init__()
@@ -106,7 +109,7 @@ class FmpyAdapter(Subsystem):
             raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
                              f"initialised with these parameters: "
                              f"{reason or f'{label} failed: {detail}'}")
-        error = StepFailure if label == "step" and status == 2 else SimulationError
+        error = StepFailure if label == self.DO_STEP and status == 2 else SimulationError
         raise error(f"component '{self.name}': {label} failed: {detail}"
                     + (f" ({reason})" if reason else ""), time=self.time)
 

@@ -20,6 +20,7 @@ class CoSimulation1Subsystem(FmpyAdapter):
     """An FMI 1.0 co-simulation FMU."""
 
     prefix = "fmi"
+    DO_STEP = "fmiDoStep"
     _do_step = None
 
     def _open(self, folder):
@@ -71,7 +72,7 @@ class CoSimulation1Subsystem(FmpyAdapter):
             self._do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double,
                                       ctypes.c_char]
             self._do_step.restype = ctypes.c_int
-        status = self._timed("step", self._do_step, self.fmu.component, time, step_size,
+        status = self._timed(self.DO_STEP, self._do_step, self.fmu.component, time, step_size,
                              b"\x01")
         if status > 1:
-            self._fail("step", f"fmiDoStep returned {STATUS.get(status, status)}", status)
+            self._fail(self.DO_STEP, f"fmiDoStep returned {STATUS.get(status, status)}", status)

@@ -19,6 +19,7 @@ class CoSimulation3Subsystem(FmpyAdapter):
     """An FMI 3.0 co-simulation FMU."""
 
     prefix = "fmi3"
+    DO_STEP, GET_STATE, SET_STATE = "fmi3DoStep", "fmi3GetFMUState", "fmi3SetFMUState"
 
     def __init__(self, spec):
         self._state = None
@@ -50,10 +51,10 @@ class CoSimulation3Subsystem(FmpyAdapter):
 
     def save_state(self):
         self._free_saved()
-        self._state = self._checked("get FMU state", self.fmu.getFMUState)
+        self._state = self._checked(self.GET_STATE, self.fmu.getFMUState)
 
     def restore_state(self):
-        self._checked("set FMU state", self.fmu.setFMUState, self._state)
+        self._checked(self.SET_STATE, self.fmu.setFMUState, self._state)
 
     def _free_saved(self):
         if self._state is not None:
@@ -65,7 +66,7 @@ class CoSimulation3Subsystem(FmpyAdapter):
     def do_step(self, time, step_size):
         self.time = time
         self._stepped = True
-        _, terminate, _, _ = self._checked("step", self.fmu.doStep, time, step_size)
+        _, terminate, _, _ = self._checked(self.DO_STEP, self.fmu.doStep, time, step_size)
         if terminate:
             raise SimulationError(f"component '{self.name}': the FMU asked to end the "
                                   f"simulation at t = {time + step_size:g} s",

@@ -39,9 +39,14 @@ _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 class ModelExchangeSubsystem(FmpyAdapter):
     """An FMI 2.0 or 3.0 Model Exchange FMU, integrated by dsim."""
 
+    #: one integration over a communication step counts as the component's step
+    DO_STEP = "integrate"
+
     def __init__(self, spec):
         self.fmi3 = spec.fmi_version.startswith("3")
         self.prefix = "fmi3" if self.fmi3 else "fmi2"
+        self.GET_STATE, self.SET_STATE = (("fmi3GetFMUState", "fmi3SetFMUState") if self.fmi3
+                                          else ("fmi2GetFMUstate", "fmi2SetFMUstate"))
         super().__init__(spec)
         description = self.description
         self.nx = len(description.states) if description.states else 0
@@ -222,9 +227,10 @@ class ModelExchangeSubsystem(FmpyAdapter):
     def save_state(self):
         self._free_saved()
         if self.can_save:
-            self._fmu_state = self._checked("get FMU state", self.fmu.getFMUState
+            self._fmu_state = self._checked(self.GET_STATE, self.fmu.getFMUState
                                             if self.fmi3 else self.fmu.getFMUstate)
-        x = self.get_x().copy() if self.nx else None
+        x = self._timed("save continuous states", self.get_x).copy() if self.nx and \
+            not self.can_save else (self.get_x().copy() if self.nx else None)
         self._saved = (self.time, x, self._start.copy(), self._next_event)
         self._events_in_step = 0
 
@@ -232,7 +238,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
         time, x, start, next_event = self._saved
         if self.can_save:
             setter = self.fmu.setFMUState if self.fmi3 else self.fmu.setFMUstate
-            self._checked("set FMU state", setter, self._fmu_state)
+            self._checked(self.SET_STATE, setter, self._fmu_state)
         else:
             if self._events_in_step:
                 raise SimulationError(
@@ -242,7 +248,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
                     "its continuous states", time=self.time)
             self.fmu.setTime(time)
             if x is not None:
-                self.set_x(x)
+                self._timed("restore continuous states", self.set_x, x)
         self.time = time
         self._start = start.copy()
         self._next_event = next_event
@@ -258,7 +264,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
 
     def do_step(self, time, step_size):
         self._stepped = True
-        self._checked("step", self._integrate, time, step_size)
+        self._checked(self.DO_STEP, self._integrate, time, step_size)
 
     def _integrate(self, time: float, step_size: float) -> None:
         stop = time + step_size
