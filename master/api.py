@@ -10,6 +10,7 @@ from pathlib import Path
 from dsim.master.errors import InputError
 from dsim.master.planning.parameters import require_mapping, with_parameters
 from dsim.master.planning.plan import make_plan
+from dsim.master.planning.solver import with_solver
 from dsim.master.reading.ssp import load_scene
 from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter, ProgressBar,
                                              StatisticsWriter)
@@ -21,7 +22,7 @@ from dsim.master.settings import resolve
 
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
-            outputs=None, output_interval=None, **settings):
+            outputs=None, output_interval=None, solver=None, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -38,7 +39,10 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     Python values or text read by the variable's type (docs/parameters.md).
     ``outputs``: glob patterns of the columns to record (default: every one);
     ``output_interval``: record every this many seconds, a whole multiple of the
-    macro step (default: every step; docs/results.md).
+    macro step (default: every step; docs/results.md).  ``solver``: the integrator
+    settings of the Model Exchange components, over the SSD's annotations: a mapping
+    of ``method``, ``rtol``, ``atol``, ``max_step`` (every component) or
+    ``COMPONENT.NAME`` (one) to values (docs/third_party.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     parameters = require_mapping(parameters)
     chosen = settings.get("parameter_set")
@@ -49,6 +53,7 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
         raise InputError("settings parameter_set and ssd: give the scene's file, not a "
                          "loaded scene")
     scene = with_parameters(scene, parameters)
+    scene = with_solver(scene, solver)
     try:
         master, options = resolve(scene.master, settings)
     except InputError as error:

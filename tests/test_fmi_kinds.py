@@ -281,3 +281,26 @@ def test_a_loop_free_causal_chain_finds_no_loop(kinds, tmp_path, capsys):
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "algebraic loop" not in out and "exchanged once per step" in out
+
+
+def test_the_solver_is_chosen_on_the_command_line_over_the_ssd(kinds, tmp_path, capsys):
+    """--solver m.method=cvode --solver rtol=1e-10 wins over the SSD's annotation
+    (DOP853 at rtol 1e-6): CVODE's error, not DOP853's; a name reaching no component
+    and a method dsim lacks are one line each, exit 2."""
+    annotation = ('<ssd:Annotations><ssc:Annotation type="org.dsim.solver"><glue:Solver '
+                  'xmlns:glue="urn:dsim:gluing:1" method="DOP853" rtol="1e-6"/>'
+                  "</ssc:Annotation></ssd:Annotations>")
+    path = scene(tmp_path / "osc.ssp", {"m": (kinds("oscillator"), "ModelExchange",
+                                              POSITION + annotation)})
+    out = tmp_path / "cvode.csv"
+    assert main(["run", str(path), "--quiet", "--out", str(out), "--solver", "m.method=cvode",
+                 "--solver", "rtol=1e-10"]) == 0
+    rows = np.genfromtxt(out, delimiter=",", names=True)
+    error = np.max(np.abs(rows["mP.u_x" if "mP.u_x" in rows.dtype.names else
+                               rows.dtype.names[1]] - np.cos(rows["time"])))
+    assert 1e-12 < error < 1e-6  # CVODE at 1e-10 (8e-8 measured), not DOP853's 2e-15
+    assert main(["validate", str(path), "--solver", "n.rtol=1e-9", "--solver",
+                 "method=euler"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 2
+    assert "solver setting 'n.rtol'" in lines[0] and "solver method 'euler'" in lines[1]

@@ -286,8 +286,16 @@ def _run_choices(args) -> dict:
     ``--outputs`` and ``--output-interval`` give."""
     from dsim.master.reading.parameter_input import given_parameters
 
+    solver = {}
+    for text in args.solver or ():
+        name, sep, value = text.partition("=")
+        if not sep:
+            raise InputError(f"--solver {text}: give NAME=VALUE (rtol=1e-10, "
+                             "m.method=cvode)")
+        solver[name.strip()] = value.strip()
     return {"parameters": given_parameters(args.set_file, args.set),
-            "outputs": args.outputs, "output_interval": args.output_interval}
+            "outputs": args.outputs, "output_interval": args.output_interval,
+            "solver": solver}
 
 
 def _add_run_choices(run_parser) -> None:
@@ -303,6 +311,11 @@ def _add_run_choices(run_parser) -> None:
                             help="start values from a file: an SSP parameter set (.ssv), "
                             "name,value rows (.csv) or a JSON object (.json); --set wins "
                             "over it")
+    run_parser.add_argument("--solver", action="append", metavar="NAME=VALUE",
+                            help="the integrator of the Model Exchange components: "
+                            "method (DOP853 RK45 RK23 Radau BDF LSODA cvode), rtol, atol or "
+                            "max_step, for every one (rtol=1e-10) or one (m.method=cvode); "
+                            "again for more; over the SSD's solver annotations")
     run_parser.add_argument("--outputs", action="append", metavar="PATTERN",
                             help="record only the columns matching this glob (right.x*, "
                             "'j1.*'); again for more (default: every recorded column)")
