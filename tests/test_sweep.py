@@ -83,7 +83,7 @@ def test_bad_sweep_values_are_refused_before_anything_runs(built, tmp_path, caps
     lines = capsys.readouterr().err.strip().splitlines()
     assert lines == ["dsim: error: sweep: step must be a finite number greater than 0, got -1",
                      "dsim: error: sweep: coupling 'sideways' is not one of: iterative, "
-                     "explicit, causal"]
+                     "explicit, causal, strong"]
     assert not out.exists()
 
 
