@@ -21,7 +21,7 @@ demo: fmus
 	$(BIN)/python -m examples.spring_mass --results results/$(SCENE).csv
 
 test: fmus browser
-	OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs
+	OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs --durations=25
 
 # Debian's Chromium for dsim serve's browser tests, installed when missing and allowed
 # (best effort: without it those tests are skipped, and pytest -rs says so)

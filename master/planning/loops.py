@@ -74,6 +74,8 @@ def find_loops(scene, links, chosen: dict) -> tuple[Loop, ...]:
             continue
         inputs = tuple(v for v in members if v in fed)
         order = [link.end for link in moving if link.end in inputs]
-        label = " -> ".join(".".join(v) for v in members)
+        names = [".".join(v) for v in members]
+        label = " -> ".join(names) if len(names) <= 8 else (
+            " -> ".join(names[:4]) + f" -> ... -> {names[-1]} ({len(names)} variables)")
         loops.append(Loop(tuple(order), label))
     return tuple(loops)

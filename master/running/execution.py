@@ -225,6 +225,8 @@ class Execution:
             self.coupling.cut_limit = settings.step_cuts
         self.coupling.start(glued.kinematics() if layout.size else None, forces)
         self.coupling.solve_loops(self.plan.scene.start_time)
+        for note in getattr(self.coupling.loop_solver, "notes", ()):
+            self.warn(note)
 
     def _start_sensitivity(self, glued, layout, forces):
         """In initialization mode, d a / d f of every glued subsystem (when the explicit

@@ -8,6 +8,14 @@ outputs an input feeds directly after setting it), the Jacobian by perturbation,
 measured once per solve (a loop of linear blocks converges in one correction).  A
 loop that does not converge in ``max_iterations`` fails the step with one line
 naming it.
+
+A loop is found from what the FMUs declare, and an FMU that declares no output
+dependencies counts as depending on every input.  At the first communication point
+each loop is probed: when no output on it moves, bit for bit, as its inputs are
+perturbed (a first-order lag that declares nothing; a co-simulation FMU that computes
+its outputs only in its step), nothing can be solved there, and the loop is passed on
+once per step as before, at no cost per step (the run says so once; the strong
+coupling iterates such a loop with rollback instead).
 """
 from __future__ import annotations
 
@@ -29,24 +37,58 @@ class LoopSolver:
         #: loop solves that needed at least one Newton correction, and the corrections
         self.solves = 0
         self.corrections = 0
+        #: which loops are solved (a probe at the first point may find one that
+        #: cannot be), and what the run should say about those that are not
+        self.active = [None] * len(loops)
+        self.notes: list[str] = []
 
     def solve(self, backend, outputs: np.ndarray, time: float) -> list[np.ndarray] | None:
         """Solve every loop at ``time`` from the flat ``outputs``; each subsystem's
         outputs after it (None: nothing moved)."""
         parts = None
-        for loop, where in zip(self.loops, self.positions):
+        for number, (loop, where) in enumerate(zip(self.loops, self.positions)):
+            if self.active[number] is None:
+                self.active[number] = self._responds(backend, outputs, where)
+                if not self.active[number]:
+                    self.notes.append(
+                        f"algebraic loop {loop.label}: its outputs do not move when its "
+                        "inputs do between steps (the FMUs declare no output dependencies, "
+                        "or compute outputs only in their step): passed on once per step")
+            if not self.active[number]:
+                continue
             moved = self._solve_one(backend, outputs, where, loop, time)
             if moved is not None:
                 parts = moved
                 outputs = np.concatenate(parts)
         return parts
 
-    def _residual(self, backend, values, where, u):
+    def _responds(self, backend, outputs, where) -> bool:
+        """Whether any input of the loop moves an output on it (perturbation probe
+        at the current point; the inputs are left as the connections give them)."""
+        values = self.transfer.values(outputs)
+        u = values[where].copy()
+        base, _ = self._fed_back(backend, values, where, u)
+        responds = False
+        for k in range(len(u)):
+            probe = u.copy()
+            probe[k] += self.settings.perturbation * max(1.0, abs(u[k]))
+            responds = responds or bool(np.any(
+                self._fed_back(backend, values, where, probe)[0] != base))
+        self._fed_back(backend, values, where, u)
+        return responds
+
+    def _fed_back(self, backend, values, where, u):
+        """T(y(u)): the loop's inputs as the connections give them after its inputs
+        are set to ``u``; and each subsystem's outputs."""
         values = values.copy()
         values[where] = u
         backend.write_inputs(self.transfer.split(values))
         parts = backend.read_outputs()
-        return u - self.transfer.values(np.concatenate(parts))[where], parts
+        return self.transfer.values(np.concatenate(parts))[where], parts
+
+    def _residual(self, backend, values, where, u):
+        fed, parts = self._fed_back(backend, values, where, u)
+        return u - fed, parts
 
     def _solve_one(self, backend, outputs, where, loop, time):
         settings = self.settings
