@@ -29,7 +29,7 @@ import ctypes
 import numpy as np
 
 from dsim.master.errors import SimulationError
-from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
 from dsim.master.running.fmi.integrator import SolverSettings, make_integrator
 from dsim.master.running.fmi.messages import CALLBACKS2, logger3
 
@@ -120,34 +120,69 @@ class ModelExchangeSubsystem(FmpyAdapter):
         return more, stop, changed, (when if defined else None)
 
     # --- the ODE view the integrator drives -------------------------------------------
+    # The integrator calls these a dozen times per communication step: they go to the
+    # library's functions bound once with ready-made pointers (fmpy's methods convert
+    # their arguments on every call, which costs more than a small model's equations).
+    def _bind_raw(self) -> None:
+        prefix = self.prefix
+        names = {"time": f"{prefix}SetTime", "set_x": f"{prefix}SetContinuousStates",
+                 "get_x": f"{prefix}GetContinuousStates",
+                 "dx": "fmi3GetContinuousStateDerivatives" if self.fmi3
+                 else "fmi2GetDerivatives",
+                 "z": f"{prefix}GetEventIndicators",
+                 "inputs": "fmi3SetFloat64" if self.fmi3 else "fmi2SetReal"}
+        self._raw = {}
+        for key, name in names.items():
+            function = self.fmu.dll[name]
+            function.restype = ctypes.c_int
+            self._raw[key] = (function, name)
+        self._handle = ctypes.c_void_p(self.fmu.component)
+        self._xin = np.zeros(self.nx)
+        self._pointers = {key: array.ctypes.data_as(_DOUBLE_P) for key, array in (
+            ("x", self._x), ("xin", self._xin), ("dx", self._dx), ("z", self._z))}
+        count = len(self._input_vrs)
+        self._input_values = np.zeros(count)
+        self._input_refs = (ctypes.c_uint * count)(*self._input_vrs)
+        self._input_pointer = self._input_values.ctypes.data_as(_DOUBLE_P)
+
+    def _raw_call(self, key: str, *args) -> None:
+        function, name = self._raw[key]
+        status = function(self._handle, *args)
+        if status > 1:
+            self._fail(name, f"it returned {STATUS.get(status, status)}", status)
+
+    def _set_inputs(self, values) -> None:
+        self._input_values[:] = values
+        count = len(self._input_vrs)
+        if self.fmi3:
+            self._raw_call("inputs", self._input_refs, ctypes.c_size_t(count),
+                           self._input_pointer, ctypes.c_size_t(count))
+        else:
+            self._raw_call("inputs", self._input_refs, ctypes.c_size_t(count),
+                           self._input_pointer)
+
     def set_time(self, t: float) -> None:
         """Set the FMU's time and the inputs interpolated to it."""
-        self.fmu.setTime(t)
+        self._raw_call("time", ctypes.c_double(t))
         if self._ramp:
             weight = (t - self._step_start) / self._step_size
-            values = self._start + weight * (self._end - self._start)
-            self.fmu.setFloat64(self._input_vrs, values) if self.fmi3 else \
-                self.fmu.setReal(self._input_vrs, values)
+            self._set_inputs(self._start + weight * (self._end - self._start))
 
     def get_x(self) -> np.ndarray:
-        self.fmu.getContinuousStates(self._x.ctypes.data_as(_DOUBLE_P), self.nx)
+        self._raw_call("get_x", self._pointers["x"], ctypes.c_size_t(self.nx))
         return self._x
 
     def set_x(self, x) -> None:
-        x = np.ascontiguousarray(x, dtype=float)
-        self.fmu.setContinuousStates(x.ctypes.data_as(_DOUBLE_P), self.nx)
+        self._xin[:] = x
+        self._raw_call("set_x", self._pointers["xin"], ctypes.c_size_t(self.nx))
 
     def get_dx(self) -> np.ndarray:
-        pointer = self._dx.ctypes.data_as(_DOUBLE_P)
-        if self.fmi3:
-            self.fmu.getContinuousStateDerivatives(pointer, self.nx)
-        else:
-            self.fmu.getDerivatives(pointer, self.nx)
+        self._raw_call("dx", self._pointers["dx"], ctypes.c_size_t(self.nx))
         return self._dx
 
     def get_z(self) -> np.ndarray:
         if self.nz:
-            self.fmu.getEventIndicators(self._z.ctypes.data_as(_DOUBLE_P), self.nz)
+            self._raw_call("z", self._pointers["z"], ctypes.c_size_t(self.nz))
         return self._z
 
     def nominals(self) -> np.ndarray:
@@ -166,6 +201,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
         self._checked("event iteration", self._event_iteration)
         self._start = self._current_inputs()
         self._end = self._start.copy()
+        self._bind_raw()
         self.integrator = make_integrator(self, self.settings)
 
     def _current_inputs(self) -> np.ndarray:
@@ -271,8 +307,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
         self._step_start, self._step_size = time, step_size
         self._ramp = bool(len(self._input_vrs)) and not np.array_equal(self._start, self._end)
         if not self._ramp and len(self._input_vrs):
-            self.fmu.setFloat64(self._input_vrs, self._end) if self.fmi3 else \
-                self.fmu.setReal(self._input_vrs, self._end)
+            self._set_inputs(self._end)
         self.set_time(time)
         self.integrator.reset(time)
         t = time
