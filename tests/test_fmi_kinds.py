@@ -179,9 +179,16 @@ def test_strongly_coupled_connections_beat_the_exchange_tenfold(kinds, tmp_path,
     assert iterations["mean_per_step"] <= 3  # a linear loop: one Newton correction
 
 
-def test_a_glued_model_exchange_pair_matches_the_merged_mass(kinds, tmp_path):
+@pytest.mark.parametrize("measure, band", [("velocity", 1e-11), ("displacement", 1e-11),
+                                           ("acceleration", 2e-7)])
+def test_a_glued_model_exchange_pair_matches_the_merged_mass(kinds, tmp_path, measure, band):
     """Two Model Exchange oscillators (k = 1 and k = 3, x0 = 1) glued at P by a fixed
-    joint on the velocity measure move as one mass of 2 kg on 4 N/m: x = cos(sqrt(2) t)."""
+    joint move as one mass of 2 kg on 4 N/m: x = cos(sqrt(2) t).  The pair's sum is
+    integrated exactly whatever the joint force, so a measure that holds positions or
+    velocities compatible at the step's ends is exact there (measured 3e-14 and 8e-14);
+    the acceleration measure drifts (7.6e-8 at 1 ms, /4 per halving).  On the
+    displacement measure the forces are held over the step (ramped, the force
+    sequence grew as (-2)^n and the run failed at step 28)."""
     fmu = kinds("oscillator")
     k3 = ('<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>'
           '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/'
@@ -192,12 +199,12 @@ def test_a_glued_model_exchange_pair_matches_the_merged_mass(kinds, tmp_path):
     path = scene(tmp_path / "glued.ssp",
                  {"a": (fmu, "ModelExchange", POSITION), "b": (fmu, "ModelExchange", k3)},
                  gluing='<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="fixed" '
-                        'measure="velocity"/>',
+                        f'measure="{measure}"/>',
                  master='tolerance="1e-12" start="consistent"', step=0.001, stop=1.0)
     result = dsim.simulate(path, out=tmp_path / "glued.csv")
     assert result.ok, result.statistics["message"]
     error = np.max(np.abs(result["a.P.u_x"] - np.cos(np.sqrt(2) * result["time"])))
-    assert error < 1e-5
+    assert error < band
 
 
 def test_an_fmi1_fmu_in_a_joint_is_refused_in_one_line(kinds, tmp_path, capsys):
