@@ -311,3 +311,71 @@ def test_the_solver_is_chosen_on_the_command_line_over_the_ssd(kinds, tmp_path, 
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 2
     assert "solver setting 'n.rtol'" in lines[0] and "solver method 'euler'" in lines[1]
+
+
+K3 = ('<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>'
+      '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/'
+      'SystemStructureParameterValues" version="1.0" name="p"><ssv:Parameters>'
+      '<ssv:Parameter name="k"><ssv:Real value="3"/></ssv:Parameter></ssv:Parameters>'
+      "</ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding>"
+      "</ssd:ParameterBindings>")
+SPRING = ('<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="flexible" '
+          'measure="displacement"><glue:Spring k0="10" k1="0"/><glue:Damper c0="0.1" '
+          'c1="0"/></glue:Joint>')
+
+
+def test_model_exchange_without_fmu_state_rolls_back_its_continuous_states(kinds, tmp_path):
+    """An oscillator pair in a flexible joint: the Model Exchange FMUs that cannot save
+    their state (canGetAndSetFMUstate false) are rolled back by their continuous states
+    and give the numbers of those that can, bit for bit."""
+    runs = {}
+    for save in (True, False):
+        fmu = kinds("oscillator", can_save_state=save)
+        path = scene(tmp_path / f"g{save}.ssp", {"a": (fmu, "ModelExchange", POSITION),
+                                                 "b": (fmu, "ModelExchange", K3)},
+                     gluing=SPRING, step=1e-3, stop=1.0)
+        runs[save] = dsim.simulate(path)
+        assert runs[save].ok, runs[save].statistics["message"]
+    assert np.array_equal(runs[True]["a.P.u_x"], runs[False]["a.P.u_x"])
+    assert np.ptp(runs[True]["a.P.u_x"] - np.cos(runs[True]["time"])) > 1e-3  # they interact
+    functions = runs[False].statistics["components"]["a"]["functions"]
+    assert "save continuous states" in functions and "fmi2GetFMUstate" not in functions
+
+
+def test_an_event_in_an_iterated_step_without_fmu_state_fails_in_one_line(kinds, tmp_path):
+    """A bouncing ball that cannot save its FMU state, iterated by the strong coupling
+    (its height feeds a block: a chain): its first bounce, at 0.4515 s, changes its
+    state at an event inside an iterated step, which its continuous states cannot take
+    back: the run fails in that step (46, to 0.46 s), naming the component, the 45
+    converged rows kept."""
+    ball = kinds("bouncing_ball", can_save_state=False)
+    path = scene(tmp_path / "ball.ssp", {"ball": (ball, "ModelExchange", ""),
+                                         "gain": (kinds("feedthrough"), "", "")},
+                 [("ball", "h", "gain", "u")], stop=1.0, step=0.01,
+                 master='coupling="strong" tolerance="1e-9"')
+    result = dsim.simulate(path, out=tmp_path / "ball.csv")
+    assert result.status == "failed" and result.exit_code == 1
+    assert "component 'ball': an event in an iterated step at t = 0.46 s" in result.message
+    assert "cannot save its state" in result.message
+    assert result.steps == 45 and len(result["time"]) == 46
+
+
+def test_fmi1_fmus_exchange_causally_and_converge_like_the_exchange(kinds, tmp_path):
+    """The two-mass halves as FMI 1.0 co-simulation FMUs, connected causally: they run
+    (fmiInitializeSlave before their first output), first order in the step like any
+    exchange; asked for the strong coupling they are exchanged, and the run says so."""
+    halves = {n: kinds(n, "1.0", ("CoSimulation",)) for n in ("mass1", "mass2")}
+    links = [("mass1", "x1", "mass2", "x1"), ("mass1", "v1", "mass2", "v1"),
+             ("mass2", "F", "mass1", "F")]
+    system = np.array([[0, 1, 0, 0], [-110, 0, 100, 0], [0, 0, 0, 1], [100, 0, -110, 0]])
+    errors = []
+    for step in (0.01, 0.005):
+        path = scene(tmp_path / f"fmi1_{step}.ssp", {n: (f, "", "") for n, f in
+                                                    halves.items()}, links, step=step)
+        result = dsim.simulate(path)
+        assert result.ok, result.statistics["message"]
+        exact = np.array([(expm(system * t) @ [0.1, 0, 0, 0])[0] for t in result["time"]])
+        errors.append(np.max(np.abs(result["mass1.x1"] - exact)))
+    assert errors[0] < 0.2 and 1.5 < errors[0] / errors[1] < 3.0
+    strong = dsim.simulate(path, coupling="strong")
+    assert strong.ok and any("cannot roll back" in w for w in strong.statistics["warnings"])

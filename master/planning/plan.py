@@ -468,6 +468,14 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     loops = find_loops(scene, numbers, chosen)
     if coupling == "strong":
         glued = _iterated(scene, numbers, chosen)
+        connected = {p for link in numbers if link.every_step for p in (link.start[0],
+                                                                          link.end[0])}
+        exchanged = [c.path for i, c in enumerate(scene.components)
+                     if c.path in connected and i not in glued]
+        if exchanged:
+            warnings.append(f"{scene.file}: coupling 'strong': {', '.join(exchanged[:5])}"
+                            f"{', ...' if len(exchanged) > 5 else ''} cannot roll back: "
+                            "their connections' values are exchanged once per step")
     return Plan(scene, coupling if scene.joints or coupling == "strong" else "causal",
                 backend, specs,
                 tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,

@@ -4,8 +4,9 @@ FMI 1.0 has no FMU state: such a component takes part through causal connections
 (one step per communication point) or in a joint of the explicit coupling; the plan
 refuses it in an iterated role with one line naming it.  FMI 1.0 has no
 initialization mode either: parameters and start values are set after
-``fmiInstantiateSlave`` and ``fmiInitializeSlave`` runs when dsim leaves its own
-initialization (after the start values the connections carry are written).
+``fmiInstantiateSlave``, and ``fmiInitializeSlave`` runs when its outputs are first
+needed (FMI 1.0 defines them only after it): the start values connections carry
+reach an FMI 1.0 FMU as inputs of the initialized slave.
 """
 from __future__ import annotations
 
@@ -45,9 +46,29 @@ class CoSimulation1Subsystem(FmpyAdapter):
     def _setter(self, fmi_type):
         return getattr(self.fmu, "set" + {"Enumeration": "Integer"}.get(fmi_type, fmi_type))
 
+    _initialized = False
+
+    def _initialize(self) -> None:
+        """fmiInitializeSlave, once, before the first output is read."""
+        if not self._initialized:
+            self._initialized = True
+            self._checked("fmiInitializeSlave", self.fmu.initialize, self.spec.start_time,
+                          self.spec.stop_time)
+
+    def read_outputs(self):
+        self._initialize()
+        return super().read_outputs()
+
+    def kinematics(self):
+        self._initialize()
+        return super().kinematics()
+
+    def read_texts(self):
+        self._initialize()
+        return super().read_texts()
+
     def finish_initialization(self) -> None:
-        self._checked("initialize slave", self.fmu.initialize, self.spec.start_time,
-                      self.spec.stop_time)
+        self._initialize()
         self._initializing = False
 
     def save_state(self):
