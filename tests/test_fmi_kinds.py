@@ -379,3 +379,22 @@ def test_fmi1_fmus_exchange_causally_and_converge_like_the_exchange(kinds, tmp_p
     assert errors[0] < 0.2 and 1.5 < errors[0] / errors[1] < 3.0
     strong = dsim.simulate(path, coupling="strong")
     assert strong.ok and any("cannot roll back" in w for w in strong.statistics["warnings"])
+
+
+def test_the_model_database_shows_each_fmus_version_and_interfaces(kinds, tmp_path):
+    """dsim serve's model pages: an FMI 3.0 FMU with both interfaces and an FMI 2.0
+    Model Exchange-only one are described as such (list and page)."""
+    from tests.serve_fixtures import create_app, upload
+    from fastapi.testclient import TestClient
+
+    app = create_app(tmp_path / "db.sqlite", slots=1)
+    with TestClient(app, base_url="http://127.0.0.1") as client:
+        both = upload(client, kinds("oscillator", "3.0"), "osc3.fmu").json()
+        only = upload(client, kinds("bouncing_ball", "2.0", ("ModelExchange",)),
+                      "ball.fmu").json()
+        described = client.get(f"/api/models/{both['id']}").json()["description"]
+        assert (described["fmiVersion"], described["interfaces"]) == (
+            "3.0", ["CoSimulation", "ModelExchange"])
+        page = client.get(f"/models/{only['id']}").text
+        assert "2.0 ModelExchange" in page
+        assert "3.0 CoSimulation, ModelExchange" in client.get("/models").text
