@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from dsim.master.errors import InputError, SimulationError, StepFailure
+from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
+from dsim.master.running.fmi.checkpoint import Checkpoint
 from dsim.master.running.fmi.messages import errors_logged, forget, logged_error
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
@@ -22,7 +23,7 @@ from dsim.master.running.subsystem import Subsystem
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 
 
-class FmpyAdapter(Subsystem):
+class FmpyAdapter(Checkpoint, Subsystem):
     """An FMU instance of any FMI version, glued at its port dofs.  A subclass opens
     the instance (:meth:`_open`), steps it (:meth:`do_step`) and saves its state."""
 
@@ -99,33 +100,6 @@ class FmpyAdapter(Subsystem):
         if self._initializing and errors_logged(self.name):
             self._fail(label, "it logged an error and returned OK")
         return result
-
-    def _fail(self, label: str, detail: str, status: int = 3):
-        reason = logged_error(self.name)
-        if status == 4:
-            self.fatal = True
-        if self._initializing:
-            self._release()
-            raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
-                             f"initialised with these parameters: "
-                             f"{reason or f'{label} failed: {detail}'}")
-        error = StepFailure if label == self.DO_STEP and status == 2 else SimulationError
-        raise error(f"component '{self.name}': {label} failed: {detail}"
-                    + (f" ({reason})" if reason else ""), time=self.time)
-
-    def _release(self) -> None:
-        """Free an instance that failed in initialization (nothing after Fatal)."""
-        if self.fmu is None:
-            return
-        if not self.fatal:
-            try:
-                if self.fmu.component:
-                    self.fmu.freeInstance()
-                else:
-                    self.fmu.freeLibrary()
-            except Exception:  # the refusal being reported matters more than a leak
-                pass
-        self.fmu.component = None
 
     # --- values by dsim's kinds -------------------------------------------------------
     def _get_values(self, variables) -> list:

@@ -24,9 +24,10 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2FMUstate, fmi2ValueReference
 
-from dsim.master.errors import InputError, SimulationError, StepFailure
+from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
+from dsim.master.running.fmi.checkpoint import Checkpoint
 from dsim.master.running.fmi.messages import CALLBACKS2, errors_logged, forget, logged_error
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
@@ -143,7 +144,7 @@ def _batches(owner, variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
     return batches, places
 
 
-class FmuSubsystem(Subsystem):
+class FmuSubsystem(Checkpoint, Subsystem):
     """An FMU instance made from a :class:`SubsystemSpec`, glued at its port dofs."""
 
     def __init__(self, spec: SubsystemSpec):
@@ -212,27 +213,6 @@ class FmuSubsystem(Subsystem):
         self._set_parameters(spec.parameters, variables)
 
     # --- the checkpoint every FMI call passes ----------------------------------------
-    def _fail(self, label: str, detail: str, status: int = 3):
-        """Raise the error of a call that returned ``status`` (fmi2Discard or worse):
-        InputError while initialising, when the instance is freed at once."""
-        reason = logged_error(self.name)
-        if status == 4:
-            # FMI 2.0 allows no further call after fmi2Fatal, not even a free (and
-            # pythonfmu 0.7 has released the instance's Python objects when it returns
-            # it: its fmi2FreeInstance would release them twice)
-            self.fatal = True
-        if self._initializing:
-            self._release()
-            raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
-                             f"initialised with these parameters: "
-                             f"{reason or f'{label} failed: {detail}'}")
-        # a discarded step (fmi2Discard from fmi2DoStep) may pass when it is smaller:
-        # the coupling restores the step's start and cuts it where it can
-        error = StepFailure if label == "fmi2DoStep" and "fmi2Discard" in detail else \
-            SimulationError
-        raise error(f"component '{self.name}': {label} failed: {detail}"
-                    + (f" ({reason})" if reason else ""), time=self.time)
-
     def _call(self, label: str, function, *args):
         """Call through fmpy's convenience layer (set-up, rare calls)."""
         try:
@@ -246,21 +226,6 @@ class FmuSubsystem(Subsystem):
         if self._initializing and errors_logged(self.name):
             self._fail(label, "it logged an error and returned fmi2OK")
         return result
-
-    def _release(self) -> None:
-        """Free the instance that failed in initialization (fmi2FreeInstance; fmpy then
-        closes the library), or only close the library when fmi2Instantiate made none;
-        nothing after fmi2Fatal.  This object may live on (a traceback holds it): the
-        instance is marked gone so that no call can reach it."""
-        if not self.fatal:
-            try:
-                if self.fmu.component is not None:
-                    self.fmu.freeInstance()
-                else:
-                    self.fmu.freeLibrary()
-            except Exception:  # the refusal being reported matters more than a leak
-                pass
-        self.fmu.component = None
 
     def call(self, name: str) -> _Call:
         """The time loop's binding of FMI function ``name`` (one per name)."""

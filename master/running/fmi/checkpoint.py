@@ -1,0 +1,53 @@
+"""What happens when an FMI call fails, the same for every adapter: the error names
+the component, the call, its status and what the instance logged; while the instance
+is being initialised with the scene's parameters it is bad input (InputError, exit 2)
+and the instance is freed at once; after Fatal no call may follow."""
+from __future__ import annotations
+
+from dsim.master.errors import InputError, SimulationError, StepFailure
+from dsim.master.running.fmi.messages import logged_error
+
+
+class Checkpoint:
+    """Mixed into an adapter that has ``name``, ``path``, ``fmu`` (fmpy's object),
+    ``time``, ``fatal``, ``_initializing`` and ``_location``."""
+
+    #: the counter's name of a step (a Discard from it may pass when the step is cut)
+    DO_STEP = "fmi2DoStep"
+
+    def _fail(self, label: str, detail: str, status: int = 3):
+        """Raise the error of a call that returned ``status`` (Discard or worse):
+        InputError while initialising, when the instance is freed at once."""
+        reason = logged_error(self.name)
+        if status == 4:
+            # FMI allows no further call after Fatal, not even a free (and pythonfmu 0.7
+            # has released the instance's Python objects when it returns it: its
+            # fmi2FreeInstance would release them twice)
+            self.fatal = True
+        if self._initializing:
+            self._release()
+            raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
+                             f"initialised with these parameters: "
+                             f"{reason or f'{label} failed: {detail}'}")
+        # a discarded step may pass when it is smaller: the coupling restores the
+        # step's start and cuts it where it can
+        error = StepFailure if label == self.DO_STEP and status == 2 else SimulationError
+        raise error(f"component '{self.name}': {label} failed: {detail}"
+                    + (f" ({reason})" if reason else ""), time=self.time)
+
+    def _release(self) -> None:
+        """Free the instance that failed in initialization (fmpy then closes the
+        library), or only close the library when instantiation made none; nothing
+        after Fatal.  This object may live on (a traceback holds it): the instance is
+        marked gone so that no call can reach it."""
+        if self.fmu is None:
+            return
+        if not self.fatal:
+            try:
+                if self.fmu.component:
+                    self.fmu.freeInstance()
+                else:
+                    self.fmu.freeLibrary()
+            except Exception:  # the refusal being reported matters more than a leak
+                pass
+        self.fmu.component = None
