@@ -79,8 +79,9 @@ SETTINGS = {s.keyword: s for s in (
             "compliance)"),
     Setting("coupling", "coupling", str, "choice",
             "iterative: T-T Newton with rollback; explicit: one trial per step (a "
-            "baseline); causal: no joints, causal connections only; strong: no joints, "
-            "the connections between FMUs that can roll back iterated to convergence"),
+            "baseline); causal: no joints, causal connections only; strong: the "
+            "connections between FMUs that can roll back iterated to convergence, around "
+            "the joints' Newton"),
     Setting("start", "start", str, "choice",
             "start forces: auto (flexible joints from their law), consistent (fixed "
             "joints too, from acceleration compatibility) or rest (zero)"),

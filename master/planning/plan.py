@@ -87,6 +87,9 @@ class Plan:
     #: for each, where its inputs are in ``transfer``'s flat values
     loops: tuple = ()
     loop_positions: tuple = ()
+    #: the components whose connections the strong coupling iterates (they can roll
+    #: back and take part in a connection moved every step)
+    iterated: tuple[int, ...] = ()
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -380,10 +383,6 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     if problem:
         problems.append(problem)
     coupling = scene.master.coupling
-    if scene.joints and coupling == "strong":
-        problems.append(f"{scene.file}: coupling 'strong' iterates connections; the scene's "
-                        f"{len(scene.joints)} joints are glued by the iterative coupling "
-                        "(connections and joints iterated together: not yet)")
     if scene.joints and coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
                         f"{len(scene.joints)} joints: use iterative or explicit")
@@ -466,12 +465,15 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         text_index = [text_index[i] for i in text_selected]
     glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
     loops = find_loops(scene, numbers, chosen)
+    iterated = ()
     if coupling == "strong":
-        glued = _iterated(scene, numbers, chosen)
+        iterated = _iterated(scene, numbers, chosen)
+        if not scene.joints:
+            glued = iterated
         connected = {p for link in numbers if link.every_step for p in (link.start[0],
                                                                           link.end[0])}
         exchanged = [c.path for i, c in enumerate(scene.components)
-                     if c.path in connected and i not in glued]
+                     if c.path in connected and i not in iterated and i not in glued]
         if exchanged:
             warnings.append(f"{scene.file}: coupling 'strong': {', '.join(exchanged[:5])}"
                             f"{', ...' if len(exchanged) > 5 else ''} cannot roll back: "
@@ -489,4 +491,5 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                 backend_options, selected, every,
                 tuple([outputs] if isinstance(outputs, str) else outputs or ()),
                 None if output_interval is None else float(output_interval),
-                loops=loops, loop_positions=_loop_positions(loops, paths, writes))
+                loops=loops, loop_positions=_loop_positions(loops, paths, writes),
+                iterated=iterated)

@@ -218,9 +218,12 @@ class Execution:
         if plan.loops:
             self.coupling.loop_solver = LoopSolver(plan.transfer, plan.loops,
                                                    plan.loop_positions, settings)
-        if plan.coupling == "strong":  # names for the message of an input that fails
+        if plan.coupling == "strong":
+            self.coupling.iterate(plan.iterated)
+            # names for the message of an input that fails
             self.coupling.labels = tuple(f"'{plan.specs[g].name}.{name}'"
-                                         for g in plan.glued for name in plan.specs[g].writes)
+                                         for g in self.coupling.group
+                                         for name in plan.specs[g].writes)
         if plan.variable_steps and hasattr(self.coupling, "cut_limit"):
             self.coupling.cut_limit = settings.step_cuts
         self.coupling.start(glued.kinematics() if layout.size else None, forces)

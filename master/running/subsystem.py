@@ -29,6 +29,9 @@ class Subsystem(ABC):
 
     def __init__(self):
         self._dirty = False
+        #: connected inputs ramping over the step, written again after each restore
+        #: (:meth:`hold_inputs`; the strong coupling iterates them around a joint Newton)
+        self._held = None
         #: FMI function (or core method) -> [calls, seconds]
         self.counters: dict[str, list] = defaultdict(lambda: [0, 0.0])
 
@@ -101,6 +104,8 @@ class Subsystem(ABC):
         The first trial of a macro step needs no restore."""
         if self._dirty:
             self.restore_state()
+            if self._held is not None:  # a restored FMU state holds the old inputs
+                self.write_input_ramp(*self._held)
         kinematics = self.advance(forces, time, step_size)
         self._dirty = True
         return kinematics
@@ -124,6 +129,13 @@ class Subsystem(ABC):
         (at its end) over the next step of ``step_size`` s: a subsystem that cannot
         interpolate inputs holds ``end``."""
         self.write_inputs(end)
+
+    def hold_inputs(self, start, end, step_size: float) -> None:
+        """Connected inputs ramping from ``start`` to ``end`` over the step, written now
+        and after every restore of this step's trials (None: none held)."""
+        self._held = None if end is None else (start, end, step_size)
+        if end is not None:
+            self.write_input_ramp(start, end, step_size)
 
     def trial_exchange(self, start, end, time: float, step_size: float) -> np.ndarray:
         """Step from the saved state (restored when a trial ran since) with connected

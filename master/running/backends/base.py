@@ -70,6 +70,12 @@ class Backend(ABC):
         its outputs; the outputs of every subsystem."""
 
     @abstractmethod
+    def hold_inputs(self, ramps) -> None:
+        """Each subsystem's connected inputs ramping as ``ramps`` say ((start, end,
+        step_size) per subsystem), written again after every restore
+        (:meth:`Subsystem.hold_inputs`)."""
+        raise NotImplementedError
+
     def trial_exchange(self, time: float, step_size: float, ramps) -> list:
         """Every subsystem stepped from its saved state with its connected inputs
         ramping as ``ramps`` say ((start, end) or (None, None) per subsystem); the

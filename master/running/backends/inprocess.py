@@ -50,6 +50,10 @@ class InProcessBackend(Backend):
             subsystems[index].write_inputs(values)
         return [s.exchange(time, step_size) for s in subsystems]
 
+    def hold_inputs(self, ramps) -> None:
+        for subsystem, (start, end, step_size) in zip(self.subsystems, ramps):
+            subsystem.hold_inputs(start, end, step_size)
+
     def trial_exchange(self, time, step_size, ramps):
         return [s.trial_exchange(start, end, time, step_size)
                 for s, (start, end) in zip(self.subsystems, ramps)]

@@ -283,6 +283,10 @@ class RayBackend(Backend):
             calls.append(("exchange", (time, step_size)))
         return [results[-1] for results in self._run(steps, time)]
 
+    def hold_inputs(self, ramps) -> None:
+        self._each("hold_inputs", [r[0] for r in ramps], [r[1] for r in ramps],
+                   [r[2] for r in ramps], answer=False)
+
     def trial_exchange(self, time, step_size, ramps):
         n = len(self.members)
         outputs = self._each("trial_exchange", [r[0] for r in ramps], [r[1] for r in ramps],
