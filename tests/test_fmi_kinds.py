@@ -39,7 +39,7 @@ def kinds(tmp_path_factory):
 
 
 def scene(path: Path, components: dict, connections=(), stop=2.0, step=0.01, master="",
-          gluing="", outputs=None) -> Path:
+          gluing="", units="") -> Path:
     """An .ssp of ``components`` (name -> (fmu, implementation, extra XML inside the
     component)), ``connections`` ((start, connector, end, connector)), a Master
     annotation (``master``: extra attributes) and a gluing annotation."""
@@ -58,6 +58,7 @@ def scene(path: Path, components: dict, connections=(), stop=2.0, step=0.01, mas
     xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
   <ssd:System name="root"><ssd:Elements>{elements}</ssd:Elements>
     {f"<ssd:Connections>{links}</ssd:Connections>" if links else ""}{annotations}</ssd:System>
+  {units}
   <ssd:DefaultExperiment startTime="0" stopTime="{stop}"><ssd:Annotations>
     <ssc:Annotation type="org.dsim.master"><glue:Master xmlns:glue="urn:dsim:gluing:1"
       step="{step}" {master}/></ssc:Annotation></ssd:Annotations></ssd:DefaultExperiment>
@@ -462,3 +463,26 @@ def test_strong_coupling_with_joints_runs_in_ray_workers_as_here(kinds, built, t
 
     _, here, path = _controlled_pair(kinds, built, tmp_path, "strong", 0.01)
     same_run(here, dsim.simulate(path, backend="ray"))
+
+
+def test_an_fmi3_output_feeds_an_fmi2_input_in_another_unit(kinds, tmp_path, capsys):
+    """A mixed system: the FMI 3.0 oscillator's position (Float64, m from its
+    UnitDefinitions) feeds an FMI 2.0 feedthrough whose input the SSD declares in mm:
+    y = 0.5 (1000 x) + 1, x = cos t; a connector in seconds is refused in one line."""
+    def mixed(unit: str) -> Path:
+        return scene(tmp_path / f"mixed_{unit}.ssp",
+                     {"osc": (kinds("oscillator", "3.0"), "CoSimulation", ""),
+                      "gain": (kinds("feedthrough"), "CoSimulation",
+                               '<ssd:Connectors><ssd:Connector name="u" kind="input">'
+                               f'<ssc:Real unit="{unit}"/></ssd:Connector></ssd:Connectors>')},
+                     [("osc", "P.u_x", "gain", "u")], stop=1.0,
+                     units='<ssd:Units><ssc:Unit name="mm"><ssc:BaseUnit m="1" '
+                           'factor="0.001"/></ssc:Unit><ssc:Unit name="s"><ssc:BaseUnit '
+                           's="1"/></ssc:Unit></ssd:Units>')
+    result = dsim.simulate(mixed("mm"))
+    assert result.ok, result.statistics["message"]
+    t = result["time"][1:]  # each step's input: the position at the step's start
+    assert np.max(np.abs(result["gain.y"][1:] - (500.0 * np.cos(t - 0.01) + 1.0))) < 1e-9
+    assert main(["validate", str(mixed("s"))]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "are not the same dimension" in lines[0]
