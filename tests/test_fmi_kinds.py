@@ -486,3 +486,35 @@ def test_an_fmi3_output_feeds_an_fmi2_input_in_another_unit(kinds, tmp_path, cap
     assert main(["validate", str(mixed("s"))]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "are not the same dimension" in lines[0]
+
+
+@pytest.fixture(scope="module")
+def typed(tmp_path_factory):
+    """The FMI 3.0 co-simulation FMU of every value type (tests/third_party/kinds)."""
+    from tests.third_party.kinds.build import build_typed_array
+
+    return build_typed_array(tmp_path_factory.mktemp("typed"))
+
+
+def test_fmi3_value_types_and_arrays_are_recorded_set_and_connected(kinds, typed, tmp_path):
+    """FMI 3.0 arrays as name[i] columns, Float32, Int32, Boolean, Enumeration and
+    String outputs recorded; an array element, an Int64, a UInt8 and a String set with
+    --set-like parameters; a connection into one element of an input array.  x_i =
+    c_i + (1 - c_i) exp(-k_i t) with c_i = gain8 u_i / k_i, exact per step."""
+    path = scene(tmp_path / "typed.ssp", {"t": (typed, "", ""),
+                                          "src": (kinds("feedthrough"), "CoSimulation",
+                                                  _binding({"c": ("Real", 2.0)}))},
+                 [("src", "y", "t", "u[1]")], stop=0.1, step=0.01)
+    result = dsim.simulate(path, out=tmp_path / "typed.csv", parameters={
+        "t.k[2]": 4.0, "t.offset": 5, "t.gain8": 3, "t.label": "abc"})
+    assert result.ok, result.statistics["message"]
+    t = result["time"]
+    c1 = 3 * 2.0 / 1.0  # gain8 u1 / k1, u1 = src.y = 0.5 * 0 + 2
+    assert np.max(np.abs(result["t.x[1]"][1:] - (c1 + (1 - c1) * np.exp(-t[1:])))) < 1e-12
+    assert np.max(np.abs(result["t.x[2]"] - np.exp(-4 * t))) < 1e-12
+    assert np.max(np.abs(result["t.x[3]"] - np.exp(-3 * t))) < 1e-12
+    x_sum = result["t.x[1]"] + result["t.x[2]"] + result["t.x[3]"]
+    assert np.max(np.abs(result["t.x_sum"] - x_sum)) < 1e-6  # a Float32
+    assert list(result["t.steps"]) == [5 + n for n in range(len(t))]
+    assert set(result["t.positive"]) == {1.0} and result["t.mode"][-1] == 2.0  # On
+    assert result["t.status"][-1] == f"abc:{5 + len(t) - 1}"

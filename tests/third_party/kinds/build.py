@@ -11,6 +11,10 @@ instantiated.
 
     build_fmu(folder, "bouncing_ball", fmi_version="3.0", interfaces=("ModelExchange",))
 
+One FMU stands apart: typed_array (typed_array3.c, standalone, FMI 3.0 Co-Simulation
+only) has arrays and variables of the FMI 3.0 types beyond Float64, which the skeletons
+cannot have; :func:`build_typed_array` builds it.
+
 :data:`MODELS` describes each model's variables (value references as the C file's
 enum numbers them); its start values must be the C file's own (the tests check them).
 """
@@ -475,3 +479,126 @@ def build_memcheck(folder, model, fmi_version: str = "2.0", can_save_state: bool
                     str(model.source), "-o", str(program), "-lm"],
                    check=True, capture_output=True, text=True)
     return program
+
+
+# ---- typed_array: the FMI 3.0 Co-Simulation FMU of typed_array3.c ----
+
+#: the variables of typed_array3.c (its enum numbers the same value references):
+#: name -> (value reference, FMI 3.0 type, size (an array: > 1), start or None)
+TYPED_ARRAY_VARIABLES = {
+    "time": (TIME_VR, "Float64", 1, None),
+    "k": (1, "Float64", 3, (1.0, 2.0, 3.0)),
+    "u": (2, "Float64", 3, (0.0, 0.0, 0.0)),
+    "x": (3, "Float64", 3, None),
+    "x_sum": (4, "Float32", 1, None),
+    "steps": (5, "Int32", 1, None),
+    "offset": (6, "Int64", 1, 0),
+    "positive": (7, "Boolean", 1, None),
+    "label": (8, "String", 1, "typed"),
+    "status": (9, "String", 1, None),
+    "mode": (10, "Enumeration", 1, None),
+    "gain8": (11, "UInt8", 1, 1),
+}
+#: the items of typed_array's EnumerationType "Mode" (the type of "mode")
+TYPED_ARRAY_MODES = {"Off": 1, "On": 2}
+
+
+def typed_array_description(guid: str, can_save_state: bool = True,
+                            identifier: str = "typed_array") -> str:
+    """The modelDescription.xml of typed_array3.c (FMI 3.0, Co-Simulation only)."""
+    state = _bool(can_save_state)
+    vr = {name: v[0] for name, v in TYPED_ARRAY_VARIABLES.items()}
+    array = '><Dimension start="3"/></Float64>'
+    variables = f"""\
+    <Float64 name="time" valueReference="{vr['time']}" causality="independent"
+        variability="continuous" description="simulation time"/>
+    <Float64 name="k" valueReference="{vr['k']}" causality="parameter" variability="fixed"
+        description="decay rates" start="1 2 3"{array}
+    <Float64 name="u" valueReference="{vr['u']}" causality="input"
+        description="inputs, held over a step" start="0 0 0"{array}
+    <Float64 name="x" valueReference="{vr['x']}" causality="output" initial="calculated"
+        description="the states: x' = -k x + gain8 u, x(start) = 1"{array}
+    <Float32 name="x_sum" valueReference="{vr['x_sum']}" causality="output"
+        initial="calculated" description="the sum of x"/>
+    <Int32 name="steps" valueReference="{vr['steps']}" causality="output"
+        variability="discrete" initial="calculated"
+        description="the number of fmi3DoStep calls plus offset"/>
+    <Int64 name="offset" valueReference="{vr['offset']}" causality="parameter"
+        variability="fixed" start="0" description="added to steps"/>
+    <Boolean name="positive" valueReference="{vr['positive']}" causality="output"
+        variability="discrete" initial="calculated" description="x_sum &gt; 0"/>
+    <String name="label" valueReference="{vr['label']}" causality="parameter"
+        variability="fixed" description="the prefix of status">
+      <Start value="typed"/>
+    </String>
+    <String name="status" valueReference="{vr['status']}" causality="output"
+        variability="discrete" initial="calculated" description="label:steps"/>
+    <Enumeration name="mode" valueReference="{vr['mode']}" declaredType="Mode"
+        causality="output" variability="discrete" initial="calculated"
+        description="On when some u is not 0, else Off"/>
+    <UInt8 name="gain8" valueReference="{vr['gain8']}" causality="input"
+        variability="discrete" start="1" description="the gain of u"/>"""
+    outputs = ("x", "x_sum", "steps", "positive", "status", "mode")
+    structure = "".join(
+        f'\n    <Output valueReference="{vr[name]}" dependencies="{vr["u"]}"'
+        ' dependenciesKind="dependent"/>' if name == "mode" else
+        f'\n    <Output valueReference="{vr[name]}" dependencies="" dependenciesKind=""/>'
+        for name in outputs)
+    structure += "".join(f'\n    <InitialUnknown valueReference="{vr[name]}"/>'
+                         for name in outputs)
+    items = "".join(f'\n      <Item name="{name}" value="{value}"/>'
+                    for name, value in TYPED_ARRAY_MODES.items())
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="{identifier}"
+    description="x' = -k x + gain8 u for arrays of 3, with outputs of every kind"
+    generationTool="dsim tests/third_party/kinds" variableNamingConvention="structured"
+    instantiationToken="{guid}">
+  <CoSimulation modelIdentifier="{identifier}" canGetAndSetFMUState="{state}"
+      canSerializeFMUState="{state}" providesDirectionalDerivatives="false"
+      providesAdjointDerivatives="false" canHandleVariableCommunicationStepSize="true"
+      hasEventMode="false" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false"
+      mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false"
+      providesEvaluateDiscreteStates="false"/>
+  <TypeDefinitions>
+    <EnumerationType name="Mode">{items}
+    </EnumerationType>
+  </TypeDefinitions>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.01"/>
+  <ModelVariables>
+{variables}
+  </ModelVariables>
+  <ModelStructure>{structure}
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def build_typed_array(folder, can_save_state: bool = True) -> Path:
+    """Compile typed_array3.c (a standalone FMI 3.0 Co-Simulation FMU: arrays and every
+    FMI 3.0 type but binaries and clocks, see :data:`TYPED_ARRAY_VARIABLES`) and pack
+    ``folder/typed_array.fmu`` (``binaries/x86_64-linux/typed_array.so``, a fresh
+    instantiationToken checked when instantiated).  With ``can_save_state=False``:
+    ``folder/typed_array_nostate.fmu``, which declares and implements no FMU-state
+    saving (raises when there is no gcc)."""
+    if shutil.which("gcc") is None:
+        raise RuntimeError("no C compiler (gcc) on this machine")
+    identifier = "typed_array"
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    name = identifier if can_save_state else f"{identifier}_nostate"
+    guid = f"{{{uuid.uuid4()}}}"
+    headers = Path(fmpy.__file__).parent / "c-code"
+    library = folder / f"{name}.so"
+    flags = [f'-DMODEL_GUID="{guid}"'] + ([] if can_save_state else ["-DNO_STATE"])
+    subprocess.run(["gcc", "-shared", "-fPIC", "-O2", "-std=c99", "-fvisibility=hidden",
+                    *flags, f"-I{headers}", str(HERE / "typed_array3.c"),
+                    "-o", str(library), "-lm"], check=True)
+    fmu = folder / f"{name}.fmu"
+    try:
+        with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+            archive.writestr("modelDescription.xml",
+                             typed_array_description(guid, can_save_state, identifier))
+            archive.write(library, f"binaries/{_platform('3.0')}/{identifier}.so")
+    finally:
+        library.unlink()
+    return fmu
