@@ -32,7 +32,7 @@ def one_pair(folder: Path, samples: int) -> dict:
     """Wall seconds of the study serially and on Ray (and the sum of the Ray points'
     own wall times), the machine's ceiling just before, and their KPIs compared."""
     from benchmarks.ray_speedup import machine_ceiling
-    from dsim.master.tools.sweep import run_sweep
+    from dsim.master.sweeps.sweep import run_sweep
 
     timings = {"ceiling": machine_ceiling(2)}
     kpis = {}

@@ -35,8 +35,8 @@ from pathlib import Path
 from dsim.build_fmus.linkage_scenes import FOUR_BAR
 from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
-from dsim.master.reading.ssp import load_scene
-from dsim.master.tools.sweep import error_against
+from dsim.master.planning.load import load_scene
+from dsim.master.sweeps.sweep import error_against
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The seed's Table 5.1 (refreshes, total iterations; None: failed at a singular point).

@@ -1,6 +1,6 @@
 """How far each column of a scene moves when only the OpenBLAS kernels change: per
 kernel, the largest difference from the run with the default kernel, next to the
-spread ``dsim regress --update`` stores as the band's floor (dsim.master.tools.kernel_study).
+spread ``dsim regress --update`` stores as the band's floor (dsim.master.checks.kernel_study).
 
     python -m benchmarks.kernel_noise [SCENE ...] [--out docs/kernel_noise.md]
 
@@ -20,8 +20,8 @@ import numpy as np
 from dsim.master.api import simulate
 from dsim.master.recording.output_files import write_whole
 from dsim.master.recording.results import read_columns
-from dsim.master.tools.compare import NOISE_FACTOR
-from dsim.master.tools.kernel_study import study
+from dsim.master.checks.compare import NOISE_FACTOR
+from dsim.master.checks.kernel_study import study
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ("four_bar_singular_fixed", "four_bar_singular_penalized",

@@ -123,7 +123,7 @@ def sweep_pair(scene, out: Path, repetitions: int, ceilings,
                calm: float = 0.0) -> list[tuple[float, float]]:
     """Wall seconds of one sweep, serial then one point per worker, per repetition (the
     machine's ceiling measured before each, appended to ``ceilings``)."""
-    from dsim.master.tools.sweep import Sweep, run_sweep
+    from dsim.master.sweeps.sweep import Sweep, run_sweep
 
     grid = {"predictor": ["none", "constant", "linear", "quadratic"],
             "tolerance": ["1e-10", "1e-12"]}

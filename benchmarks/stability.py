@@ -25,7 +25,7 @@ import numpy as np
 from examples.testbed import Testbed, energy, monolithic, write_scene
 from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
-from dsim.master.tools.sweep import error_against
+from dsim.master.sweeps.sweep import error_against
 
 ROOT = Path(__file__).resolve().parent.parent
 COUPLINGS = ("iterative", "explicit")

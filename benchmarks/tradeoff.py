@@ -18,7 +18,7 @@ from dsim.build_fmus.twins import FRAME_OUTPUT
 from dsim.build_fmus.twins.spring_mass import monolithic as spring_mass_monolithic
 from dsim.fmus.elastic.frame import STEP_SIZE, monolithic_frame
 from dsim.master.api import simulate
-from dsim.master.tools.sweep import error_against
+from dsim.master.sweeps.sweep import error_against
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "results" / "tradeoff"

@@ -36,7 +36,7 @@ _WHERE = {
     "Plan": "planning.plan",
     "RunResult": "recording.results", "read_columns": "recording.results",
     "read_csv": "recording.results",
-    "load_scene": "reading.ssp",
+    "load_scene": "planning.load",
 }
 
 __all__ = sorted(_WHERE) + ["__version__"]

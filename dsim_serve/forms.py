@@ -1,6 +1,6 @@
 """What the web forms send, read into dsim's terms: run settings (checked by
 dsim's own rules, :func:`dsim.master.settings.resolve`), sweep grids
-(:func:`dsim.master.tools.sweep.check`), scenes to assemble and parameter edits.  Each reader
+(:func:`dsim.master.sweeps.sweep.check`), scenes to assemble and parameter edits.  Each reader
 returns the value or raises :class:`FormError` listing every problem."""
 from __future__ import annotations
 
@@ -52,8 +52,8 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
     fixed settings (``stop``; ``backend``: ray runs the points side by side), checked
     as ``dsim sweep`` checks a sweep file."""
     from dsim.master.errors import InputError
-    from dsim.master.tools.design import DESIGNS, parse_vary
-    from dsim.master.tools.sweep import Sweep, check
+    from dsim.master.sweeps.design import DESIGNS, parse_vary
+    from dsim.master.sweeps.sweep import Sweep, check
 
     grid = {name: _list(str(fields.get(name) or "")) for name in
             ("step", "tolerance", "coupling", "predictor")}
@@ -97,9 +97,9 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
 
 
 def job_sweep(spec: dict):
-    """The :class:`~dsim.master.tools.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`):
+    """The :class:`~dsim.master.sweeps.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`):
     a sweep file's object whose fixed settings are stored as ``fixed``."""
-    from dsim.master.tools.sweep import sweep_of
+    from dsim.master.sweeps.sweep import sweep_of
 
     data = {key: value for key, value in spec.items() if key != "fixed"}
     return sweep_of({**data, "settings": spec.get("fixed", {})})

@@ -164,7 +164,7 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     import hashlib
 
     from dsim.master.api import prepare
-    from dsim.master.tools.validate import validate
+    from dsim.master.checks.validate import validate
 
     names = check_archive(path, "SSP", max_unpacked)
     if "SystemStructure.ssd" not in names:

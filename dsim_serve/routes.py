@@ -22,7 +22,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import (FileResponse, HTMLResponse, JSONResponse, RedirectResponse,
                                Response, StreamingResponse)
 
-from dsim.master.tools.sweep import TIGHTEST
+from dsim.master.sweeps.sweep import TIGHTEST
 from dsim.serve import diagram, results
 from dsim.serve.forms import (FormError, parameter_edits, run_settings, scene_form, scene_spec,
                               sweep_spec)
@@ -500,8 +500,8 @@ def _run_context(request: Request, run_id: int) -> dict:
 def run_page(request: Request, run_id: int, target: str = ""):
     context = _run_context(request, run_id)
     if context["run"]["kind"] == "sweep":
-        from dsim.master.tools.sensitivity import Index, ranking
-        from dsim.master.tools.sweep_folder import read_sensitivity
+        from dsim.master.sweeps.sensitivity import Index, ranking
+        from dsim.master.sweeps.folder import read_sensitivity
 
         folder = _store(request).run_folder(run_id)
         names, kpis, points = results.sweep_table(folder)
@@ -523,7 +523,7 @@ def run_page(request: Request, run_id: int, target: str = ""):
 
 
 def _cheapest(points, target: float):
-    from dsim.master.tools.sweep import cheapest
+    from dsim.master.sweeps.sweep import cheapest
     return cheapest(points, target)
 
 

@@ -164,7 +164,7 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
     """A ``dsim sweep`` of the scene; its outcome (points as ``point`` lines).  A sweep
     whose points all ran is completed, also when some of them failed: its message says
     how many failed and why (the first reasons); it fails only when no point ran."""
-    from dsim.master.tools.sweep import run_sweep
+    from dsim.master.sweeps.sweep import run_sweep
     from dsim.serve.forms import job_sweep
 
     sweep = job_sweep(job)

@@ -50,9 +50,9 @@ PHYSICS_RANKING = ["left.k_ground[1]", "right.k[1]", "right.m[2]"]
 
 
 def sweep_of(samples: int = SAMPLES, stop: float = STOP, backend: str | None = None):
-    """The study as a :class:`~dsim.master.tools.sweep.Sweep`."""
-    from dsim.master.tools.design import parse_vary
-    from dsim.master.tools.sweep import Sweep
+    """The study as a :class:`~dsim.master.sweeps.sweep.Sweep`."""
+    from dsim.master.sweeps.design import parse_vary
+    from dsim.master.sweeps.sweep import Sweep
 
     fixed = {"stop": stop, **({"backend": backend} if backend else {})}
     return Sweep(vary=[parse_vary(f, sampled=True) for f in FACTORS], design="lhs",
@@ -81,7 +81,7 @@ def twin_kpis(configuration: dict, stop: float = STOP) -> dict:
     """The KPIs of the monolithic twin (eq. 5.37's chain in one model, the scene's
     integrator and step) at a point's parameters."""
     from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
-    from dsim.master.tools.kpi import parse
+    from dsim.master.sweeps.kpi import parse
 
     p = SPRING_MASS
     params = ChainParameters(n=3)
@@ -103,8 +103,8 @@ def main(plot: bool = False, samples: int = SAMPLES, stop: float = STOP,
     Returns the points, each KPI's largest difference from the twin relative to the
     twin's value, the largest gap of the mean position from x_s, and the rankings
     (the sweep's, the twin's) per KPI."""
-    from dsim.master.tools import sensitivity
-    from dsim.master.tools.sweep import run_sweep
+    from dsim.master.sweeps import sensitivity
+    from dsim.master.sweeps.sweep import run_sweep
 
     sweep = sweep_of(samples, stop, backend)
     points, interrupted = run_sweep(SCENE, sweep, Path(out), progress, resumed=resumed)

@@ -11,7 +11,7 @@ from dsim.master.errors import InputError
 from dsim.master.planning.parameters import require_mapping, with_parameters
 from dsim.master.planning.plan import make_plan
 from dsim.master.planning.solver import with_solver
-from dsim.master.reading.ssp import load_scene
+from dsim.master.planning.load import load_scene
 from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter, ProgressBar,
                                              StatisticsWriter)
 from dsim.master.recording.results import RunResult

@@ -182,6 +182,12 @@ class Scene:
     #: values given for this run on top of every binding (``parameters=``, ``--set``):
     #: full name -> the value applied (dsim.master.planning.parameters)
     overrides: dict = field(default_factory=dict)
+    #: the ``glue:Master`` attributes as the file writes them, where they stand, and
+    #: another tool's step where they give none ((text, where, origin) or ()): what
+    #: :mod:`dsim.master.planning.load` converts into ``master`` and ``step_from``
+    master_annotation: dict = field(default_factory=dict)
+    master_where: str = ""
+    other_step: tuple = ()
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

@@ -14,25 +14,23 @@ import math
 from dataclasses import dataclass, fields, replace
 
 from dsim.master.errors import InputError
+from dsim.master.running.backends import BACKENDS
+from dsim.master.running.couplings import COUPLINGS
+from dsim.master.running.couplings.convergence import CONVERGENCE_TESTS
+from dsim.master.running.couplings.predictors import PREDICTORS
+from dsim.master.running.couplings.refresh import REFRESH_POLICIES
+from dsim.master.running.start import START_MODES
 from dsim.master.scene import MasterSettings
+
+#: the registry that holds the valid names of each setting that selects an
+#: implementation (a new entry is a valid setting at once)
+REGISTRIES = {"coupling": COUPLINGS, "predictor": PREDICTORS, "refresh": REFRESH_POLICIES,
+              "convergence": CONVERGENCE_TESTS, "start": START_MODES, "backend": BACKENDS}
 
 
 def _choices(setting: str) -> tuple[str, ...]:
     """Valid names of a setting that selects an implementation (from its registry)."""
-    # imported here: the registries import the modules they register, which need settings
-    if setting == "coupling":
-        from dsim.master.running.couplings import COUPLINGS as registry
-    elif setting == "predictor":
-        from dsim.master.running.couplings.predictors import PREDICTORS as registry
-    elif setting == "refresh":
-        from dsim.master.running.couplings.refresh import REFRESH_POLICIES as registry
-    elif setting == "convergence":
-        from dsim.master.running.couplings.convergence import CONVERGENCE_TESTS as registry
-    elif setting == "start":
-        from dsim.master.running.start import START_MODES as registry
-    else:
-        from dsim.master.running.backends import BACKENDS as registry
-    return tuple(registry)
+    return tuple(REGISTRIES[setting])
 
 
 @dataclass(frozen=True)

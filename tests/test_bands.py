@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from dsim.master.tools.cli import main
-from dsim.master.tools.compare import EPS, NOISE_FACTOR, ULPS, band, compare_files
-from dsim.master.tools.kernel_study import openblas_cores, supported_kernels
-from dsim.master.tools.regress import find_cases
+from dsim.master.checks.compare import EPS, NOISE_FACTOR, ULPS, band, compare_files
+from dsim.master.checks.kernel_study import openblas_cores, supported_kernels
+from dsim.master.checks.regress import find_cases
 from tests.test_compare import write
 
 TIMES = np.linspace(0.0, 1.0, 11)

@@ -14,8 +14,8 @@ import pytest
 from examples import parameter_study as study
 from dsim.master.errors import InputError
 from dsim.master.tools.cli import main
-from dsim.master.tools.design import Design, parse_vary
-from dsim.master.tools.kpi import parse, parse_all
+from dsim.master.sweeps.design import Design, parse_vary
+from dsim.master.sweeps.kpi import parse, parse_all
 from tests.test_nothing_lost import DSIM, ROOT
 
 

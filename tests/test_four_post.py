@@ -9,7 +9,7 @@ import pytest
 from dsim.build_fmus.four_post_scenes import FIDELITY, FOUR_POST
 from examples import four_post
 from dsim.master.api import simulate
-from dsim.master.reading.ssp import load_scene
+from dsim.master.planning.load import load_scene
 from tests.scene_files import edited_archive
 
 #: through the front bump (0.5 to 0.6 s) and a little after; coarse mesh for speed

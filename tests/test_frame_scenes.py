@@ -15,7 +15,7 @@ from dsim.build_fmus.frame_scenes import part_parameters
 from dsim.fmus.elastic.body_spec import build_body, port_node_counts, spec_from_parameters
 from dsim.fmus.elastic.frame import monolithic_frame
 from dsim.master.api import prepare, simulate
-from dsim.master.reading.ssp import load_scene
+from dsim.master.planning.load import load_scene
 from dsim.master.recording.results import read_csv
 from dsim.master.tools.cli import main
 from tests.scene_files import edited_archive

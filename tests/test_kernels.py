@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from dsim.master.recording.results import read_columns
-from dsim.master.tools.kernel_study import blas_name, kernel_environment, supported_kernels
+from dsim.master.checks.kernel_study import blas_name, kernel_environment, supported_kernels
 from tests.conftest import ROOT
 
 #: the kernels forced (where the CPU has them): an old SSE3 CPU, AVX, a desktop's AVX2,

@@ -151,7 +151,7 @@ def test_four_bar_fixed_passes_the_singular_point_on_the_displacement_measure(
     with index-3 rows at A and B under the same rule, closer than the flexible joints
     equal theirs, in fewer iterations per step."""
     from dsim.build_fmus.twins import four_bar_twin
-    from dsim.master.tools.sweep import error_against
+    from dsim.master.sweeps.sweep import error_against
 
     runs = {joints: simulate(built["ssp"] / f"four_bar_singular_{joints}.ssp",
                              tolerance=tolerance, stop=0.5)
@@ -176,7 +176,7 @@ def test_four_bar_penalized_passes_at_1e10(built):
     round-off floor: those steps end on the round-off test, counted, and the run
     passes the singular point as close to its twin as at 1e-8."""
     from dsim.build_fmus.twins import four_bar_twin
-    from dsim.master.tools.sweep import error_against
+    from dsim.master.sweeps.sweep import error_against
 
     run = simulate(built["ssp"] / "four_bar_singular_penalized.ssp", tolerance=1e-10,
                    stop=0.5)

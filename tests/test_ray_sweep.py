@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from dsim.master.tools.cli import main
-from dsim.master.tools.sweep import TIGHTEST, Sweep, run_sweep
+from dsim.master.sweeps.sweep import TIGHTEST, Sweep, run_sweep
 from tests.test_nothing_lost import DSIM, ROOT, block_scene
 
 

@@ -34,7 +34,7 @@ def test_outputs_choose_the_columns_of_the_csv_the_result_and_the_plot(built, tm
 def test_outputs_plot_and_kpis_read_a_column_pattern_alike(built, tmp_path, capsys):
     """One rule for a column pattern everywhere: * and ? are wildcards, brackets are
     part of the names (``right.x[*]`` is every right.x, ``x[12]`` no class of 1 or 2)."""
-    from dsim.master.tools.kpi import parse
+    from dsim.master.sweeps.kpi import parse
 
     scene = built["ssp"] / "spring_mass_linear.ssp"
     result = dsim.simulate(scene, stop=0.1, outputs="right.x[*]", out=tmp_path / "r.csv")

@@ -3,7 +3,7 @@ import zipfile
 
 from fmpy.ssp.ssd import read_ssd
 
-from dsim.master.reading.ssp import load_scene
+from dsim.master.planning.load import load_scene
 from dsim.master.tools.cli import main
 
 NESTED = """<?xml version="1.0" encoding="UTF-8"?>

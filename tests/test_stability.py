@@ -6,7 +6,7 @@ import pytest
 import dsim
 from dsim.master.recording.results import read_columns
 from dsim.master.running.couplings.divergence import EnvelopeWatch, newton_diverging
-from dsim.master.tools.sweep import error_against
+from dsim.master.sweeps.sweep import error_against
 
 
 def envelope_verdict(residuals) -> int | None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import re
 import zipfile
 from collections import Counter
-from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -31,7 +30,6 @@ from dsim.master.reading.ssp_values import (NS, TYPES, apply_mapping, parameter_
                                             parameter_set, transformation, units)
 from dsim.master.reading.unpacking import check_archive, extract
 from dsim.master.scene import Component, Connector, MasterSettings, Scene
-from dsim.master.settings import settings_from_annotation
 
 
 #: the system structure an SSP archive's root holds by default (SSP 1.0, 5.1)
@@ -390,8 +388,10 @@ class _Reader:
 DEFAULT_START, DEFAULT_STOP = 0.0, 1.0
 
 
-def _master_settings(root, shown: str,
-                     problems: list) -> tuple[float, float, MasterSettings, str]:
+def _master_annotation(root, shown: str, problems: list) -> tuple[float, float, dict, tuple]:
+    """Start and stop time, the ``glue:Master`` attributes as the file writes them, and
+    another tool's step where dsim's annotation gives none (the planning layer converts
+    and checks both: :mod:`dsim.master.planning.load`)."""
     experiment = root.find("ssd:DefaultExperiment", NS)
     start, stop = DEFAULT_START, DEFAULT_STOP
     attributes = {}
@@ -403,20 +403,17 @@ def _master_settings(root, shown: str,
             "ssd:Annotations/ssc:Annotation[@type='org.dsim.master']/glue:Master", NS)
         if node is not None:
             attributes = dict(node.attrib)
-    settings = settings_from_annotation(attributes, f"{shown}: glue:Master", problems)
-    if "step" in attributes:
-        return start, stop, settings, "glue:Master"
     # no step of dsim's own: the one OMSimulator or OSP wrote, if any
-    step, step_from = tool_step(root, shown, problems)
-    if step is None:
-        return start, stop, settings, "dsim's default"
-    return start, stop, replace(settings, step=step), step_from
+    other = () if "step" in attributes else (tool_step(root, shown) or ())
+    return start, stop, attributes, other
 
 
-def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None) -> Scene:
+def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None) -> Scene:
     """Read and check an SSP system; raise InputError listing every problem (or, not
     ``strict``, keep the problems in ``Scene.problems`` when the system could still be
-    read, so that the plan's checks can add theirs).
+    read, so that the plan's checks can add theirs).  The master settings are kept as
+    the file writes them (``Scene.master_annotation``); :func:`dsim.load_scene`
+    (:mod:`dsim.master.planning.load`) converts them.
 
     ``parameter_sets``: parameter sets applied on top of every binding of the scene,
     as if bound to the root system last: each an .ssv file of the scene (its path in
@@ -443,7 +440,7 @@ def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
     for chosen in parameter_sets:
         reader.parameter_set_on_top(chosen)
     components, connections = reader.resolve()
-    start, stop, master, step_from = _master_settings(root, shown, reader.problems)
+    start, stop, annotation, other_step = _master_annotation(root, shown, reader.problems)
     scene_units = units(root, shown, reader.problems)
     _check_references(reader, components, connections)
     problems = tuple(dict.fromkeys(reader.problems))
@@ -456,12 +453,14 @@ def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
     if reference.is_file() and not reference.resolve().is_relative_to(ssd.parent.resolve()):
         reference = None  # a link out of the scene is not its reference
     return Scene(name, path, start, stop, tuple(components), tuple(connections),
-                 tuple(reader.joints), tuple(reader.port_maps), master, tuple(reader.files),
-                 scene_units, root.find("ssd:DefaultExperiment", NS) is not None, problems,
+                 tuple(reader.joints), tuple(reader.port_maps), MasterSettings(),
+                 tuple(reader.files), scene_units,
+                 root.find("ssd:DefaultExperiment", NS) is not None, problems,
                  reference if reference and reference.is_file() else None,
                  {path: resource for path, resource, _ in reader.placements},
-                 tuple(dict.fromkeys(reader.warnings)), root.get("version", ""), step_from,
-                 tuple(parameter_sets))
+                 tuple(dict.fromkeys(reader.warnings)), root.get("version", ""),
+                 parameter_sets=tuple(parameter_sets), master_annotation=annotation,
+                 master_where=f"{shown}: glue:Master", other_step=other_step)
 
 
 def _check_references(reader: _Reader, components, connections) -> None:

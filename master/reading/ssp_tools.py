@@ -20,7 +20,6 @@ from __future__ import annotations
 from lxml import etree
 
 from dsim.master.reading.ssp_values import NS
-from dsim.master.settings import SETTINGS, convert
 
 #: (annotation type, element local name, attribute, what messages call it)
 TOOL_STEPS = (
@@ -41,10 +40,11 @@ def _annotations(root):
             yield from element.findall("ssd:Annotations/ssc:Annotation", NS)
 
 
-def tool_step(root, shown: str, problems: list) -> tuple[float | None, str | None]:
-    """The macro step another tool's annotation sets (s) and where it came from, or
-    (None, None); a value that is not a positive number is a problem naming the
-    element (the default is kept)."""
+def tool_step(root, shown: str) -> tuple[str, str, str] | None:
+    """The macro step another tool's annotation sets, as the file writes it: (text,
+    the element and attribute for a message, where it came from), or None.  The
+    planning layer converts and checks it
+    (:func:`dsim.master.planning.load.with_master_settings`)."""
     for annotation in _annotations(root):
         for kind, name, attribute, tool in TOOL_STEPS:
             if annotation.get("type") != kind:
@@ -57,9 +57,5 @@ def tool_step(root, shown: str, problems: list) -> tuple[float | None, str | Non
                     continue
                 where = (f"{shown} (SystemStructure.ssd line {element.sourceline}): {tool} "
                          f"annotation {name}: {attribute}")
-                value, problem = convert(SETTINGS["step"], text.strip(), where)
-                if problem:
-                    problems.append(problem)
-                    return None, None
-                return value, f"{tool} annotation ({name} {attribute})"
-    return None, None
+                return text, where, f"{tool} annotation ({name} {attribute})"
+    return None

@@ -82,7 +82,7 @@ def _cmd_info(args) -> int:
 
 
 def _cmd_validate(args) -> int:
-    from dsim.master.tools.validate import validate
+    from dsim.master.checks.validate import validate
 
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
     found = validate(args.scene, strict=args.strict, **_run_choices(args), **settings)
@@ -124,8 +124,8 @@ def _cmd_plot(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from dsim.master.tools.compare import band_origin, compare_files
-    from dsim.master.tools.regress import read_noise
+    from dsim.master.checks.compare import band_origin, compare_files
+    from dsim.master.checks.regress import read_noise
 
     columns = args.columns.split(",") if args.columns else None
     noise = read_noise(args.noise) if args.noise else None
@@ -147,8 +147,8 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from dsim.master.tools.design import DESIGNS, parse_vary
-    from dsim.master.tools.sweep import (TIGHTEST, Sweep, cheapest, command_line, read_sweep_file,
+    from dsim.master.sweeps.design import DESIGNS, parse_vary
+    from dsim.master.sweeps.sweep import (TIGHTEST, Sweep, cheapest, command_line, read_sweep_file,
                                          run_sweep)
 
     sweep = read_sweep_file(args.sweep) if args.sweep else Sweep()
@@ -233,8 +233,8 @@ def _cmd_sweep(args) -> int:
 
 def _print_rankings(out: Path) -> None:
     """The factors of each KPI ranked by the sweep's sensitivity table."""
-    from dsim.master.tools.sensitivity import Index, ranking
-    from dsim.master.tools.sweep_folder import read_sensitivity
+    from dsim.master.sweeps.sensitivity import Index, ranking
+    from dsim.master.sweeps.folder import read_sensitivity
 
     rows = read_sensitivity(out)
     indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
@@ -246,8 +246,8 @@ def _print_rankings(out: Path) -> None:
 
 
 def _cmd_regress(args) -> int:
-    from dsim.master.tools.kernel_study import choose_kernels
-    from dsim.master.tools.regress import (KernelChoice, find_cases, junit_xml, run_cases,
+    from dsim.master.checks.kernel_study import choose_kernels
+    from dsim.master.checks.regress import (KernelChoice, find_cases, junit_xml, run_cases,
                                            summary_lines)
 
     if (args.kernels or args.no_kernel_study) and not args.update:

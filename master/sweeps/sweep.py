@@ -3,18 +3,18 @@
 A sweep runs a scene at every point of a grid of settings (macro step, tolerance,
 coupling, predictor, refresh policy, parameter set: anything ``dsim.simulate``
 takes) or of a design of experiments over settings and model parameters
-(:mod:`dsim.master.tools.design`: full-factorial grids, Latin hypercube, Sobol', Halton, Saltelli,
+(:mod:`dsim.master.sweeps.design`: full-factorial grids, Latin hypercube, Sobol', Halton, Saltelli,
 Morris), and measures each: the error against a reference (a results CSV the user
 gives, else the monolithic twin's results a scene ships as ``resources/reference.csv``,
 else the sweep's tightest run; none by default where model parameters vary, since a
 twin at the nominal parameters is no reference for other ones), the quantities of
-interest asked for (:mod:`dsim.master.tools.kpi`), wall time, iterations and doSteps per step,
+interest asked for (:mod:`dsim.master.sweeps.kpi`), wall time, iterations and doSteps per step,
 and whether it stayed stable.  Each finished point is a whole row of ``sweep.csv`` at
 once, so an interrupted or killed sweep keeps them, and a rerun into the same folder
-runs only the points missing (:mod:`dsim.master.tools.sweep_folder`).  At the end (or the
+runs only the points missing (:mod:`dsim.master.sweeps.folder`).  At the end (or the
 interrupt) it writes ``sweep.md`` (a table), ``sweep.png`` (error against wall time,
 the Pareto front marked), and for KPIs ``kpis.png``, ``scatter.png`` and the
-sensitivity indices (:mod:`dsim.master.tools.sensitivity`).
+sensitivity indices (:mod:`dsim.master.sweeps.sensitivity`).
 """
 from __future__ import annotations
 
@@ -29,11 +29,11 @@ import numpy as np
 
 from dsim.master.errors import InputError
 from dsim.master.settings import SETTINGS, convert
-from dsim.master.tools.design import SALIB, Design, Factor, parse_vary, split
-from dsim.master.tools.kpi import parse_all
-from dsim.master.tools.sweep_point import PointRun, keywords
-from dsim.master.tools.sweep_plots import plot_points  # noqa: F401  (its place before the split)
-from dsim.master.tools.sweep_table import MEASURES, Point, SweepTable, markdown  # noqa: F401
+from dsim.master.sweeps.design import SALIB, Design, Factor, parse_vary, split
+from dsim.master.sweeps.kpi import parse_all
+from dsim.master.sweeps.point import PointRun, keywords
+from dsim.master.sweeps.plots import plot_points  # noqa: F401  (its place before the split)
+from dsim.master.sweeps.table import MEASURES, Point, SweepTable, markdown  # noqa: F401
 
 #: the reference named to measure against the sweep's tightest point even where the
 #: scene ships its monolithic twin
@@ -46,7 +46,7 @@ FILE_KEYS = ("grid", "points", "settings", "reference", "columns", "vary", "desi
 @dataclass
 class Sweep:
     """What to sweep: a grid (setting -> values), factors to vary (``vary``: settings or
-    model parameters, :class:`~dsim.master.tools.design.Factor`) by a design (``design``: grid,
+    model parameters, :class:`~dsim.master.sweeps.design.Factor`) by a design (``design``: grid,
     lhs, sobol, halton, saltelli, morris; ``samples`` and ``seed`` of a sampled one) or
     explicit points, settings that hold for every point, the KPIs (``kpis``: ``--kpi``
     texts), the reference and the compared columns."""
@@ -244,7 +244,7 @@ def run_point(scene, settings: dict, results: Path, bars: bool = False) -> Point
 
 def measured(point: Point, run: PointRun, reference, columns, kpis=()) -> Point:
     """``point`` with what its run measured: the error against ``reference`` (if any)
-    and the value of each of ``kpis`` (:class:`~dsim.master.tools.kpi.Kpi`; nan unless the run
+    and the value of each of ``kpis`` (:class:`~dsim.master.sweeps.kpi.Kpi`; nan unless the run
     completed, and where the KPI has none, said in the message)."""
     point.kpis = {k.label: math.nan for k in kpis}
     if run.result is None:
@@ -305,7 +305,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
               resumed=None) -> tuple[list[Point], int | None]:
     """Run every point not already finished in ``out``, writing ``out/sweep.csv`` as
     points finish, then ``out/sweep.md``, ``sweep.png`` and the KPIs' figures and
-    sensitivity (:func:`dsim.master.tools.sweep_folder.write_outputs`); returns every point of the
+    sensitivity (:func:`dsim.master.sweeps.folder.write_outputs`); returns every point of the
     folder and the signal that interrupted the sweep, if one did (SIGINT or SIGTERM
     end the running points after their current step, and the sweep after them, with
     everything written).  ``progress(done, total, point)`` is called as points finish;
@@ -314,11 +314,11 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     terminal (points run one after the other).
 
     With the setting ``backend`` fixed to ``ray`` the points run side by side, one per
-    Ray worker (each in-process inside its worker: master/tools/sweep_ray.py), on a local
+    Ray worker (each in-process inside its worker: master/sweeps/ray_points.py), on a local
     Ray instance or the cluster at ``address``."""
     from dsim.master.api import prepare
     from dsim.master.recording.results import read_columns
-    from dsim.master.tools.sweep_folder import open_folder, spec, write_outputs
+    from dsim.master.sweeps.folder import open_folder, spec, write_outputs
 
     check(sweep)
     kpis = parse_all(sweep.kpis)
@@ -393,7 +393,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     parallel = sweep.fixed.get("backend") == "ray"
     try:
         if parallel:
-            from dsim.master.tools.sweep_ray import run_points
+            from dsim.master.sweeps.ray_points import run_points
             run_points(scene, [(k, configurations[k]) for k in todo], sweep.fixed, out,
                        plan.inputs, finish)
         else:

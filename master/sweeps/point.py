@@ -1,6 +1,6 @@
 """One point of a sweep as ``dsim sweep`` runs it in this process
-(:func:`dsim.master.tools.sweep.run_point`) and a Ray worker runs it
-(:mod:`dsim.master.tools.sweep_ray`): the keywords of its run (:func:`keywords`) and how it
+(:func:`dsim.master.sweeps.sweep.run_point`) and a Ray worker runs it
+(:mod:`dsim.master.sweeps.ray_points`): the keywords of its run (:func:`keywords`) and how it
 ran (:class:`PointRun`), here so that neither of those two modules imports the other."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from dsim.master.tools.design import split
+from dsim.master.sweeps.design import split
 
 
 @dataclass

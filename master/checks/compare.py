@@ -15,7 +15,7 @@ that is zero in exact arithmetic is pure round-off, its own peak no scale at all
 
 ``scale`` is the largest peak among the columns of the same quantity (see
 :func:`quantity`) and ``noise`` the column's spread between OpenBLAS kernels, as
-measured by :mod:`dsim.master.tools.kernel_study` and stored in a baseline's JSON.
+measured by :mod:`dsim.master.checks.kernel_study` and stored in a baseline's JSON.
 """
 from __future__ import annotations
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from dsim.master.recording.output_files import OutputFile
-from dsim.master.tools.kpi import is_label
+from dsim.master.sweeps.kpi import is_label
 
 #: the columns of sweep.csv after the point's values and KPIs
 MEASURES = ("status", "stable", "error", "wall_seconds", "iterations_per_step",

@@ -20,7 +20,7 @@ from pathlib import Path
 from dsim.master.recording.observers import Observer
 from dsim.master.recording.output_files import write_whole
 from dsim.master.running.ray_cluster import Shipment, connect, landed
-from dsim.master.tools.sweep_point import PointRun
+from dsim.master.sweeps.point import PointRun
 
 #: the settings that choose where the sweep runs, not how each point runs
 WHERE = ("backend", "address")
@@ -135,7 +135,7 @@ def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
     from dsim.master.errors import InputError
     from dsim.master.recording.observers import CsvRecorder, StatisticsWriter
     from dsim.master.running.execution import Execution
-    from dsim.master.tools.sweep_point import keywords
+    from dsim.master.sweeps.point import keywords
 
     if shipped is not None:
         scene = landed(shipped)

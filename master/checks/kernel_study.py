@@ -6,7 +6,7 @@ last bits of every factorization differ between machines (and numpy releases).
 one case in a subprocess per kernel the CPU can execute (``python -m dsim.master.tools.cli
 run``: the same code path as a user's run, nothing new to trust) and measures,
 per column, the largest difference seen between any two kernels.  That spread is
-the round-off a regression band must not hang on (:mod:`dsim.master.tools.compare` uses it
+the round-off a regression band must not hang on (:mod:`dsim.master.checks.compare` uses it
 as a floor; ``dsim regress --update`` stores it in the baseline's JSON).
 """
 from __future__ import annotations
@@ -103,7 +103,7 @@ def blas_name() -> str:
         return "unknown"
 
 
-_PROBE = ("import json; from dsim.master.tools.kernel_study import openblas_cores; "
+_PROBE = ("import json; from dsim.master.checks.kernel_study import openblas_cores; "
           "print(json.dumps(openblas_cores()))")
 
 

@@ -8,10 +8,10 @@ baseline folder holds, per scene, ``NAME.csv`` (the stored results) and
      "noise": {"coupler.omega": 1.28e-12}, "study": {"kernels": ...}}
 
 Each case runs with :func:`dsim.simulate` and is compared with
-:func:`dsim.master.tools.compare.compare_files` (a tolerance band over time, with a floor that
+:func:`dsim.master.checks.compare.compare_files` (a tolerance band over time, with a floor that
 round-off cannot cross; first and worst violation per signal).  ``update`` runs
 each case and stores its results as the new baseline instead, and (unless told not
-to) measures with :mod:`dsim.master.tools.kernel_study` how far each column moves between
+to) measures with :mod:`dsim.master.checks.kernel_study` how far each column moves between
 OpenBLAS kernels: ``noise``, the band's floor, with the ``study`` that measured it.
 Nothing else writes a baseline.
 """
@@ -149,7 +149,7 @@ def run_case(case: Case, results: Path, update: bool = False, rtol=None,
     """Run one case into ``results`` and compare it with its baseline (or, with
     ``update``, store it as the baseline, and its kernel study as ``kernels`` says)."""
     from dsim.master.api import simulate
-    from dsim.master.tools.compare import compare_files
+    from dsim.master.checks.compare import compare_files
 
     start = time.perf_counter()
     out = results / f"{case.name}.csv"
@@ -186,7 +186,7 @@ def _store_study(case: Case, kernels: KernelChoice) -> str:
     settings and band kept as they were, ``noise`` and ``study`` replaced; what was
     done, in words.  Without a study the stored noise is kept: it belongs to the
     scene and its settings, and dropping it would tighten the bands below round-off."""
-    from dsim.master.tools.kernel_study import study
+    from dsim.master.checks.kernel_study import study
 
     spec = case.baseline.with_suffix(".json")
     record = json.loads(spec.read_text()) if spec.is_file() else {
@@ -217,7 +217,7 @@ def _store_study(case: Case, kernels: KernelChoice) -> str:
 
 
 def _regression(comparison) -> str:
-    from dsim.master.tools.compare import band_origin
+    from dsim.master.checks.compare import band_origin
 
     parts = []
     if comparison.short:

@@ -1,0 +1,43 @@
+"""A scene as a run uses it: read (:mod:`dsim.master.reading.ssp`, which keeps the
+``glue:Master`` annotation as the file writes it) and its master settings converted
+and checked by the one set of rules of :mod:`dsim.master.settings`.  ``dsim.load_scene``
+is :func:`load_scene`."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+from dsim.master.errors import InputError
+from dsim.master.reading.ssp import read_scene
+from dsim.master.settings import SETTINGS, convert, settings_from_annotation
+
+
+def with_master_settings(scene):
+    """``scene`` with ``master`` and ``step_from`` from its ``glue:Master`` attributes
+    and, where those give no step, another tool's (OMSimulator, OSP); what is wrong with
+    them is added to ``scene.problems`` (the default kept)."""
+    problems = list(scene.problems)
+    settings = settings_from_annotation(scene.master_annotation, scene.master_where, problems)
+    step_from = "glue:Master" if "step" in scene.master_annotation else "dsim's default"
+    if scene.other_step:
+        text, where, origin = scene.other_step
+        value, problem = convert(SETTINGS["step"], text.strip(), where)
+        if problem:
+            problems.append(problem)
+        else:
+            settings, step_from = replace(settings, step=value), origin
+    return replace(scene, master=settings, step_from=step_from,
+                   problems=tuple(dict.fromkeys(problems)))
+
+
+def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None):
+    """Read and check an SSP system (.ssp, folder or .ssd) with its master settings;
+    raise InputError listing every problem (or, not ``strict``, keep them in
+    ``Scene.problems`` when the system could be read, so that the plan adds its own).
+    ``parameter_sets``: parameter sets applied on top of every binding (an .ssv file of
+    the scene, or a ParameterSet's name); ``ssd``: which .ssd of the archive or folder."""
+    scene = with_master_settings(read_scene(path, parameter_sets, strict=False, ssd=ssd))
+    if scene.problems and strict:
+        error = InputError(list(scene.problems))
+        error.warnings = list(scene.warnings)
+        raise error
+    return scene
