@@ -31,6 +31,7 @@ import zipfile
 from pathlib import Path, PurePosixPath
 
 from dsim.master.errors import InputError
+from dsim.master.processes import process_alive
 from dsim.master.recording.output_files import lock_is_free
 
 #: largest unpacked size of an archive (its members added up), bytes
@@ -140,22 +141,12 @@ def remove_folder(folder) -> None:
         os.close(fd)
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def _dead(folder: Path) -> bool:
     """Whether the run that made ``folder`` is provably gone: its lock is free, or it
     has no lock file and the process its name says is gone."""
     lock = folder / _LOCK
     if not os.path.lexists(lock):
-        return not _pid_alive(int(_OURS.match(folder.name).group(1)))
+        return not process_alive(int(_OURS.match(folder.name).group(1)))
     return lock_is_free(lock) is not None
 
 

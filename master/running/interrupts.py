@@ -37,6 +37,8 @@ import sys
 import threading
 import time
 
+from dsim.master.processes import process_alive
+
 #: seconds after a second signal by which the process has ended, whatever hangs
 DEADLINE = 3.0
 #: the signals a run answers
@@ -207,18 +209,8 @@ def kill_descendants() -> None:
     # its memory): wait for that, briefly, so that none of them outlives this process
     deadline = time.monotonic() + 1.0
     while stopped and time.monotonic() < deadline:
-        stopped = {pid for pid in stopped if _alive(pid)}
+        stopped = {pid for pid in stopped if process_alive(pid, zombies=False)}
         time.sleep(0.01)
-
-
-def _alive(pid: int) -> bool:
-    """Whether ``pid`` still runs (a zombie has ended: only its exit status is left)."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as stat:
-            data = stat.read()
-    except OSError:
-        return False
-    return data[data.rindex(b")") + 2:data.rindex(b")") + 3] not in (b"Z", b"X")
 
 
 def _send(pid: int, number: int) -> None:
