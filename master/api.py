@@ -60,11 +60,12 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
         refused = InputError(list(scene.problems) + error.problems)
         refused.warnings = list(scene.warnings)
         raise refused from None
+    changes = {"master": master}
     if "stop" in options:  # the user said when to stop: no default assumed
-        scene = replace(scene, stop_time=options["stop"], experiment=True)
+        changes.update(stop_time=options["stop"], experiment=True)
     if settings.get("step") is not None:  # said by dsim info and validate
-        scene = replace(scene, step_from="the step setting (--step)")
-    return make_plan(replace(scene, master=master), options.get("backend", "in-process"),
+        changes["step_from"] = "the step setting (--step)"
+    return make_plan(replace(scene, **changes), options.get("backend", "in-process"),
                      {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries, strict,
                      outputs, output_interval)
 

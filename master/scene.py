@@ -188,6 +188,9 @@ class Scene:
     master_annotation: dict = field(default_factory=dict)
     master_where: str = ""
     other_step: tuple = ()
+    #: FMU file -> its description (dsim.master.reading.fmi_description.FmuDescription),
+    #: read with the scene for every FMU that passed the checks made without loading it
+    descriptions: dict = field(default_factory=dict)
 
     def component(self, path: str) -> Component:
         """The component at a dotted path."""

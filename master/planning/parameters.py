@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from dsim.master.errors import InputError
+from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 
 #: where a value given for the run came from (``Component.origins``), and how
@@ -102,8 +103,6 @@ def refusal(variable) -> str | None:
 def settable_variables(path: Path, component: str) -> list[Settable]:
     """Every variable of the FMU at ``path`` that a run may set, in the order of its
     modelDescription."""
-    from dsim.master.reading.fmi_description import describe
-
     result = []
     for variable in describe(path).modelVariables:
         if refusal(variable) is not None or variable.type not in KEPT_TYPE:
@@ -244,12 +243,21 @@ def _joint_value(joint, coefficient: str, value) -> tuple[object, str | None]:
 
 
 # --- the scene with the values applied ----------------------------------------------
+def _described(source):
+    """The description of an FMU the scene was not read with (a Scene made by hand),
+    or None where it cannot be read (the plan says why)."""
+    try:
+        return describe(source)
+    except Exception:  # fmpy raises several kinds for a broken description
+        return None
+
+
 def with_parameters(scene, parameters: dict):
     """``scene`` with ``parameters`` (full name -> Python value or text) applied on
     top of every binding; what is wrong with them is added to ``scene.problems`` (one
-    line each), so that the plan reports them with its own findings."""
-    from dsim.master.reading.fmi_description import variables_by_name
-
+    line each), so that the plan reports them with its own findings.  Each FMU's
+    variables come from the descriptions the scene was read with (an FMU without one
+    is refused by the plan, which says why)."""
     if not parameters:
         return scene
     problems: list[str] = []
@@ -260,7 +268,6 @@ def with_parameters(scene, parameters: dict):
     new_files = {path: dict(c.files) for path, c in components.items()}
     joint_changes: dict[str, dict] = {}
     applied, inputs = {}, []
-    described: dict = {}  # FMU file -> its variables by name (None: unreadable)
     base = Path(scene.inputs[0]).parent if scene.inputs else Path(scene.file).parent
     for name, value in parameters.items():
         name = str(name).strip()
@@ -283,14 +290,10 @@ def with_parameters(scene, parameters: dict):
             continue
         path, variable_name = owner
         component = components[path]
-        if component.source not in described:
-            try:
-                described[component.source] = variables_by_name(component.source)
-            except Exception:  # a missing or broken FMU: the plan says what is wrong with it
-                described[component.source] = None
-        variables = described[component.source]
-        if variables is None:
+        description = scene.descriptions.get(component.source) or _described(component.source)
+        if description is None:  # a missing or broken FMU: the plan says what is wrong
             continue
+        variables = description.by_name
         variable = variables.get(variable_name)
         if variable is None:
             settable = [v.name for v in variables.values() if refusal(v) is None]
@@ -339,8 +342,6 @@ def joint_coefficients(joint) -> tuple[str, ...]:
 def master_writes(spec, path: Path) -> set[str]:
     """Names of the inputs of one subsystem that the master writes itself: its glued
     port forces (every step) and the variables connections feed."""
-    from dsim.master.reading.fmi_description import describe
-
     forces = {dof.force for dof in spec.port_dofs}
     names = set(spec.start_writes) | set(spec.text_writes) | set(spec.writes)
     names |= {v.name for v in describe(path).modelVariables

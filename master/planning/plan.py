@@ -137,7 +137,7 @@ def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
         if problem:
             problems.append(f"{where}: {problem}")
             continue
-        description = describe(component.source)
+        description = scene.descriptions.get(component.source) or describe(component.source)
         try:
             chosen[component.path] = chosen_interface(description, component.implementation)
         except ValueError as error:

@@ -183,8 +183,24 @@ def fmu_problem(path: Path, load: bool = True) -> str | None:
     uploads to ``dsim serve``: an FMU's library runs its constructors when loaded)."""
     path = Path(path)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    if (digest, load) not in _CHECKED:
-        _CHECKED[digest, load] = (
-            _archive_problem(path) or _description_problem(path)
-            or _library_bytes_problem(path) or (_library_problem(path) if load else None))
+    if (digest, False) not in _CHECKED:  # what reading the files finds, nothing loaded
+        _CHECKED[digest, False] = (_archive_problem(path) or _description_problem(path)
+                                   or _library_bytes_problem(path))
+    if load and (digest, True) not in _CHECKED:
+        _CHECKED[digest, True] = _CHECKED[digest, False] or _library_problem(path)
     return _CHECKED[digest, load]
+
+
+def descriptions(components) -> dict:
+    """FMU file -> its description (:mod:`dsim.master.reading.fmi_description`), for the
+    components' FMUs that pass every check made without loading them (archive limits,
+    CRCs, a readable description of a version and interface dsim runs, a whole library
+    for this platform); the others the plan reports."""
+    result: dict = {}
+    for component in components:
+        source = component.source
+        if source in result or not source.is_file():
+            continue
+        if fmu_problem(source, load=False) is None:
+            result[source] = describe(source)
+    return {path: found for path, found in result.items() if found is not None}

@@ -20,6 +20,7 @@ from pathlib import Path
 from lxml import etree
 
 from dsim.master.errors import InputError
+from dsim.master.reading.fmu_archive import descriptions
 from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 from dsim.master.reading.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from dsim.master.reading.ssp_hierarchy import (Binding, RawConnection, resolve_bindings,
@@ -460,7 +461,8 @@ def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
                  {path: resource for path, resource, _ in reader.placements},
                  tuple(dict.fromkeys(reader.warnings)), root.get("version", ""),
                  parameter_sets=tuple(parameter_sets), master_annotation=annotation,
-                 master_where=f"{shown}: glue:Master", other_step=other_step)
+                 master_where=f"{shown}: glue:Master", other_step=other_step,
+                 descriptions=descriptions(components))
 
 
 def _check_references(reader: _Reader, components, connections) -> None:
