@@ -26,6 +26,7 @@ from dsim.master.reading.ports import NEEDED, component_ports, joint_port_dofs
 from dsim.master.reading.ssp_values import TYPES
 from dsim.master.reading.units import conversion, fmu_units, variable_unit
 from dsim.master.recording.selection import record_every, select_columns
+from dsim.master.running.backends import BACKENDS
 from dsim.master.running.connections import (Transfer, build_text_transfer, build_transfer,
                                              check_connections)
 from dsim.master.running.fmi import SubsystemSpec
@@ -365,25 +366,18 @@ def _passes(paths: list[str], links) -> int:
         return len(paths)
 
 
-def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
-              load_libraries: bool = True, strict: bool = False, outputs=None,
-              output_interval=None) -> Plan:
-    """Check everything that can be checked without instantiating an FMU; raise
-    InputError listing every problem.  ``load_libraries=False``: no FMU library is
-    loaded, not even in a child process (its bytes are checked).  ``strict``: every
-    warning is a problem too.  ``outputs``, ``output_interval``: what to record
-    (:mod:`dsim.master.recording.selection`)."""
-    from dsim.master.running.backends import BACKENDS
-
-    backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
+def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: bool,
+             strict: bool, output_interval) -> dict:
+    """Every check that needs no FMU instance; what the plan is built from (usable
+    variables, interfaces, ports, records, links, joint sides, warnings, record
+    interval).  InputError listing every problem."""
     problems = list(scene.problems) + check_span(
         scene.start_time, scene.stop_time, scene.master.step, f"{scene.file}: DefaultExperiment")
     problems += BACKENDS[backend].problems(**backend_options)
     every, problem = record_every(output_interval, scene.master.step)
     if problem:
         problems.append(problem)
-    coupling = scene.master.coupling
-    if scene.joints and coupling == "causal":
+    if scene.joints and scene.master.coupling == "causal":
         problems.append(f"{scene.file}: coupling 'causal' cannot glue the scene's "
                         f"{len(scene.joints)} joints: use iterative or explicit")
     warnings = list(scene.warnings)
@@ -394,18 +388,11 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     _check_parameters(scene, usable, problems, warnings)
     _capabilities(scene, usable, problems, chosen)
     for component in scene.components:
-        for name, value in component.solver:
-            problem = solver_problem(name, value)
-            if problem:
-                problems.append(f"{component.location}: {problem}")
+        problems += [f"{component.location}: {problem}" for problem in
+                     (solver_problem(name, value) for name, value in component.solver) if problem]
     records, text_records = _records(scene, usable)
     links = check_connections(scene, usable, problems)
-    fed: dict = {}
-    for link in links:
-        if link.end in fed:
-            problems.append(f"{scene.file}: '{'.'.join(link.end)}' is fed twice, by "
-                            f"'{'.'.join(fed[link.end])}' and '{'.'.join(link.start)}'")
-        fed[link.end] = link.start
+    _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
     if not scene.experiment:
         warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
@@ -415,12 +402,34 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     if strict:
         problems += [f"{warning} (a warning; refused with --strict)" for warning in warnings]
         warnings = []
+    _refuse(problems, warnings)
+    return dict(usable=usable, chosen=chosen, ports=ports, records=records,
+                text_records=text_records, links=links, sides=sides, warnings=warnings,
+                every=every)
+
+
+def _fed_once(scene: Scene, links, problems: list) -> None:
+    """No input may be fed by two connections."""
+    fed: dict = {}
+    for link in links:
+        if link.end in fed:
+            problems.append(f"{scene.file}: '{'.'.join(link.end)}' is fed twice, by "
+                            f"'{'.'.join(fed[link.end])}' and '{'.'.join(link.start)}'")
+        fed[link.end] = link.start
+
+
+def _refuse(problems: list, warnings: list) -> None:
+    """Raise the problems found so far as one InputError (with the warnings)."""
     if problems:
         error = InputError(list(dict.fromkeys(problems)))
         error.warnings = warnings
         raise error
-    paths = [c.path for c in scene.components]
-    layout, _, interfaces = assemble(paths, list(scene.joints), sides)
+
+
+def _moves(paths: list[str], links, records: dict, text_records: dict) -> dict:
+    """What each component reads after every step (its records, then the sources of
+    its outgoing connections) and the transfers that move the connections' values:
+    every step, at initialization (fixed parameters too), and String values."""
     numbers = [link for link in links if link.kind != "String"]
     texts = [link for link in links if link.kind == "String"]
     reads = {p: list(records[p]) for p in paths}
@@ -433,63 +442,107 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                                                      if link.every_step])
     start_transfer, start_writes = build_transfer(paths, reads, numbers)
     text_transfer, text_writes = build_text_transfer(paths, text_reads, texts)
-    recorded, record_index, offset = [], [], 0
+    return dict(numbers=numbers, reads=reads, text_reads=text_reads, transfer=transfer,
+                writes=writes, start_transfer=start_transfer, start_writes=start_writes,
+                text_transfer=text_transfer, text_writes=text_writes)
+
+
+def _specs(scene: Scene, interfaces: dict, checked: dict, moves: dict) -> tuple:
+    """The picklable spec of every component's subsystem."""
+    kinds = _kinds(scene)
+    return tuple(SubsystemSpec(
+        name=c.path, path=c.source, port_dofs=tuple(interfaces[c.path]),
+        parameters=_with_files(c, checked["usable"][c.path]),
+        reads=tuple(moves["reads"][c.path]), writes=tuple(moves["writes"][c.path]),
+        start_time=scene.start_time, stop_time=scene.stop_time, location=c.location,
+        kinds=kinds.get(c.path, (False, False, False)),
+        start_writes=tuple(moves["start_writes"][c.path]),
+        text_reads=tuple(moves["text_reads"][c.path]),
+        text_writes=tuple(moves["text_writes"][c.path]),
+        placement=scene.placements.get(c.path, ""), files=tuple(c.files),
+        interface=checked["chosen"][c.path],
+        fmi_version=(scene.descriptions.get(c.source) or describe(c.source)).fmiVersion,
+        solver=c.solver) for c in scene.components)
+
+
+def _recorded(paths: list[str], reads: dict, records: dict) -> tuple[list, list]:
+    """The recorded (component, variable) pairs and where each is in the flat outputs."""
+    recorded, index, offset = [], [], 0
     for path in paths:
         for i, name in enumerate(reads[path]):
             if name in records[path]:
                 recorded.append((path, name))
-                record_index.append(offset + i)
+                index.append(offset + i)
         offset += len(reads[path])
-    kinds = _kinds(scene)
-    solvers = {c.path: c.solver for c in scene.components}
-    specs = tuple(SubsystemSpec(
-        c.path, c.source, tuple(interfaces[c.path]), _with_files(c, usable[c.path]),
-        tuple(reads[c.path]), tuple(writes[c.path]), scene.start_time, scene.stop_time, c.location,
-        kinds.get(c.path, (False, False, False)), tuple(start_writes[c.path]),
-        tuple(text_reads[c.path]), tuple(text_writes[c.path]),
-        scene.placements.get(c.path, ""), tuple(c.files), chosen[c.path],
-        describe(c.source).fmiVersion, solvers.get(c.path, ())) for c in scene.components)
+    return recorded, index
+
+
+def _coupled(scene: Scene, glued: tuple, numbers, chosen: dict, warnings: list):
+    """The coupling that runs, the glued subsystems and, for the strong coupling, the
+    ones whose connections it iterates (saying which connected ones cannot roll back)."""
+    coupling = scene.master.coupling
+    if coupling != "strong":
+        return (coupling if scene.joints else "causal"), glued, ()
+    iterated = _iterated(scene, numbers, chosen)
+    connected = {p for link in numbers if link.every_step for p in (link.start[0],
+                                                                      link.end[0])}
+    exchanged = [c.path for i, c in enumerate(scene.components)
+                 if c.path in connected and i not in iterated and i not in glued]
+    if exchanged:
+        warnings.append(f"{scene.file}: coupling 'strong': {', '.join(exchanged[:5])}"
+                        f"{', ...' if len(exchanged) > 5 else ''} cannot roll back: "
+                        "their connections' values are exchanged once per step")
+    return coupling, (glued if scene.joints else iterated), iterated
+
+
+def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
+              load_libraries: bool = True, strict: bool = False, outputs=None,
+              output_interval=None) -> Plan:
+    """Check everything that can be checked without instantiating an FMU; raise
+    InputError listing every problem.  ``load_libraries=False``: no FMU library is
+    loaded, not even in a child process (its bytes are checked).  ``strict``: every
+    warning is a problem too.  ``outputs``, ``output_interval``: what to record
+    (:mod:`dsim.master.recording.selection`)."""
+    backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
+    checked = _checked(scene, backend, backend_options, load_libraries, strict,
+                       output_interval)
+    chosen, warnings = checked["chosen"], checked["warnings"]
+    paths = [c.path for c in scene.components]
+    layout, _, interfaces = assemble(paths, list(scene.joints), checked["sides"])
+    moves = _moves(paths, checked["links"], checked["records"], checked["text_records"])
+    recorded, record_index = _recorded(paths, moves["reads"], checked["records"])
+    specs = _specs(scene, interfaces, checked, moves)
+    text_reads, text_records = moves["text_reads"], checked["text_records"]
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
     text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
                   text_reads[p].index(n) for p, n in text_recorded]
     columns = [f"{path}.{name}" for path, name in recorded] + list(layout.labels)
     selected, text_selected, problems = select_columns(
         outputs, columns, [f"{path}.{name}" for path, name in text_recorded])
-    problems += written_by_master(scene, specs, usable)
-    if problems:
-        error = InputError(problems)
-        error.warnings = warnings
-        raise error
+    problems += written_by_master(scene, specs, checked["usable"])
+    _refuse(problems, warnings)
     if text_selected is not None:
         text_recorded = tuple(text_recorded[i] for i in text_selected)
         text_index = [text_index[i] for i in text_selected]
-    glued = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
-    loops = find_loops(scene, numbers, chosen)
-    iterated = ()
-    if coupling == "strong":
-        iterated = _iterated(scene, numbers, chosen)
-        if not scene.joints:
-            glued = iterated
-        connected = {p for link in numbers if link.every_step for p in (link.start[0],
-                                                                          link.end[0])}
-        exchanged = [c.path for i, c in enumerate(scene.components)
-                     if c.path in connected and i not in iterated and i not in glued]
-        if exchanged:
-            warnings.append(f"{scene.file}: coupling 'strong': {', '.join(exchanged[:5])}"
-                            f"{', ...' if len(exchanged) > 5 else ''} cannot roll back: "
-                            "their connections' values are exchanged once per step")
-    return Plan(scene, coupling if scene.joints or coupling == "strong" else "causal",
-                backend, specs,
-                tuple(recorded), np.array(record_index, dtype=int), transfer, glued, sides,
-                ports, start_transfer, _passes(paths, links), tuple(warnings),
-                bool(scene.joints) and coupling == "explicit" and any(
-                    not can_roll_back(scene.components[i].source, chosen[
-                        scene.components[i].path]) for i in glued),
-                text_recorded, tuple(text_index), text_transfer,
-                all(_variable_step(scene.components[i].source, chosen[
-                    scene.components[i].path]) for i in glued),
-                backend_options, selected, every,
-                tuple([outputs] if isinstance(outputs, str) else outputs or ()),
-                None if output_interval is None else float(output_interval),
-                loops=loops, loop_positions=_loop_positions(loops, paths, writes),
-                iterated=iterated)
+    joined = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
+    coupling, glued, iterated = _coupled(scene, joined, moves["numbers"], chosen, warnings)
+    loops = find_loops(scene, moves["numbers"], chosen)
+    components = scene.components
+    return Plan(
+        scene=scene, coupling=coupling, backend=backend, specs=specs,
+        recorded=tuple(recorded), record_index=np.array(record_index, dtype=int),
+        transfer=moves["transfer"], glued=glued, sides=checked["sides"],
+        ports=checked["ports"], start_transfer=moves["start_transfer"],
+        start_passes=_passes(paths, checked["links"]), warnings=tuple(warnings),
+        flexibility_at_start=bool(scene.joints) and coupling == "explicit" and any(
+            not can_roll_back(components[i].source, chosen[components[i].path])
+            for i in glued),
+        text_recorded=text_recorded, text_index=tuple(text_index),
+        text_transfer=moves["text_transfer"],
+        variable_steps=all(_variable_step(components[i].source, chosen[components[i].path])
+                           for i in glued),
+        backend_options=backend_options, selected=selected, record_every=checked["every"],
+        outputs=tuple([outputs] if isinstance(outputs, str) else outputs or ()),
+        output_interval=None if output_interval is None else float(output_interval),
+        loops=loops, loop_positions=_loop_positions(loops, paths, moves["writes"]),
+        iterated=iterated)
