@@ -340,12 +340,8 @@ STRICT_HELP = ("refuse (exit 2) what is otherwise a warning: a rule the files br
                "does not change what the run computes")
 
 
-def parser() -> argparse.ArgumentParser:
-    """The command-line parser."""
-    main_parser = argparse.ArgumentParser(
-        prog="dsim", description="Co-simulation master: glues FMI 2.0 FMUs of an SSP file "
-        "with the T-T gluing algorithm.")
-    commands = main_parser.add_subparsers(dest="command", required=True)
+def _add_run(commands) -> None:
+    """``dsim run``: its settings, run choices and output files."""
     run_parser = commands.add_parser("run", help="run a scene (.ssp, folder or .ssd)")
     run_parser.add_argument("scene")
     _add_settings(run_parser)
@@ -363,6 +359,10 @@ def parser() -> argparse.ArgumentParser:
                             "the run with a message, never dsim")
     run_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
     run_parser.set_defaults(handler=_cmd_run)
+
+
+def _add_validate(commands) -> None:
+    """``dsim validate``: the run's checks, nothing run."""
     validate_parser = commands.add_parser(
         "validate", help="every check of dsim run, without running: one line per finding, "
         "exit 2 when the scene cannot run")
@@ -371,6 +371,10 @@ def parser() -> argparse.ArgumentParser:
     _add_run_choices(validate_parser)
     validate_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
     validate_parser.set_defaults(handler=_cmd_validate)
+
+
+def _add_plot(commands) -> None:
+    """``dsim plot``: signals of results CSVs, overlaid."""
     plot_parser = commands.add_parser(
         "plot", help="a PNG of chosen signals of one or more results CSVs, overlaid")
     plot_parser.add_argument("items", nargs="+", metavar="RESULT.csv|SIGNAL",
@@ -378,6 +382,10 @@ def parser() -> argparse.ArgumentParser:
     plot_parser.add_argument("--out", help="the PNG (default: the first CSV's name .png)")
     plot_parser.add_argument("--title", help="a title")
     plot_parser.set_defaults(handler=_cmd_plot)
+
+
+def _add_sweep(commands) -> None:
+    """``dsim sweep``: grids and designs of experiments (docs/doe.md)."""
     sweep_parser = commands.add_parser(
         "sweep", help="run a scene at every point of a grid of settings or a design of "
         "experiments over settings and model parameters; measure error, KPIs, wall time, "
@@ -418,6 +426,10 @@ def parser() -> argparse.ArgumentParser:
     sweep_parser.add_argument("--target-error", type=float, help="name the cheapest measured "
                               "point whose error is at most this, and its command line")
     sweep_parser.set_defaults(handler=_cmd_sweep)
+
+
+def _add_regress(commands) -> None:
+    """``dsim regress``: scenes against stored baselines (docs/ci.md)."""
     regress_parser = commands.add_parser(
         "regress", help="run every scene of a folder that has a stored baseline and compare "
         "(exit 1 on any regression)")
@@ -443,6 +455,10 @@ def parser() -> argparse.ArgumentParser:
     regress_parser.add_argument("--rtol", type=float, help="override every case's rtol")
     regress_parser.add_argument("--atol", type=float, help="override every case's atol")
     regress_parser.set_defaults(handler=_cmd_regress)
+
+
+def _add_info(commands) -> None:
+    """``dsim info``: what a scene is made of."""
     info_parser = commands.add_parser("info", help="components, capabilities, ports, "
                                       "joints and master settings of a scene")
     info_parser.add_argument("scene")
@@ -450,6 +466,10 @@ def parser() -> argparse.ArgumentParser:
     info_parser.add_argument("--all", action="store_true", help="list every input that "
                              "can be set (default: the first 12 of each component)")
     info_parser.set_defaults(handler=_cmd_info)
+
+
+def _add_compare(commands) -> None:
+    """``dsim compare``: one results CSV against a reference."""
     compare_parser = commands.add_parser(
         "compare", help="compare a results CSV with a reference CSV (exit 1 if it differs)")
     compare_parser.add_argument("result")
@@ -462,6 +482,22 @@ def parser() -> argparse.ArgumentParser:
                                 "dsim regress: its measured kernel noise is the floor of "
                                 "the bands")
     compare_parser.set_defaults(handler=_cmd_compare)
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command-line parser."""
+    main_parser = argparse.ArgumentParser(
+        prog="dsim", description="Co-simulation master: glues the FMUs of an SSP file (FMI 1.0 "
+        "co-simulation, FMI 2.0 and 3.0 co-simulation and Model Exchange) with the T-T gluing "
+        "algorithm.")
+    commands = main_parser.add_subparsers(dest="command", required=True)
+    _add_run(commands)
+    _add_validate(commands)
+    _add_plot(commands)
+    _add_sweep(commands)
+    _add_regress(commands)
+    _add_info(commands)
+    _add_compare(commands)
     # commands of other packages (build_fmus: `dsim build-fmus`), so that the master
     # imports none of them
     for entry in entry_points(group="dsim.commands"):
