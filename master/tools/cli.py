@@ -146,10 +146,12 @@ def _cmd_compare(args) -> int:
     return 0 if comparison.passed else 1
 
 
-def _cmd_sweep(args) -> int:
+def _sweep_of(args):
+    """The sweep the options say: a sweep file's, then the settings swept
+    (``--tolerance 1e-6,1e-8``), the design and its samples and seed, what varies, the
+    KPIs, the reference and the columns compared."""
     from dsim.master.sweeps.design import DESIGNS, parse_vary
-    from dsim.master.sweeps.sweep import (TIGHTEST, Sweep, cheapest, command_line, read_sweep_file,
-                                         run_sweep)
+    from dsim.master.sweeps.sweep import TIGHTEST, Sweep, read_sweep_file
 
     sweep = read_sweep_file(args.sweep) if args.sweep else Sweep()
     for keyword in SETTINGS:
@@ -187,6 +189,13 @@ def _cmd_sweep(args) -> int:
         sweep.reference = args.reference if args.reference == TIGHTEST else Path(args.reference)
     if args.columns:
         sweep.columns = args.columns.split(",")
+    return sweep
+
+
+def _cmd_sweep(args) -> int:
+    from dsim.master.sweeps.sweep import run_sweep
+
+    sweep = _sweep_of(args)
     out = Path(args.out or f"{Path(args.scene).stem}_sweep")
 
     def progress(done, total, point):
@@ -201,6 +210,19 @@ def _cmd_sweep(args) -> int:
 
     points, interrupted = run_sweep(args.scene, sweep, out, progress, bars=True,
                                     resumed=resumed)
+    _print_sweep_summary(args, sweep, out, points)
+    if interrupted:
+        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}; "
+              "run the same command again to finish the others", file=sys.stderr)
+        return 128 + interrupted
+    return 0
+
+
+def _print_sweep_summary(args, sweep, out: Path, points) -> None:
+    """What a sweep wrote, its failed points, Pareto front, rankings and the cheapest
+    point within ``--target-error``."""
+    from dsim.master.sweeps.sweep import cheapest, command_line
+
     written = [out / name for name in ("sweep.csv", "sweep.md", "sweep.png", "kpis.png",
                                        "scatter.png", "sensitivity.md")
                if (out / name).is_file()]
@@ -224,11 +246,6 @@ def _cmd_sweep(args) -> int:
                   f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
                   f"{best.wall_seconds:.2f} s)")
             print(f"run it      {command_line(args.scene, best, sweep.fixed)}")
-    if interrupted:
-        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}; "
-              "run the same command again to finish the others", file=sys.stderr)
-        return 128 + interrupted
-    return 0
 
 
 def _print_rankings(out: Path) -> None:
