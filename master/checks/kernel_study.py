@@ -12,6 +12,7 @@ as a floor; ``dsim regress --update`` stores it in the baseline's JSON).
 from __future__ import annotations
 
 import ctypes
+import json
 import os
 import subprocess
 import sys
@@ -23,8 +24,11 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+import scipy
 
 from dsim.master.errors import InputError
+from dsim.master.recording.results import read_columns
+from dsim.master.settings import SETTINGS
 
 #: The x86-64 kernels a study may force, oldest first, with the CPU flags each one's
 #: instructions need (/proc/cpuinfo names).  A kernel the CPU lacks would end the
@@ -122,8 +126,6 @@ def kernel_environment(kernel: str | None) -> dict:
 def forced_core(kernel: str) -> str:
     """The corename OpenBLAS reports when ``kernel`` is forced (builds alias some
     kernels to others: Prescott reports Katmai, and Zen may be Haswell's)."""
-    import json
-
     done = subprocess.run([sys.executable, "-c", _PROBE], env=kernel_environment(kernel),
                           capture_output=True, text=True, timeout=60)
     cores = set(json.loads(done.stdout or "{}").values()) if done.returncode == 0 else set()
@@ -133,8 +135,6 @@ def forced_core(kernel: str) -> str:
 def command_line(scene, settings: dict, out) -> list[str]:
     """``python -m dsim.master.tools.cli run SCENE --out OUT`` with the case's settings as
     options (values exactly as given: a float's repr round-trips)."""
-    from dsim.master.settings import SETTINGS
-
     unknown = [k for k in settings if k not in SETTINGS]
     if unknown:
         raise InputError(f"settings {', '.join(unknown)} are not settings of dsim run "
@@ -182,8 +182,6 @@ def spread(csv_files) -> dict[str, float]:
     """Per numeric column of the first CSV, the largest difference between any two of
     the files at any time (the others interpolated onto the first's times where
     their grids differ; a column missing from one is skipped for it)."""
-    from dsim.master.recording.results import read_columns
-
     runs = [read_columns(path) for path in csv_files]
     times = runs[0]["time"]
     noise = {}
@@ -230,8 +228,6 @@ class Study:
 
 
 def _versions() -> dict[str, str]:
-    import scipy
-
     configs = sorted(set(_ask_openblas("get_config").values()))
     return {"numpy": np.__version__, "scipy": scipy.__version__, "blas": blas_name(),
             "openblas": "; ".join(configs)}

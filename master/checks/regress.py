@@ -24,6 +24,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.etree import ElementTree
 
+from dsim.master.api import simulate
+from dsim.master.checks.compare import band_origin, compare_files
+from dsim.master.checks.kernel_study import study
 from dsim.master.errors import InputError
 from dsim.master.recording.output_files import write_whole
 
@@ -148,8 +151,6 @@ def run_case(case: Case, results: Path, update: bool = False, rtol=None,
              atol=None, kernels: KernelChoice | None = None) -> Outcome:
     """Run one case into ``results`` and compare it with its baseline (or, with
     ``update``, store it as the baseline, and its kernel study as ``kernels`` says)."""
-    from dsim.master.api import simulate
-    from dsim.master.checks.compare import compare_files
 
     start = time.perf_counter()
     out = results / f"{case.name}.csv"
@@ -186,8 +187,6 @@ def _store_study(case: Case, kernels: KernelChoice) -> str:
     settings and band kept as they were, ``noise`` and ``study`` replaced; what was
     done, in words.  Without a study the stored noise is kept: it belongs to the
     scene and its settings, and dropping it would tighten the bands below round-off."""
-    from dsim.master.checks.kernel_study import study
-
     spec = case.baseline.with_suffix(".json")
     record = json.loads(spec.read_text()) if spec.is_file() else {
         **DEFAULTS, "settings": case.settings}
@@ -217,8 +216,6 @@ def _store_study(case: Case, kernels: KernelChoice) -> str:
 
 
 def _regression(comparison) -> str:
-    from dsim.master.checks.compare import band_origin
-
     parts = []
     if comparison.short:
         parts.append(f"ends at t = {comparison.result_end:g} s, before the baseline "

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from dsim.master.api import prepare
 from dsim.master.errors import InputError
 
 
@@ -33,8 +34,6 @@ def validate(scene, load_libraries: bool = False, **settings) -> Validation:
     FMU library is loaded unless ``load_libraries``: validating a file must not run
     its code (a library runs its constructors when loaded); each library is checked
     as bytes (present for this platform, a whole ELF shared object)."""
-    from dsim.master.api import prepare
-
     try:
         plan = prepare(scene, load_libraries=load_libraries, **settings)
     except InputError as error:

@@ -7,7 +7,11 @@ import scipy.sparse as sp
 
 from dsim.master.planning.layout import GluingLayout
 from dsim.master.planning.mls import transfer_matrix
+from dsim.master.running.backends.inprocess import InProcessBackend
+from dsim.master.running.couplings import IterativeCoupling
 from dsim.master.running.joints import JointStates, measure_weights
+from dsim.master.running.start import start_forces
+from dsim.master.running.subsystem import CoreSubsystem
 from dsim.master.scene import Joint
 
 
@@ -135,10 +139,6 @@ def glue_cores(cores: dict, joints: list[Joint], settings, start_time: float = 0
     :class:`~dsim.master.running.couplings.IterativeCoupling`; its ``backend`` holds the
     subsystems and ``step(time, step_size, step_index)`` advances them.
     """
-    from dsim.master.running.backends.inprocess import InProcessBackend
-    from dsim.master.running.couplings import IterativeCoupling
-    from dsim.master.running.start import start_forces
-    from dsim.master.running.subsystem import CoreSubsystem
 
     sides = {j.name: tuple(_core_side(cores[getattr(j, s)[0]], *getattr(j, s), j.dofs)
                            for s in ("a", "b")) for j in joints}

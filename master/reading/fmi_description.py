@@ -32,7 +32,7 @@ from functools import lru_cache
 from itertools import product
 from pathlib import Path
 
-from fmpy import read_model_description
+from fmpy import platform, platform_tuple, read_model_description
 from fmpy.model_description import ValidationError
 
 #: dsim's value kind of each FMI type name (1.0, 2.0 and 3.0)
@@ -309,8 +309,6 @@ def can_roll_back(path: Path, interface: str = CO_SIMULATION) -> bool:
 def library_folder(description: FmuDescription) -> str:
     """The ``binaries/`` subfolder of this machine for the FMU's FMI version (FMI 3.0
     names platforms by tuple: x86_64-linux; FMI 1.0 and 2.0: linux64)."""
-    from fmpy import platform, platform_tuple
-
     return platform_tuple if description.major >= 3 else platform
 
 

@@ -10,6 +10,7 @@ child process, where a crash is only a message.
 from __future__ import annotations
 
 import hashlib
+import signal
 import struct
 import subprocess
 import sys
@@ -107,7 +108,6 @@ def _one_library_problem(path: Path, member: str) -> str | None:
     except subprocess.TimeoutExpired:
         return f"its library {member} did not finish loading in 120 s"
     if probe.returncode < 0:
-        import signal
         name = signal.Signals(-probe.returncode).name
         return f"its library {member} is corrupt: loading it crashed the process ({name})"
     if probe.returncode:

@@ -10,7 +10,11 @@ import io
 import json
 from pathlib import Path
 
+from lxml import etree
+
 from dsim.master.errors import InputError
+from dsim.master.reading.ssp import _check_schema
+from dsim.master.reading.ssp_values import parameter_set
 
 
 def parse_assignments(texts) -> dict:
@@ -30,10 +34,6 @@ def parse_assignments(texts) -> dict:
 
 
 def _ssv(path: Path, text: bytes) -> dict:
-    from lxml import etree
-
-    from dsim.master.reading.ssp import _check_schema
-    from dsim.master.reading.ssp_values import parameter_set
 
     try:
         root = etree.fromstring(text)

@@ -17,6 +17,7 @@ from collections import Counter
 from functools import lru_cache
 from pathlib import Path
 
+import fmpy.ssp.ssd as fmpy_ssd
 from lxml import etree
 
 from dsim.master.errors import InputError
@@ -104,8 +105,6 @@ def _parse_xml(path: Path, shown: str):
 @lru_cache(maxsize=4)
 def _schema(schema_name: str) -> etree.XMLSchema:
     """An SSP 1.0 schema that fmpy ships (parsed once)."""
-    import fmpy.ssp.ssd as fmpy_ssd
-
     return etree.XMLSchema(file=str(Path(fmpy_ssd.__file__).parent / "schema" / schema_name))
 
 

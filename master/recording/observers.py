@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from dsim.master.recording.output_files import OutputError, OutputFile, check_fits
+from dsim.master.recording.results import mat_bytes, plot_signals
 from dsim.master.recording.selection import recorded_rows
 
 
@@ -346,7 +347,6 @@ class PlotWriter(FileWriter):
         self.title = self.title or info.scene
 
     def content(self, result) -> bytes | None:
-        from dsim.master.recording.results import plot_signals
         if result.steps == 0:
             return None
         image = io.BytesIO()
@@ -360,7 +360,6 @@ class MatWriter(FileWriter):
     kind = "mat"
 
     def content(self, result) -> bytes | None:
-        from dsim.master.recording.results import mat_bytes
         return mat_bytes(result.signals) if result.signals else None
 
 
@@ -380,6 +379,7 @@ class ProgressBar(Observer):
         stream = self.stream or sys.stderr
         if not stream.isatty():
             return
+        # rich is needed only on a terminal (a run in CI or a sweep's worker has none)
         from rich.console import Console
         from rich.progress import (BarColumn, Progress, TextColumn, TimeElapsedColumn,
                                    TimeRemainingColumn)

@@ -119,9 +119,9 @@ def read_csv(path) -> tuple[list[str], np.ndarray]:
 def _panels(panels, png_path, title: str = "") -> None:
     """Panels over time, one under the other: ``panels`` is a list of (y label,
     [(curve label, time, values), ...])."""
-    import matplotlib
+    import matplotlib  # only when a plot is asked for: it takes a third of a second
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # only when a plot is asked for
 
     figure, axes = plt.subplots(max(len(panels), 1), 1, sharex=True, squeeze=False,
                                 figsize=(8, 2.4 * max(len(panels), 1) + 0.6))
@@ -179,7 +179,7 @@ def mat_bytes(signals: dict) -> bytes:
     """A MATLAB .mat (version 5) file of the signals: ``time``, ``data`` (one column
     per numeric signal), ``names`` (their column names) and a struct ``signals`` with
     one field per signal, String ones as cell arrays (names made valid identifiers)."""
-    from scipy.io import savemat
+    from scipy.io import savemat  # only when a .mat file is asked for
 
     names = [n for n in signals if n != "time" and signals[n].dtype != object]
     texts = [n for n in signals if signals[n].dtype == object]

@@ -38,6 +38,7 @@ import threading
 import time
 
 from dsim.master.processes import process_alive
+from dsim.master.recording.results import RunResult
 
 #: seconds after a second signal by which the process has ended, whatever hangs
 DEADLINE = 3.0
@@ -143,8 +144,6 @@ def _last_resort(code: int) -> None:
 def _bare_result(execution, number: int, error: Exception):
     """The result of an abandoned run whose statistics could not be made: how it ended
     and how far it got."""
-    from dsim.master.recording.results import RunResult
-
     message = (f"interrupted, then ended at once by {signal.Signals(number).name} (stopped "
                f"at t = {execution.time:g} s, step {execution.index}); the statistics could "
                f"not be made: {type(error).__name__}: {error}")

@@ -20,7 +20,9 @@ import numpy as np
 from dsim.master.errors import InputError
 from dsim.master.recording.output_files import finish_dead_partial, write_whole
 from dsim.master.settings import SETTINGS, convert
+from dsim.master.sweeps import sensitivity
 from dsim.master.sweeps.design import Design, describe, same_json
+from dsim.master.sweeps.plots import plot_kpis, plot_points, plot_scatter
 from dsim.master.sweeps.table import Point, markdown, read_table
 
 DESIGN_FILE = "design.json"
@@ -102,8 +104,6 @@ def write_outputs(out: Path, points: list[Point], sweep, names: list[str], label
     ``kpis.png``, ``scatter.png``, ``sensitivity.csv`` and ``sensitivity.md``; the
     names of the files written.  ``total``: how many points the sweep has (a design
     not run whole has no Sobol' or Morris indices)."""
-    from dsim.master.sweeps import sensitivity
-    from dsim.master.sweeps.plots import plot_kpis, plot_points, plot_scatter
 
     written = ["sweep.md"]
     write_whole(out / "sweep.md", markdown(points, names, reference_label, labels).encode(),

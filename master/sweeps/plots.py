@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import math
+from dsim.master.recording.results import save_figure
 
 #: most factors plus KPIs drawn in a scatter matrix (beyond it a figure is unreadable)
 MATRIX_LIMIT = 8
@@ -18,8 +19,6 @@ def _pyplot():
 
 
 def _png(figure) -> bytes:
-    from dsim.master.recording.results import save_figure
-
     image = io.BytesIO()
     save_figure(figure, image)
     return image.getvalue()

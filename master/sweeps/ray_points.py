@@ -17,10 +17,14 @@ import threading
 import time as clock
 from pathlib import Path
 
-from dsim.master.recording.observers import Observer
+from dsim.master.api import prepare
+from dsim.master.errors import InputError
+from dsim.master.recording.observers import CsvRecorder, Observer, StatisticsWriter
 from dsim.master.recording.output_files import write_whole
+from dsim.master.recording.results import RunResult
+from dsim.master.running.execution import Execution
 from dsim.master.running.ray_cluster import Shipment, connect, landed
-from dsim.master.sweeps.point import PointRun
+from dsim.master.sweeps.point import PointRun, keywords
 
 #: the settings that choose where the sweep runs, not how each point runs
 WHERE = ("backend", "address")
@@ -93,7 +97,6 @@ def _collect(ray, ref, results: Path, inputs) -> PointRun:
     try:
         answer = ray.get(ref)
     except ray.exceptions.RayError as error:  # the worker died (an FMU crashed it)
-        from dsim.master.recording.results import RunResult
         message = f"the worker process running the point died: {str(error).splitlines()[0]}"
         return PointRun(RunResult("failed", message, 0.0, 0, statistics={}), wall_seconds=0.0)
     run, files = answer
@@ -131,11 +134,6 @@ class _StopWhenAsked(Observer):
 
 def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
     """A point in a Ray worker: (PointRun, {suffix: file bytes})."""
-    from dsim.master.api import prepare
-    from dsim.master.errors import InputError
-    from dsim.master.recording.observers import CsvRecorder, StatisticsWriter
-    from dsim.master.running.execution import Execution
-    from dsim.master.sweeps.point import keywords
 
     if shipped is not None:
         scene = landed(shipped)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dsim.master.sweeps.design import Design
+from dsim.master.sweeps.design import Design, MORRIS_LEVELS
 
 #: RBD-FAST harmonics: SALib's default of 10 needs far more points than a sweep has;
 #: 4 keeps its bias correction meaningful from about 30 points on
@@ -165,7 +165,6 @@ def _by_design(design, names, x, y, keep, label, note) -> list[Index]:
                  zip(names, found["S1"], found["S1_conf"])]
                 + [Index(label, n, "Sobol'", "ST", float(s), float(c)) for n, s, c in
                    zip(names, found["ST"], found["ST_conf"])])
-    from dsim.master.sweeps.design import MORRIS_LEVELS
     from SALib.analyze import morris
     found = morris.analyze(design.salib_problem(), x, y, num_levels=MORRIS_LEVELS,
                            num_resamples=RESAMPLES, seed=SEED)

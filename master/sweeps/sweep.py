@@ -27,12 +27,16 @@ from pathlib import Path
 
 import numpy as np
 
+from dsim.master.api import prepare, simulate
 from dsim.master.errors import InputError
+from dsim.master.recording.results import read_columns
 from dsim.master.settings import SETTINGS, convert
 from dsim.master.sweeps.design import SALIB, Design, Factor, parse_vary, split
+from dsim.master.sweeps.folder import open_folder, spec, write_outputs
 from dsim.master.sweeps.kpi import parse_all
-from dsim.master.sweeps.point import PointRun, keywords
 from dsim.master.sweeps.plots import plot_points  # noqa: F401  (its place before the split)
+from dsim.master.sweeps.point import PointRun, keywords
+from dsim.master.sweeps.ray_points import run_points
 from dsim.master.sweeps.table import MEASURES, Point, SweepTable, markdown  # noqa: F401
 
 #: the reference named to measure against the sweep's tightest point even where the
@@ -232,8 +236,6 @@ def run_point(scene, settings: dict, results: Path, bars: bool = False) -> Point
     """Run one point (settings and dotted model parameters) in this process, its
     results CSV (and statistics) at ``results`` (``bars``: its progress bar on a
     terminal)."""
-    from dsim.master.api import simulate
-
     start = clock.perf_counter()
     try:
         result = simulate(scene, out=results, progress=bars, **keywords(settings))
@@ -280,8 +282,6 @@ def check_parameters(scene, sweep: Sweep, configurations: list[dict]) -> None:
     """Every value a varied model parameter takes at the ends of its range (or in its
     list) checked against the FMUs, with every other quantity at the first point's
     values: InputError listing every problem, before any point runs."""
-    from dsim.master.api import prepare
-
     if not configurations:
         return
     base = {**sweep.fixed, **configurations[0]}
@@ -316,9 +316,6 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     With the setting ``backend`` fixed to ``ray`` the points run side by side, one per
     Ray worker (each in-process inside its worker: master/sweeps/ray_points.py), on a local
     Ray instance or the cluster at ``address``."""
-    from dsim.master.api import prepare
-    from dsim.master.recording.results import read_columns
-    from dsim.master.sweeps.folder import open_folder, spec, write_outputs
 
     check(sweep)
     kpis = parse_all(sweep.kpis)
@@ -393,7 +390,6 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     parallel = sweep.fixed.get("backend") == "ray"
     try:
         if parallel:
-            from dsim.master.sweeps.ray_points import run_points
             run_points(scene, [(k, configurations[k]) for k in todo], sweep.fixed, out,
                        plan.inputs, finish)
         else:

@@ -11,8 +11,23 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from dsim.master.api import simulate
+from dsim.master.checks.compare import band_origin, compare_files
+from dsim.master.checks.kernel_study import choose_kernels
+from dsim.master.checks.regress import (KernelChoice, find_cases, junit_xml, read_noise, run_cases,
+                                        summary_lines)
+from dsim.master.checks.validate import validate
 from dsim.master.errors import InputError, SimulationError
+from dsim.master.reading.parameter_input import given_parameters
+from dsim.master.recording.observers import ProgressBar
 from dsim.master.settings import SETTINGS, choices
+from dsim.master.sweeps.design import DESIGNS, parse_vary
+from dsim.master.sweeps.folder import read_sensitivity
+from dsim.master.sweeps.sensitivity import Index, ranking
+from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, read_sweep_file,
+                                      run_sweep)
+from dsim.master.tools.info import scene_info
+from dsim.master.tools.plot import overlay_files
 
 
 def _summary(result, plot: Path | None) -> str:
@@ -47,8 +62,6 @@ def _summary(result, plot: Path | None) -> str:
 
 
 def _cmd_run(args) -> int:
-    from dsim.master.api import simulate
-    from dsim.master.recording.observers import ProgressBar
 
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
@@ -75,15 +88,11 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_info(args) -> int:
-    from dsim.master.tools.info import scene_info
-
     print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all)))
     return 0
 
 
 def _cmd_validate(args) -> int:
-    from dsim.master.checks.validate import validate
-
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
     found = validate(args.scene, strict=args.strict, **_run_choices(args), **settings)
     for problem in found.errors:
@@ -112,8 +121,6 @@ def comparison_lines(comparison) -> list[str]:
 
 
 def _cmd_plot(args) -> int:
-    from dsim.master.tools.plot import overlay_files
-
     files = [Path(a) for a in args.items if a.lower().endswith(".csv")]
     patterns = [a for a in args.items if not a.lower().endswith(".csv")]
     done = overlay_files(files, patterns, args.out, args.title or "")
@@ -124,8 +131,6 @@ def _cmd_plot(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from dsim.master.checks.compare import band_origin, compare_files
-    from dsim.master.checks.regress import read_noise
 
     columns = args.columns.split(",") if args.columns else None
     noise = read_noise(args.noise) if args.noise else None
@@ -150,8 +155,6 @@ def _sweep_of(args):
     """The sweep the options say: a sweep file's, then the settings swept
     (``--tolerance 1e-6,1e-8``), the design and its samples and seed, what varies, the
     KPIs, the reference and the columns compared."""
-    from dsim.master.sweeps.design import DESIGNS, parse_vary
-    from dsim.master.sweeps.sweep import TIGHTEST, Sweep, read_sweep_file
 
     sweep = read_sweep_file(args.sweep) if args.sweep else Sweep()
     for keyword in SETTINGS:
@@ -193,8 +196,6 @@ def _sweep_of(args):
 
 
 def _cmd_sweep(args) -> int:
-    from dsim.master.sweeps.sweep import run_sweep
-
     sweep = _sweep_of(args)
     out = Path(args.out or f"{Path(args.scene).stem}_sweep")
 
@@ -221,8 +222,6 @@ def _cmd_sweep(args) -> int:
 def _print_sweep_summary(args, sweep, out: Path, points) -> None:
     """What a sweep wrote, its failed points, Pareto front, rankings and the cheapest
     point within ``--target-error``."""
-    from dsim.master.sweeps.sweep import cheapest, command_line
-
     written = [out / name for name in ("sweep.csv", "sweep.md", "sweep.png", "kpis.png",
                                        "scatter.png", "sensitivity.md")
                if (out / name).is_file()]
@@ -250,8 +249,6 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
 
 def _print_rankings(out: Path) -> None:
     """The factors of each KPI ranked by the sweep's sensitivity table."""
-    from dsim.master.sweeps.sensitivity import Index, ranking
-    from dsim.master.sweeps.folder import read_sensitivity
 
     rows = read_sensitivity(out)
     indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
@@ -263,9 +260,6 @@ def _print_rankings(out: Path) -> None:
 
 
 def _cmd_regress(args) -> int:
-    from dsim.master.checks.kernel_study import choose_kernels
-    from dsim.master.checks.regress import (KernelChoice, find_cases, junit_xml, run_cases,
-                                           summary_lines)
 
     if (args.kernels or args.no_kernel_study) and not args.update:
         raise InputError("--kernels and --no-kernel-study choose the kernel study of "
@@ -301,8 +295,6 @@ def _cmd_regress(args) -> int:
 def _run_choices(args) -> dict:
     """The keywords of :func:`dsim.master.api.prepare` that ``--set``, ``--set-file``,
     ``--outputs`` and ``--output-interval`` give."""
-    from dsim.master.reading.parameter_input import given_parameters
-
     solver = {}
     for text in args.solver or ():
         name, sep, value = text.partition("=")

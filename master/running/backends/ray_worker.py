@@ -3,8 +3,10 @@ process, and how the subsystems are dealt onto workers."""
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 
 from dsim.master.running.backends.base import terminate_all
+from dsim.master.running.fmi import open_subsystem
 from dsim.master.running.ray_cluster import landed
 
 
@@ -18,11 +20,7 @@ class Host:
         """Instantiate the FMUs of ``specs`` from the shipped ``files`` (for each, its
         FMU and its scene files by parameter, :class:`~dsim.master.running.ray_cluster.Shipment`);
         where this worker runs."""
-        from dataclasses import replace
-
         import ray
-
-        from dsim.master.running.fmi import open_subsystem
 
         for spec, (fmu, scene_files) in zip(specs, files):
             parameters = {**spec.parameters, **{name: ("String", str(landed(shipped)))

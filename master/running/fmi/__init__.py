@@ -14,6 +14,10 @@ FMI version         co-simulation                   Model Exchange
 """
 from __future__ import annotations
 
+from dsim.master.running.fmi.cs1 import CoSimulation1Subsystem
+from dsim.master.running.fmi.cs2 import FmuSubsystem
+from dsim.master.running.fmi.cs3 import CoSimulation3Subsystem
+from dsim.master.running.fmi.model_exchange import ModelExchangeSubsystem
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
@@ -23,17 +27,11 @@ __all__ = ["SubsystemSpec", "open_subsystem"]
 def open_subsystem(spec: SubsystemSpec) -> Subsystem:
     """Instantiate the FMU of ``spec`` in its FMI version and interface, in
     initialization mode with its parameters set."""
-    # each adapter binds its FMI version's functions: imported when one is opened, so
-    # that a run of FMI 2.0 co-simulation FMUs loads no other binding
     major = spec.fmi_version.split(".")[0]
     if spec.interface == "ModelExchange":
-        from dsim.master.running.fmi.model_exchange import ModelExchangeSubsystem
         return ModelExchangeSubsystem(spec)
     if major == "1":
-        from dsim.master.running.fmi.cs1 import CoSimulation1Subsystem
         return CoSimulation1Subsystem(spec)
     if major == "3":
-        from dsim.master.running.fmi.cs3 import CoSimulation3Subsystem
         return CoSimulation3Subsystem(spec)
-    from dsim.master.running.fmi.cs2 import FmuSubsystem
     return FmuSubsystem(spec)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import ctypes
 
+from fmpy.fmi1 import FMU1Slave
+
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
 from dsim.master.running.fmi.messages import CALLBACKS1
@@ -25,8 +27,6 @@ class CoSimulation1Subsystem(FmpyAdapter):
     _do_step = None
 
     def _open(self, folder):
-        from fmpy.fmi1 import FMU1Slave
-
         return FMU1Slave(guid=self.description.guid, unzipDirectory=folder,
                          modelIdentifier=self.description.coSimulation.modelIdentifier,
                          instanceName=self.name)

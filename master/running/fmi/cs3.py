@@ -10,6 +10,8 @@ from ``fmi3DoStep``) ends it at that step, its rows kept.
 """
 from __future__ import annotations
 
+from fmpy.fmi3 import FMU3Slave
+
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import FmpyAdapter
 from dsim.master.running.fmi.messages import logger3
@@ -26,8 +28,6 @@ class CoSimulation3Subsystem(FmpyAdapter):
         super().__init__(spec)
 
     def _open(self, folder):
-        from fmpy.fmi3 import FMU3Slave
-
         return FMU3Slave(guid=self.description.guid, unzipDirectory=folder,
                          modelIdentifier=self.description.coSimulation.modelIdentifier,
                          instanceName=self.name)

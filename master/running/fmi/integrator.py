@@ -29,6 +29,7 @@ import ctypes
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import solve_ivp
 
 #: scipy.integrate.solve_ivp's methods
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA", "RK23")
@@ -124,6 +125,7 @@ class CvodeIntegrator(Integrator):
 
     def __init__(self, view, settings: SolverSettings):
         super().__init__(view, settings)
+        # imported when CVODE is chosen: it loads SUNDIALS' native libraries
         from fmpy.sundials import CVodeSolver
         from fmpy.sundials.cvode import sundials_cvode
 
@@ -181,8 +183,6 @@ class ScipyIntegrator(Integrator):
     events."""
 
     def advance(self, time: float, stop: float) -> tuple[float, bool]:
-        from scipy.integrate import solve_ivp
-
         view = self.view
 
         def rhs(t, x):

@@ -27,6 +27,8 @@ from __future__ import annotations
 import ctypes
 
 import numpy as np
+from fmpy.fmi2 import FMU2Model
+from fmpy.fmi3 import FMU3Model
 
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
@@ -85,9 +87,6 @@ class ModelExchangeSubsystem(FmpyAdapter):
 
     # --- FMI version specifics --------------------------------------------------------
     def _open(self, folder):
-        from fmpy.fmi2 import FMU2Model
-        from fmpy.fmi3 import FMU3Model
-
         kind = FMU3Model if self.fmi3 else FMU2Model
         return kind(guid=self.description.guid, unzipDirectory=folder,
                     modelIdentifier=self.description.modelExchange.modelIdentifier,
