@@ -21,6 +21,7 @@ import zipfile
 from pathlib import Path
 
 from lxml import etree
+from dsim.build_fmus.twins import TWINS, twin_csv
 
 #: the folder that holds fmus/ and ssp/: the checkout, or the installed dsim package
 ROOT = Path(__file__).resolve().parent.parent
@@ -201,8 +202,6 @@ def pack_scenes(root: Path = ROOT, force: bool = False, log=print,
 def write_twin(scene: str, out: Path) -> None:
     """Write the scene's monolithic twin (:mod:`dsim.build_fmus.twins`) as
     ``out/SCENE.csv``, where it has one."""
-    from dsim.build_fmus.twins import TWINS, twin_csv
-
     if scene in TWINS:
         out.mkdir(parents=True, exist_ok=True)
         (out / f"{scene}.csv").write_bytes(twin_csv(scene))

@@ -22,6 +22,8 @@ import numpy as np
 
 from dsim.build_fmus.scenes import ROOT, SceneWriter, write_parameter_sets
 from dsim.fmus.elastic import frame
+from dsim.fmus.elastic.body_spec import BodySpec, port_node_counts
+from dsim.fmus.elastic.geometry import rectangle
 
 #: frame_split / frame_nested: Newmark, H = 1e-4 s, 0 to 0.2 s. The glued quantities are
 #: global positions (about 1 m) while the response is about 1e-5 m: the tolerance is
@@ -65,8 +67,6 @@ def _rectangle(part: str) -> tuple[float, float, float, float]:
 
 def _rectangle_mesh(bounds, element_size: float) -> Callable[[Path], None]:
     """What writes a rectangle x0, x1, y0, y1 (m) meshed at ``element_size`` (m)."""
-    from dsim.fmus.elastic.geometry import rectangle
-
     return lambda target: rectangle(*bounds, element_size).save(str(target))
 
 
@@ -82,8 +82,6 @@ def _edge(x0: float, x1: float, y: float) -> str:
 def _with_node_counts(values: dict, save: Callable[[Path], None]) -> dict:
     """``values`` plus ``S.nodes`` of every node-set port, counted on the mesh that
     ``save`` writes."""
-    from dsim.fmus.elastic.body_spec import BodySpec, port_node_counts
-
     with tempfile.TemporaryDirectory() as folder:
         mesh = Path(folder) / Path(values["mesh_file"]).name
         save(mesh)

@@ -35,6 +35,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from dsim.build_fmus.scenes import SceneWriter, write_parameter_sets
+from dsim.fmus.linkage.description import mechanism_to_text
+from dsim.fmus.linkage.scenes import crank_slider_part, four_bar_part
 
 ROOT = Path(__file__).resolve().parent.parent
 FOUR_BAR_PARTS = ("crank", "coupler", "rocker")
@@ -60,8 +62,6 @@ PORT_RECORDS = ["A.u_x", "A.u_y", "A.v_x", "A.v_y", "A.a_x", "A.a_y"]
 def _part(scene: str, part: str, **parameters) -> dict:
     """The Linkage2D parameters of a shipped part: its mechanism's description (what a
     user writes for a linkage of their own; docs/linkages.md), and ``parameters``."""
-    from dsim.fmus.linkage.description import mechanism_to_text
-    from dsim.fmus.linkage.scenes import crank_slider_part, four_bar_part
 
     build = crank_slider_part if scene == "crank_slider" else four_bar_part
     return {"mechanism": mechanism_to_text(build(part)), **parameters}

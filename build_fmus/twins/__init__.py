@@ -18,6 +18,9 @@ import numpy as np
 
 from dsim.build_fmus.linkage_scenes import FOUR_BAR
 from dsim.build_fmus.scenes import CHAIN, SPRING_MASS
+from dsim.build_fmus.twins import chain, four_bar, spring_mass
+from dsim.fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
+from dsim.master.recording.output_files import write_whole
 
 #: the twin's step as a fraction of the scene's
 REFINEMENT = 10
@@ -26,16 +29,12 @@ FRAME_OUTPUT = "cross_front.load.u_x"
 
 
 def _spring_mass(nonlinear: bool) -> dict:
-    from dsim.build_fmus.twins.spring_mass import monolithic
-
-    times, x = monolithic(nonlinear, step=SPRING_MASS["step"] / REFINEMENT)
+    times, x = spring_mass.monolithic(nonlinear, step=SPRING_MASS["step"] / REFINEMENT)
     return {"time": times, "left.x[1]": x[:, 0], "right.x[1]": x[:, 1], "right.x[2]": x[:, 2]}
 
 
 def _chain(n: int) -> dict:
-    from dsim.build_fmus.twins.chain import monolithic
-
-    times, x = monolithic(n, step=CHAIN["step"] / REFINEMENT)
+    times, x = chain.monolithic(n, step=CHAIN["step"] / REFINEMENT)
     return {"time": times, **{f"m{i}.x[1]": x for i in range(1, n + 1)}}
 
 
@@ -44,17 +43,13 @@ def four_bar_twin(scene: str, refinement: int = REFINEMENT,
     """The twin of four_bar_singular_<scene> (``fixed``, ``penalized`` or ``flexible``;
     build_fmus/twins/four_bar.py) at the scene's step divided by ``refinement``, its rule's
     spectral radius overridden by ``spectral_radius``: the columns a glued run records."""
-    from dsim.build_fmus.twins.four_bar import monolithic
-
-    r = monolithic(scene, step=FOUR_BAR["step"] / refinement,
+    r = four_bar.monolithic(scene, step=FOUR_BAR["step"] / refinement,
                    spectral_radius=spectral_radius)
     return {"time": r["times"], "crank.omega": r["omega"][:, 0], "rocker.omega": r["omega"][:, 1],
             "A.f_x": r["force"][:, 0], "A.f_y": r["force"][:, 1]}
 
 
 def _frame() -> dict:
-    from dsim.fmus.elastic.frame import STEP_SIZE, STOP_TIME, monolithic_frame
-
     r = monolithic_frame(step_size=STEP_SIZE / REFINEMENT, stop_time=STOP_TIME)
     return {"time": r.time, FRAME_OUTPUT: r.load_u_x}
 
@@ -86,8 +81,6 @@ def twin_csv(scene: str) -> bytes:
 
 
 def main(argv=None) -> int:
-    from dsim.master.recording.output_files import write_whole
-
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("scene", choices=sorted(TWINS))
     parser.add_argument("--out", type=Path, required=True, help="CSV file to write")

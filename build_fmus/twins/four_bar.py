@@ -22,6 +22,7 @@ import numpy as np
 
 from dsim.build_fmus.linkage_scenes import FOUR_BAR
 from dsim.fmus.linkage import Linkage
+from dsim.fmus.linkage.kinematics import point_kinematics
 from dsim.fmus.linkage.scenes import four_bar, four_bar_mechanism
 
 
@@ -69,7 +70,6 @@ def monolithic(scene: str, stop: float = FOUR_BAR["stop"], step: float = FOUR_BA
         if joints == "fixed":
             return out["A.f_x"], out["A.f_y"]
         # bushing A: force on body_i (coupler) = -(k q + c q'), q = coupler.A - crank.A
-        from dsim.fmus.linkage.kinematics import point_kinematics
         bodies = np.array([1, 0])
         points = np.array([[-1.0, 0.0], [0.5, 0.0]])
         pos, vel, _ = point_kinematics(whole.q, whole.v, whole.a, bodies, points)
