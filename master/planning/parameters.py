@@ -289,29 +289,13 @@ def with_parameters(scene, parameters: dict):
                             + hint + _closest(head, list(components) + list(joints)))
             continue
         path, variable_name = owner
-        component = components[path]
-        description = scene.descriptions.get(component.source) or _described(component.source)
-        if description is None:  # a missing or broken FMU: the plan says what is wrong
-            continue
-        variables = description.by_name
-        variable = variables.get(variable_name)
-        if variable is None:
-            settable = [v.name for v in variables.values() if refusal(v) is None]
-            problems.append(f"{where}: component '{path}' ({component.source.name}) has no "
-                            f"variable '{variable_name}'" + _closest(variable_name, settable))
-            continue
-        reason = refusal(variable)
-        if reason:
-            problems.append(f"{where}: variable '{variable_name}' of component '{path}' is "
-                            f"{reason}")
-            continue
-        converted, problem = convert(variable, value)
-        problem = problem or _limits(variable, converted)
+        checked, problem = _checked_value(scene, components[path], variable_name, value,
+                                          where)
         if problem:
-            problems.append(f"{where}: variable '{variable_name}' of component '{path}' "
-                            f"{problem}")
+            problems.append(problem)
+        if checked is None:
             continue
-        kind = KEPT_TYPE[variable.type]
+        kind, converted = checked
         new_parameters[path][variable_name] = (kind, converted)
         new_origins[path][variable_name] = f"{where} {ORIGIN}"
         new_files[path].pop(variable_name, None)
@@ -331,6 +315,30 @@ def with_parameters(scene, parameters: dict):
                    problems=tuple(scene.problems) + tuple(problems),
                    inputs=tuple(scene.inputs) + tuple(inputs),
                    overrides={**scene.overrides, **applied})
+
+
+def _checked_value(scene, component, variable_name: str, value, where: str):
+    """((the SSP type kept, the value converted), None) for a value a run gives
+    ``component``'s variable, or (None, the problem); (None, None) where the FMU
+    cannot be read (the plan says what is wrong with it)."""
+    description = scene.descriptions.get(component.source) or _described(component.source)
+    if description is None:
+        return None, None
+    variables = description.by_name
+    variable = variables.get(variable_name)
+    path = component.path
+    if variable is None:
+        settable = [v.name for v in variables.values() if refusal(v) is None]
+        return None, (f"{where}: component '{path}' ({component.source.name}) has no "
+                      f"variable '{variable_name}'" + _closest(variable_name, settable))
+    reason = refusal(variable)
+    if reason:
+        return None, f"{where}: variable '{variable_name}' of component '{path}' is {reason}"
+    converted, problem = convert(variable, value)
+    problem = problem or _limits(variable, converted)
+    if problem:
+        return None, f"{where}: variable '{variable_name}' of component '{path}' {problem}"
+    return (KEPT_TYPE[variable.type], converted), None
 
 
 def joint_coefficients(joint) -> tuple[str, ...]:
