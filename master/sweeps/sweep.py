@@ -301,6 +301,38 @@ def check_parameters(scene, sweep: Sweep, configurations: list[dict]) -> None:
         raise InputError(list(dict.fromkeys(problems)))
 
 
+def _reference_choice(sweep: Sweep, plan) -> tuple[Path | None, bool]:
+    """The results file the points are measured against, and whether it is instead the
+    sweep's tightest point: the sweep's own reference, else the twin the scene ships
+    (at nominal parameters only), else the tightest point (not for SALib's designs,
+    whose points keep their order)."""
+    reference_file, use_tightest = None, False
+    if sweep.reference == TIGHTEST:
+        use_tightest = True
+    elif sweep.reference is not None:
+        reference_file = Path(sweep.reference)
+    elif not sweep.varies_parameters:  # a twin at nominal parameters: no reference else
+        reference_file = plan.scene.reference
+        use_tightest = reference_file is None
+    return reference_file, use_tightest and sweep.design not in SALIB
+
+
+def _reference(sweep: Sweep, reference_file, use_tightest: bool, points: dict):
+    """The reference's columns (None until the tightest point has run) and how the
+    tables name it; a resumed sweep's tightest point is its first completed one."""
+    reference = read_columns(reference_file) if reference_file else None
+    label = ("the scene's monolithic twin (resources/reference.csv)"
+             if reference_file and not sweep.reference else
+             str(reference_file) if reference_file else "the tightest point")
+    if use_tightest:  # resumed: the first completed point in order was the reference
+        first = next((points[k] for k in sorted(points) if points[k].status == "completed"),
+                     None)
+        if first is not None and first.results is not None:
+            reference = read_columns(first.results)
+            label = f"the tightest point ({Point(first.settings).label})"
+    return reference, label
+
+
 def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
               resumed=None) -> tuple[list[Point], int | None]:
     """Run every point not already finished in ``out``, writing ``out/sweep.csv`` as
@@ -324,15 +356,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     names = list(dict.fromkeys(k for c in configurations for k in c))
     plan = prepare(scene, **keywords(sweep.fixed))  # bad input before any point runs
     check_parameters(scene, sweep, configurations)
-    reference_file, use_tightest = None, False
-    if sweep.reference == TIGHTEST:
-        use_tightest = True
-    elif sweep.reference is not None:
-        reference_file = Path(sweep.reference)
-    elif not sweep.varies_parameters:  # a twin at nominal parameters: no reference else
-        reference_file = plan.scene.reference
-        use_tightest = reference_file is None
-    use_tightest = use_tightest and sweep.design not in SALIB  # their points keep order
+    reference_file, use_tightest = _reference_choice(sweep, plan)
     if use_tightest:  # the tightest run first: the others compare with it
         configurations.insert(0, configurations.pop(tightest(configurations)))
     out = Path(out)
@@ -344,16 +368,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     table = SweepTable(out / "sweep.csv", names, plan.inputs, labels)
     for k in sorted(points):
         table.add(points[k])
-    reference = read_columns(reference_file) if reference_file else None
-    label = ("the scene's monolithic twin (resources/reference.csv)"
-             if reference_file and not sweep.reference else
-             str(reference_file) if reference_file else "the tightest point")
-    if use_tightest:  # resumed: the first completed point in order was the reference
-        first = next((points[k] for k in sorted(points) if points[k].status == "completed"),
-                     None)
-        if first is not None and first.results is not None:
-            reference = read_columns(first.results)
-            label = f"the tightest point ({Point(first.settings).label})"
+    reference, label = _reference(sweep, reference_file, use_tightest, points)
     measuring = reference_file is not None or use_tightest
     interrupted = None
     # measured in configuration order until there is a reference (the first point that
