@@ -35,6 +35,17 @@ from .retry import RepeatedStep
 from .reduction import craig_bampton_basis, generalized_eigen, rigid_body_basis
 
 
+def _check_options(mesh, name: str, mass: str, order: int, rigid: bool, modes) -> None:
+    """ValueError naming the body for a mesh or an option combination it cannot take."""
+    check_mesh(mesh, name)
+    if mass not in ("consistent", "lumped"):
+        raise ValueError(f"{name}: mass must be 'consistent' or 'lumped', got {mass!r}")
+    if mass == "lumped" and order != 1:  # row sums of quadratic elements go negative
+        raise ValueError(f"{name}: lumped mass needs linear elements (order 1)")
+    if rigid and modes is not None:
+        raise ValueError(f"{name}: a rigid body has no Craig-Bampton modes")
+
+
 @dataclass(frozen=True)
 class PointLoad:
     """Force (N) along ``dof`` (x, y or z) at the node nearest ``point`` (m):
@@ -77,31 +88,14 @@ class ElasticBody(InterfaceCore):
                  stress_outputs: bool = False,
                  ties: Optional[Mapping[int, tuple[Sequence[int], Sequence[float]]]] = None,
                  name: str = "body"):
-        check_mesh(mesh, name)
-        if mass not in ("consistent", "lumped"):
-            raise ValueError(f"{name}: mass must be 'consistent' or 'lumped', got {mass!r}")
-        if mass == "lumped" and order != 1:  # row sums of quadratic elements go negative
-            raise ValueError(f"{name}: lumped mass needs linear elements (order 1)")
-        if rigid and modes is not None:
-            raise ValueError(f"{name}: a rigid body has no Craig-Bampton modes")
+        _check_options(mesh, name, mass, order, rigid, modes)
         self.name, self.mesh, self.material, self.thickness = name, mesh, material, thickness
         self.dim = mesh.dim()
         self.basis: Basis = vector_basis(mesh, order)
         self._nodes(order)
-        try:
-            self.node_sets = {key: resolve_node_set(mesh, key, spec, self.points,
-                                                    self._facet_nodes)
-                              for key, spec in (node_sets or {}).items()}
-        except ValueError as error:  # say which body (its mesh file, in the FMU)
-            raise ValueError(f"{name}: {error}") from None
         rigid_ports = dict(rigid_ports or {})
-        for key in [*clamped, *ports, *rigid_ports]:
-            if key not in self.node_sets:
-                raise ValueError(f"{name}: node set {key!r} is not defined "
-                                 f"(defined: {sorted(self.node_sets)})")
-        if set(ports) & set(rigid_ports):
-            raise ValueError(f"{name}: {sorted(set(ports) & set(rigid_ports))} "
-                             f"both node-set and rigid ports")
+        self._resolve_node_sets(node_sets, [*clamped, *ports, *rigid_ports], ports,
+                                rigid_ports)
 
         # Constraints: u_full = T q.
         nodal = self.node_dofs
@@ -128,28 +122,9 @@ class ElasticBody(InterfaceCore):
         probe_map = self._build_probes(T)  # probe displacements = probe_map @ q
         self.stress_outputs = stress_outputs
 
-        # Reduction q = Psi r: Craig-Bampton (interface coordinates kept physical) or
-        # the rigid-body motions alone.
         self.modes, self.rigid = modes, bool(rigid)
-        self._full_map = T  # u_full = _full_map @ q
-        psi = None
-        if modes is not None:
-            # loaded dofs stay physical too: the static response to a point load is then
-            # exact, instead of converging slowly with the number of modes
-            boundary = np.unique(np.concatenate([interface_map.indices,
-                                                 sp.csc_matrix(loads_q).indices]))
-            psi = craig_bampton_basis(stiffness, mass_q, boundary, modes)
-        elif rigid:
-            psi = rigid_body_basis(T, self.points, nodal, name)
-        if psi is not None:
-            stiffness = sp.csr_matrix(psi.T @ (stiffness @ psi))
-            if rigid:  # rigid motions store no strain energy: drop the round-off
-                stiffness = sp.csr_matrix(stiffness.shape)
-            mass_q = sp.csr_matrix(psi.T @ (mass_q @ psi))
-            interface_map = sp.csr_matrix(interface_map @ psi)
-            loads_q = sp.csr_matrix(psi.T @ loads_q.toarray())
-            probe_map = sp.csr_matrix(probe_map @ psi)
-            self._full_map = sp.csr_matrix(T @ psi)
+        stiffness, mass_q, interface_map, loads_q, probe_map = self._reduce(
+            T, nodal, stiffness, mass_q, interface_map, loads_q, probe_map)
         alpha, beta = rayleigh
         damping = alpha * mass_q + beta * stiffness if (alpha or beta) else None
         self.stiffness, self.mass, self.damping = stiffness, mass_q, damping
@@ -164,6 +139,48 @@ class ElasticBody(InterfaceCore):
         self._forces = np.zeros(len(self.interface))
 
     # -- construction helpers --------------------------------------------------------------
+    def _resolve_node_sets(self, node_sets, used, ports, rigid_ports) -> None:
+        """``self.node_sets``: each named node set's nodes; every set ``used`` (clamped,
+        port, rigid port) must be one, and no set both a node-set and a rigid port."""
+        name = self.name
+        try:
+            self.node_sets = {key: resolve_node_set(self.mesh, key, spec, self.points,
+                                                    self._facet_nodes)
+                              for key, spec in (node_sets or {}).items()}
+        except ValueError as error:  # say which body (its mesh file, in the FMU)
+            raise ValueError(f"{name}: {error}") from None
+        for key in used:
+            if key not in self.node_sets:
+                raise ValueError(f"{name}: node set {key!r} is not defined "
+                                 f"(defined: {sorted(self.node_sets)})")
+        if set(ports) & set(rigid_ports):
+            raise ValueError(f"{name}: {sorted(set(ports) & set(rigid_ports))} "
+                             f"both node-set and rigid ports")
+
+    def _reduce(self, T, nodal, stiffness, mass_q, interface_map, loads_q, probe_map):
+        """Reduction q = Psi r: Craig-Bampton (interface coordinates kept physical) or
+        the rigid-body motions alone; the matrices in the reduced coordinates (as given
+        when there is no reduction).  Sets ``self._full_map`` (u_full = map @ q)."""
+        self._full_map = T
+        psi = None
+        if self.modes is not None:
+            # loaded dofs stay physical too: the static response to a point load is then
+            # exact, instead of converging slowly with the number of modes
+            boundary = np.unique(np.concatenate([interface_map.indices,
+                                                 sp.csc_matrix(loads_q).indices]))
+            psi = craig_bampton_basis(stiffness, mass_q, boundary, self.modes)
+        elif self.rigid:
+            psi = rigid_body_basis(T, self.points, nodal, self.name)
+        if psi is None:
+            return stiffness, mass_q, interface_map, loads_q, probe_map
+        stiffness = sp.csr_matrix(psi.T @ (stiffness @ psi))
+        if self.rigid:  # rigid motions store no strain energy: drop the round-off
+            stiffness = sp.csr_matrix(stiffness.shape)
+        self._full_map = sp.csr_matrix(T @ psi)
+        return (stiffness, sp.csr_matrix(psi.T @ (mass_q @ psi)),
+                sp.csr_matrix(interface_map @ psi), sp.csr_matrix(psi.T @ loads_q.toarray()),
+                sp.csr_matrix(probe_map @ psi))
+
     def _nodes(self, order: int) -> None:
         """Interpolation points ``self.points`` (dim, nnodes) and their dofs
         ``self.node_dofs`` (dim, nnodes): the vertices for linear elements."""
