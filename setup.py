@@ -13,7 +13,7 @@ FOLDERS = {
     "dsim.master": "master",
     "dsim.fmus": "fmus",
     "dsim.build_fmus": "build_fmus",
-    "dsim.serve": "dsim_serve",
+    "dsim.serve": "serve",
     "dsim.ssp": "ssp",  # the shipped scenes' sources, for `dsim build-fmus --out DIR`
 }
 #: folders of files, not code (listed as packages, which is how setuptools ships data)

@@ -37,6 +37,35 @@ _WHERE = {
     "RunResult": "recording.results", "read_columns": "recording.results",
     "read_csv": "recording.results",
     "load_scene": "planning.load",
+    # what a front end needs besides a run (dsim serve, serve/, imports only these names)
+    "validate": "checks.validate",  # dsim validate's checks of a scene: a Validation
+    "compare_files": "checks.compare",  # dsim compare RESULT BASELINE: a Comparison
+    "SETTINGS": "settings",  # every run setting by keyword: option, help, kind, rule
+    "choices": "settings",  # the valid names of a setting that chooses an implementation
+    "resolve": "settings",  # keyword settings applied to a MasterSettings, checked
+    "MasterSettings": "scene",
+    "describe": "reading.fmi_description",  # an FMU's modelDescription: an FmuDescription
+    "fmu_problem": "reading.fmu_archive",  # what is wrong with an FMU file (None: nothing)
+    "conventional_ports": "reading.ports",  # an FMU's ports, from its variables' names
+    "check_archive": "reading.unpacking",  # a zip's members, checked as untrusted input
+    "MAX_UNPACKED": "reading.unpacking",  # the most bytes an archive may unpack to
+    "free_settable": "planning.parameters",  # what --set may set in a plan's component
+    "joint_coefficients": "planning.parameters",  # what --set may set in a joint
+    "mat_bytes": "recording.results",  # columns as a MATLAB .mat file (dsim run --mat)
+    "plot_signals": "recording.results", "plot_overlay": "recording.results",
+    "Sweep": "sweeps.sweep", "sweep_of": "sweeps.sweep", "run_sweep": "sweeps.sweep",
+    "check": "sweeps.sweep",  # a Sweep checked as dsim sweep checks a sweep file
+    "mark_pareto": "sweeps.sweep",  # mark the points no other beats in error and time
+    "cheapest": "sweeps.sweep",  # a sweep's fastest stable point within a target error
+    "TIGHTEST": "sweeps.sweep",  # a sweep's reference: its tightest point
+    "DESIGNS": "sweeps.design",  # the designs of experiments dsim sweep draws
+    "parse_vary": "sweeps.design",  # one --vary NAME=SPEC as a sweep's factor
+    "Point": "sweeps.table",  # one point of a sweep, as sweep.csv holds it
+    "read_table": "sweeps.table",  # a sweep.csv: (varied names, KPI labels, points)
+    "read_sensitivity": "sweeps.folder",  # a sweep folder's sensitivity.csv rows
+    "Index": "sweeps.sensitivity",  # one sensitivity index of a KPI to a factor
+    "ranking": "sweeps.sensitivity",  # the factors of a KPI, most influential first
+    "end_process": "tools.process_exit",  # exit without the FMU libraries' exit handlers
 }
 
 __all__ = sorted(_WHERE) + ["__version__"]

@@ -19,6 +19,9 @@ SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 GLUE = "urn:dsim:gluing:1"
+#: the ssc:Annotation types of dsim's annotation (docs/annotation.md): names in the SSP
+#: files, not Python modules (serve/ imports the public dsim only, never the master's)
+GLUING_TYPE, MASTER_TYPE = "org.dsim.gluing", "org.dsim.master"
 
 #: SSV element for a value of each FMI type (an Enumeration is set by its number)
 SSV_TYPES = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer",
@@ -140,7 +143,7 @@ def system_structure(spec: SceneSpec) -> bytes:
                              startConnector=output, endElement=end, endConnector=input_)
     if spec.joints or spec.ports:
         annotation = etree.SubElement(etree.SubElement(system, _q(SSD, "Annotations")),
-                                      _q(SSC, "Annotation"), type="org.dsim.gluing")
+                                      _q(SSC, "Annotation"), type=GLUING_TYPE)
         gluing = etree.SubElement(annotation, _q(GLUE, "Gluing"), nsmap={"glue": GLUE})
         for joint in spec.joints:
             _joint(gluing, joint)
@@ -151,7 +154,7 @@ def system_structure(spec: SceneSpec) -> bytes:
                                   stopTime=repr(float(spec.stop)))
     if spec.master:
         annotation = etree.SubElement(etree.SubElement(experiment, _q(SSD, "Annotations")),
-                                      _q(SSC, "Annotation"), type="org.dsim.master")
+                                      _q(SSC, "Annotation"), type=MASTER_TYPE)
         etree.SubElement(annotation, _q(GLUE, "Master"),
                          {MASTER_ATTRIBUTES[k]: str(v) for k, v in spec.master.items()},
                          nsmap={"glue": GLUE})

@@ -8,7 +8,7 @@ import os
 import secrets
 import socket
 
-from dsim.master.errors import InputError
+from dsim import InputError
 
 #: the packages of the ``serve`` extra, by import name
 NEEDED = ("fastapi", "uvicorn", "jinja2", "multipart")

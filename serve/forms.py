@@ -1,7 +1,7 @@
 """What the web forms send, read into dsim's terms: run settings (checked by
-dsim's own rules, :func:`dsim.master.settings.resolve`), sweep grids
-(:func:`dsim.master.sweeps.sweep.check`), scenes to assemble and parameter edits.  Each reader
-returns the value or raises :class:`FormError` listing every problem."""
+dsim's own rules, :func:`dsim.resolve`), sweep grids (:func:`dsim.check`), scenes to
+assemble and parameter edits.  Each reader returns the value or raises :class:`FormError`
+listing every problem."""
 from __future__ import annotations
 
 import math
@@ -21,9 +21,7 @@ class FormError(Exception):
 def run_settings(fields: dict) -> dict:
     """``dsim run``'s settings from form fields named as its keywords; an empty field
     keeps the scene's value."""
-    from dsim.master.errors import InputError
-    from dsim.master.scene import MasterSettings
-    from dsim.master.settings import SETTINGS, resolve
+    from dsim import SETTINGS, InputError, MasterSettings, resolve
 
     # the scene a run reads is the one stored, described by its own SystemStructure.ssd
     settings = {k: str(fields[k]).strip() for k in SETTINGS if k != "ssd"
@@ -51,9 +49,7 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
     ``design``, ``samples``, ``seed``), its KPIs (``kpis``: one ``--kpi`` per line) and
     fixed settings (``stop``; ``backend``: ray runs the points side by side), checked
     as ``dsim sweep`` checks a sweep file."""
-    from dsim.master.errors import InputError
-    from dsim.master.sweeps.design import DESIGNS, parse_vary
-    from dsim.master.sweeps.sweep import Sweep, check
+    from dsim import DESIGNS, InputError, Sweep, check, parse_vary
 
     grid = {name: _list(str(fields.get(name) or "")) for name in
             ("step", "tolerance", "coupling", "predictor")}
@@ -97,9 +93,9 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
 
 
 def job_sweep(spec: dict):
-    """The :class:`~dsim.master.sweeps.sweep.Sweep` of a stored sweep spec (:func:`sweep_spec`):
+    """The :class:`~dsim.Sweep` of a stored sweep spec (:func:`sweep_spec`):
     a sweep file's object whose fixed settings are stored as ``fixed``."""
-    from dsim.master.sweeps.sweep import sweep_of
+    from dsim import sweep_of
 
     data = {key: value for key, value in spec.items() if key != "fixed"}
     return sweep_of({**data, "settings": spec.get("fixed", {})})

@@ -3,15 +3,15 @@ child process: ``python -m dsim.serve.inspect fmu|ssp FILE`` prints one JSON
 object, ``{"ok": true, "description": {...}}`` or ``{"ok": false, "problems":
 [...]}``.  ``python -m dsim.serve.inspect parameters FILE`` checks the model
 parameters a run form gives (a JSON object on standard input) against a stored
-scene, by ``dsim run --set``'s rules (:mod:`dsim.master.planning.parameters`), and answers the
-values as the run will apply them.
+scene, by ``dsim run --set``'s rules (:func:`dsim.prepare` with ``parameters``), and
+answers the values as the run will apply them.
 
 An uploaded FMU's shared library is never loaded here, nor anywhere in the
 server: loading a library runs its constructors, so a page that got a file
 uploaded (see :class:`dsim.serve.app.Guard`) would run code on this machine.
 Only modelDescription.xml is read, and the library for this platform is checked
 to be there and, on Linux, to be a whole ELF shared object for this machine
-(``dsim.master.reading.fmu_archive.fmu_problem(path, load=False)``, reading bytes only; the
+(``dsim.fmu_problem(path, load=False)``, reading bytes only; the
 scene checks are ``dsim validate``'s, which load nothing either).  A library runs
 only in a run's own worker process, when a user starts a run.
 
@@ -29,8 +29,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from dsim.master.reading.unpacking import MAX_UNPACKED
-from dsim.master.reading.unpacking import check_archive as shared_check_archive
+from dsim import MAX_UNPACKED, check_archive as shared_check_archive
 
 #: capability flags of <CoSimulation> shown on a model's page
 CAPABILITIES = ("canGetAndSetFMUstate", "canSerializeFMUstate",
@@ -46,9 +45,9 @@ class Refused(Exception):
 
 def check_archive(path: Path, what: str, max_unpacked: int = MAX_UNPACKED) -> list[str]:
     """Member names of a zip archive, refused (:class:`Refused`) on the command line's
-    grounds (:func:`dsim.master.reading.unpacking.check_archive`: not a zip, a zip bomb, a member
-    outside itself, a name that is not UTF-8)."""
-    from dsim.master.errors import InputError
+    grounds (:func:`dsim.check_archive`: not a zip, a zip bomb, a member outside itself, a
+    name that is not UTF-8)."""
+    from dsim import InputError
 
     try:
         return shared_check_archive(path, what, max_unpacked)
@@ -65,10 +64,8 @@ def _start(variable):
 
 def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     """The summary of an FMU's modelDescription that a model's page shows, after
-    dsim's checks of an FMU (:func:`dsim.master.reading.fmu_archive.fmu_problem`)."""
-    from dsim.master.reading.fmu_archive import fmu_problem
-    from dsim.master.reading.fmi_description import describe
-    from dsim.master.reading.ports import conventional_ports
+    dsim's checks of an FMU (:func:`dsim.fmu_problem`)."""
+    from dsim import conventional_ports, describe, fmu_problem
 
     names = check_archive(path, "FMU", max_unpacked)
     problem = fmu_problem(path, load=False)
@@ -105,7 +102,7 @@ def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
 
 
 def _joint(joint) -> dict:
-    from dsim.master.planning.parameters import joint_coefficients
+    from dsim import joint_coefficients
 
     return {"name": joint.name, "a": ".".join(joint.a), "b": ".".join(joint.b),
             "dofs": list(joint.dofs), "kind": joint.kind, "measure": joint.measure,
@@ -118,7 +115,7 @@ def _settable(plan, index: int) -> list[dict]:
     """What a run may set in component ``index`` (``dsim info``'s list): the
     parameters, and the inputs that no joint or connection writes, with the value
     the scene binds."""
-    from dsim.master.planning.parameters import free_settable
+    from dsim import free_settable
 
     component = plan.scene.component(plan.specs[index].name)
     rows = []
@@ -163,8 +160,7 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     checks (a scene that does not validate is refused with every problem)."""
     import hashlib
 
-    from dsim.master.api import prepare
-    from dsim.master.checks.validate import validate
+    from dsim import prepare, validate
 
     names = check_archive(path, "SSP", max_unpacked)
     if "SystemStructure.ssd" not in names:
@@ -234,8 +230,7 @@ def check_parameters(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -
     """The model parameters ``given`` (name -> value, from a run form) as a run of the
     stored scene at ``path`` applies them, after every check of ``dsim run --set``
     (an InputError lists what is wrong); no library is loaded."""
-    from dsim.master.api import prepare
-    from dsim.master.errors import InputError
+    from dsim import InputError, prepare
 
     if not isinstance(given, dict):
         raise Refused("give the parameters as a JSON object of name: value")
@@ -262,7 +257,7 @@ def _ssd_root(folder: Path):
 
 def main(argv=None) -> int:
     """Print the JSON answer for one file; exit 0 whatever the answer."""
-    from dsim.master.errors import InputError
+    from dsim import InputError
 
     argv = sys.argv[1:] if argv is None else argv
     kind, path = argv[0], Path(argv[1])

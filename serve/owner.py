@@ -21,7 +21,7 @@ import os
 import secrets
 from pathlib import Path
 
-from dsim.master.errors import InputError
+from dsim import InputError
 
 
 def _start_time(pid: int) -> str | None:

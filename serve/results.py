@@ -11,11 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dsim.master.errors import InputError
-from dsim.master.recording.results import mat_bytes, plot_overlay, plot_signals, read_columns
-from dsim.master.checks.compare import compare_files
-from dsim.master.sweeps.sweep import mark_pareto
-from dsim.master.sweeps.table import Point, read_table
+from dsim import (InputError, Point, compare_files, mark_pareto, mat_bytes, plot_overlay,
+                  plot_signals, read_columns, read_table)
 
 #: most points per curve sent to a browser chart
 MAX_POINTS = 4000
@@ -85,7 +82,7 @@ def sweep_points(folder: Path) -> tuple[list[str], list[Point]]:
 
 def sweep_table(folder: Path) -> tuple[list[str], list[str], list[Point]]:
     """(varied names, KPI labels, points) of a sweep's folder, Pareto front marked; read
-    by dsim's own reader (:func:`dsim.master.sweeps.table.read_table`), which the writer's
+    by dsim's own reader (:func:`dsim.read_table`), which the writer's
     quoting matches."""
     path = folder / "sweep.csv"
     if not path.exists():

@@ -3,9 +3,9 @@ JSON API: what the form shows (built from the FMUs' modelDescriptions: name, typ
 unit, start, limits), and the server-side check of what it sends.
 
 Form fields are untrusted (docs/security.md): their names and values are only text
-handed to dsim's own checks (``dsim run --set``'s, :mod:`dsim.master.planning.parameters`), which
-run in a child process over the stored scene, as an upload's inspection does; the
-values a run stores are the ones those checks answer.
+handed to dsim's own checks (``dsim run --set``'s, through :func:`dsim.prepare`), which run
+in a child process over the stored scene, as an upload's inspection does; the values a
+run stores are the ones those checks answer.
 """
 from __future__ import annotations
 

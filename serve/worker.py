@@ -25,7 +25,7 @@ import time
 import traceback
 from pathlib import Path
 
-from dsim.master.recording.observers import Observer
+from dsim import Observer
 
 #: seconds between two live samples (the first and last step are always sent)
 SAMPLE_SECONDS = 0.05
@@ -144,9 +144,7 @@ def input_hashes(plan, scene_sha: str) -> dict:
 
 def run_scene(job: dict, folder: Path) -> dict:
     """One run of ``dsim run`` with the job's settings; its outcome."""
-    from dsim.master.api import prepare
-    from dsim.master.recording.observers import CsvRecorder, StatisticsWriter
-    from dsim.master.running.execution import Execution
+    from dsim import CsvRecorder, Execution, StatisticsWriter, prepare
 
     plan = prepare(folder / "scene.ssp", **job["settings"])
     (folder / "inputs.json").write_text(json.dumps(input_hashes(plan, job["scene_sha256"])))
@@ -164,7 +162,7 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
     """A ``dsim sweep`` of the scene; its outcome (points as ``point`` lines).  A sweep
     whose points all ran is completed, also when some of them failed: its message says
     how many failed and why (the first reasons); it fails only when no point ran."""
-    from dsim.master.sweeps.sweep import run_sweep
+    from dsim import run_sweep
     from dsim.serve.forms import job_sweep
 
     sweep = job_sweep(job)
@@ -190,7 +188,7 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
 
 def main(argv=None) -> int:
     """Run the job of one folder; exit 0 when ``outcome.json`` was written."""
-    from dsim.master.errors import InputError
+    from dsim import InputError
 
     folder = Path((sys.argv[1:] if argv is None else argv)[0])
     job = json.loads((folder / "job.json").read_text())
@@ -216,6 +214,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    from dsim.master.tools.process_exit import end_process
+    from dsim import end_process
 
     end_process(main())  # outcome.json is written; the FMU libraries' exit handlers must not run

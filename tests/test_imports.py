@@ -5,9 +5,9 @@
   circle;
 * every module imports on its own, first, in a fresh interpreter;
 * nothing in the repository imports the folders' old top-level names (``master``,
-  ``fmus``, ``build_fmus``, ``dsim_serve``), which would load a module twice under two
-  names.  The pythonfmu scripts are the exception: inside an FMU, ``fmus`` is the
-  top-level package beside them.
+  ``fmus``, ``build_fmus``, ``serve``, and ``dsim_serve``, serve/'s name before), which
+  would load a module twice under two names.  The pythonfmu scripts are the exception:
+  inside an FMU, ``fmus`` is the top-level package beside them.
 """
 from __future__ import annotations
 
@@ -21,8 +21,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 #: import name -> folder (as setup.py maps them)
 FOLDERS = {"dsim": "dsim", "dsim.master": "master", "dsim.fmus": "fmus",
-           "dsim.build_fmus": "build_fmus", "dsim.serve": "dsim_serve"}
-OLD_NAMES = {"master", "fmus", "build_fmus", "dsim_serve"}
+           "dsim.build_fmus": "build_fmus", "dsim.serve": "serve"}
+#: the folders as top-level names, and serve/'s folder before it was named as it installs
+OLD_NAMES = {"master", "fmus", "build_fmus", "serve", "dsim_serve"}
 
 
 def fmu_script(path: Path) -> bool:
@@ -141,7 +142,7 @@ def test_every_name_imported_from_the_package_exists():
 #: and tools/ call the api
 LAYERS = ["recording", "reading", "running", "planning", "checks", "sweeps", "tools"]
 SIDE_BY_SIDE = {"checks": {"sweeps"}, "sweeps": {"checks"}}
-MAY_IMPORT = {"errors": set(), "scene": set(), "settings": {"running"},
+MAY_IMPORT = {"errors": set(), "scene": set(), "processes": set(), "settings": {"running"},
               "api": set(LAYERS[:LAYERS.index("planning") + 1]), "__init__": set()}
 
 
@@ -166,7 +167,8 @@ def test_each_folder_of_the_master_imports_only_the_folders_before_it():
             allowed = allowed | {"api"}  # the tools are callers of the API
         for other in imports(name, path, modules):
             target = _folder(other)
-            if target in (None, folder, "__init__", "errors", "scene", "settings") or (
+            if target in (None, folder, "__init__", "errors", "scene", "settings",
+                          "processes") or (
                     target in allowed):
                 continue
             wrong.append(f"{name} -> {other}")
@@ -186,7 +188,7 @@ _CHILDREN = textwrap.dedent("""
                 importlib.import_module(name)
                 loaded = sorted(m for m in sys.modules
                                 if m.split(".")[0] in ("master", "fmus", "build_fmus",
-                                                       "dsim_serve", "examples"))
+                                                       "serve", "dsim_serve", "examples"))
                 if loaded:
                     raise ImportError("old top-level names loaded: " + ", ".join(loaded))
             except BaseException as error:
@@ -209,7 +211,7 @@ def test_every_module_imports_alone_in_a_fresh_interpreter(tmp_path):
 
 def test_nothing_imports_the_old_top_level_names():
     offenders = []
-    for folder in ("dsim", "master", "fmus", "build_fmus", "dsim_serve", "examples", "tests",
+    for folder in ("dsim", "master", "fmus", "build_fmus", "serve", "examples", "tests",
                    "benchmarks"):
         for path in sorted((ROOT / folder).rglob("*.py")):
             if "__pycache__" in path.parts or fmu_script(path):
@@ -221,6 +223,31 @@ def test_nothing_imports_the_old_top_level_names():
                 offenders += [f"{path.relative_to(ROOT)}:{node.lineno}: {n}" for n in names
                               if n and n.split(".")[0] in OLD_NAMES]
     assert offenders == []
+
+
+def test_the_web_front_end_uses_the_public_api_only():
+    """``dsim serve`` (serve/) is a user of dsim like any other: it imports ``dsim`` and
+    its own modules, never ``dsim.master``, and each name it takes from ``dsim`` is one
+    of the public names (dsim/__init__.py's table)."""
+    import dsim
+
+    wrong = []
+    for path in sorted((ROOT / FOLDERS["dsim.serve"]).rglob("*.py")):
+        if "__pycache__" in path.parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            where = f"{path.relative_to(ROOT)}:{getattr(node, 'lineno', 0)}"
+            if isinstance(node, ast.Import):
+                wrong += [f"{where}: {a.name}" for a in node.names
+                          if a.name.split(".")[:2] == ["dsim", "master"]]
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                module = node.module or ""
+                if module.split(".")[:2] == ["dsim", "master"]:
+                    wrong.append(f"{where}: {module}")
+                elif module == "dsim":
+                    wrong += [f"{where}: dsim.{a.name} is not public" for a in node.names
+                              if a.name not in dsim.__all__]
+    assert wrong == []
 
 
 def test_the_fmu_scripts_import_fmus_as_the_fmu_holds_it():

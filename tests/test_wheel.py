@@ -2,8 +2,8 @@
 from a folder that is not the checkout (docs/architecture.md, "One installed name").
 
 * The wheel holds one top-level name, ``dsim`` (and its dist-info); none of the
-  repository's folder names (``master``, ``fmus``, ``build_fmus``, ``dsim_serve``,
-  ``examples``) is importable after installing it.
+  repository's folder names (``master``, ``fmus``, ``build_fmus``, ``serve``, and
+  ``dsim_serve`` as serve/ was named, ``examples``) is importable after installing it.
 * ``dsim build-fmus --out DIR`` builds the shipped FMUs and scenes from the package
   alone; ``dsim run``, ``dsim validate``, ``dsim serve`` and ``import dsim`` work, and a
   run gives the checkout's numbers byte for byte.
@@ -102,7 +102,8 @@ def test_installed_from_the_wheel_dsim_works_outside_the_checkout(wheel, built, 
     # one import name: the repository's folders are not importable names
     _run([python, "-c", textwrap.dedent("""
         import importlib.util, sys
-        old = [n for n in ("master", "fmus", "build_fmus", "dsim_serve", "examples")
+        old = [n for n in ("master", "fmus", "build_fmus", "serve", "dsim_serve",
+                          "examples")
                if importlib.util.find_spec(n) is not None]
         assert not old, old
         import dsim
