@@ -42,8 +42,10 @@ def test_rollback_through_the_fmu_is_bit_for_bit(built):
     parameters = {"n": ("Integer", 2), "m[1]": ("Real", 10.0), "m[2]": ("Real", 10.0),
                   "k[1]": ("Real", 100.0), "k1[1]": ("Real", 1000.0),
                   "c1[1]": ("Real", 1.4e4), "F0[2]": ("Real", 10.0)}
-    fmu = FmuSubsystem(SubsystemSpec("c", path, tuple(glued), parameters,
-                                     ("x[1]", "x[2]", "v[2]", "a[2]"), (), 0.0, 1.0))
+    fmu = FmuSubsystem(SubsystemSpec(name="c", path=path, port_dofs=tuple(glued),
+                                     parameters=parameters,
+                                     reads=("x[1]", "x[2]", "v[2]", "a[2]"), writes=(),
+                                     start_time=0.0, stop_time=1.0))
     fmu.finish_initialization()
     try:
         for i in range(20):
