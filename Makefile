@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN = $(VENV)/bin
 SCENE ?= spring_mass_nonlinear
 
-.PHONY: demo test fmus browser screenshots benchmarks baselines clean
+.PHONY: demo test quick test-serial test-beside test-rest fmus browser screenshots benchmarks baselines clean
 
 $(VENV)/installed: pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
@@ -20,8 +20,35 @@ demo: fmus
 	$(BIN)/dsim run build/ssp/$(SCENE).ssp --out results/$(SCENE).csv --plot results/$(SCENE).png
 	$(BIN)/python -m examples.spring_mass --results results/$(SCENE).csv
 
+# The test tiers (README, "Tests"; docs/ci.md): markers in pyproject.toml, assigned by
+# tests/conftest.py.  `make test` runs every test and prints where the time goes
+# (--durations): the Ray and wheel tests in one pytest process, all the others in a
+# second one at the same time; they share nothing (the Ray tests, and only they, start or
+# join Ray instances; the wheel test works on a copy of the checkout; dsim serve binds
+# free ports).  `make test-serial` is the same suite in one process.
+PYTEST = OMP_NUM_THREADS=1 $(BIN)/pytest
+QUICK = not (wheel or kernels or ray or browser or fuzz or slow)
+BESIDE = ray or wheel
+
 test: fmus browser
-	OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs --durations=25
+	@mkdir -p results && rm -f results/test-beside.log
+	@$(MAKE) --no-print-directory -j2 -k test-beside test-rest; status=$$?; \
+	  echo "=== the tests run beside those (-m '$(BESIDE)'), from results/test-beside.log:"; \
+	  cat results/test-beside.log; exit $$status
+
+# the two halves of `make test` (they expect its set-up: use `make test`)
+test-rest:
+	$(PYTEST) -q -rs --durations=25 -m "not ($(BESIDE))"
+test-beside:
+	@echo "make: the tests -m '$(BESIDE)' run beside, into results/test-beside.log"
+	@$(PYTEST) -q -rs --durations=15 -m "$(BESIDE)" -p no:cacheprovider >results/test-beside.log 2>&1
+
+test-serial: fmus browser
+	$(PYTEST) -q -rs --durations=25
+
+# the fast tier: everything but the wheel, kernel, Ray, browser, fuzz and slow tests
+quick: fmus
+	$(PYTEST) -q -rs --durations=10 -m "$(QUICK)"
 
 # Debian's Chromium for dsim serve's browser tests, installed when missing and allowed
 # (best effort: without it those tests are skipped, and pytest -rs says so)

@@ -72,3 +72,73 @@ def pytest_unconfigure(config):
 
 def pytest_sessionfinish(session, exitstatus):
     session.config._dsim_exit_status = exitstatus
+
+
+# ---------------------------------------------------------------------------------------
+# The test tiers (README, "Tests"; docs/ci.md): markers registered in pyproject.toml,
+# assigned here, centrally, so that no test module needs to carry them.
+#
+#   make quick  ->  -m "not (wheel or kernels or ray or browser or fuzz or slow)"
+#   make test   ->  everything: the `ray` and `wheel` tests in one pytest process, the
+#                   others in a second one beside it (the Makefile says why that is safe)
+#
+# A test gets the markers of its module (MODULE_MARKERS), `ray` if it uses the
+# session's Ray instance (the ray_local fixture), and those of its entry in NODE_MARKERS.
+
+#: module (file name) -> markers of every test in it
+MODULE_MARKERS = {
+    "test_wheel.py": ("wheel",),
+    "test_kernels.py": ("kernels",),
+    "test_ray_backend.py": ("ray",),
+    "test_ray_cluster.py": ("ray",),
+    "test_ray_sweep.py": ("ray",),
+    "test_ssp_fuzz.py": ("fuzz",),
+    "test_serve_browser.py": ("serve", "browser"),
+    "test_serve_api.py": ("serve",),
+    "test_serve_processes.py": ("serve",),
+    "test_serve_security.py": ("serve",),
+}
+
+#: "tests/FILE.py::FUNCTION" (every parametrization of it) or a full node id -> markers.
+#: Kept small: the tests that start Ray without the ray_local fixture (a dsim process
+#: run with --isolate or --backend ray), the kernel study of test_bands.py, and `slow`:
+#: the other tests that took over ~3 s in a full run on two cores (`--durations`,
+#: docs/ci.md).  A new test over ~3 s belongs here, or in one of the modules above.
+NODE_MARKERS = {
+    # Ray without the ray_local fixture
+    "tests/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[isolated-SIGINT]": ("ray",),
+    "tests/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[isolated-SIGTERM]": ("ray",),
+    "tests/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[ray-SIGTERM]": ("ray",),
+    "tests/test_serve_api.py::test_a_run_on_the_isolated_backend_gives_the_in_process_numbers": ("ray",),
+    "tests/test_files_security.py::test_an_address_answers_the_same_whatever_the_port_state": ("ray",),
+    # OpenBLAS kernel studies (each run again under every kernel this CPU has)
+    "tests/test_bands.py::test_kernel_study_measures_noise_and_a_result_beyond_it_regresses": ("kernels",),
+    # slow: 5 to 20 s each
+    "tests/test_validate_and_regress.py::test_every_shipped_scene_matches_its_baseline": ("slow",),
+    "tests/test_imports.py::test_every_module_imports_alone_in_a_fresh_interpreter": ("slow",),
+    "tests/test_error_paths.py::test_an_error_path_ends_with_its_exit_code_and_one_line_never_a_signal": ("slow",),
+    "tests/test_sweep.py::test_a_sweep_over_fidelity_sets_ranks_them_against_the_finest": ("slow",),
+    "tests/test_stability.py::test_fixed_joints_pass_the_four_bar_singular_points_on_the_penalized_measure": ("slow",),
+    "tests/test_fmi_kinds_fmus.py::test_memory_safety": ("slow",),
+    "tests/test_doe.py::test_a_terminated_serial_sweep_finishes_on_the_same_command": ("slow",),
+    # slow: 3 to 4 s each (out of `make quick`, to keep it well under 3 minutes)
+    "tests/test_stability.py::test_undamped_energy_drifts_no_more_than_the_twins": ("slow",),
+    "tests/test_files_security.py::test_a_scene_of_many_components_is_checked_in_linear_time": ("slow",),
+    "tests/test_flexible_link_core.py::test_glued_crank_slider_with_flexible_coupler": ("slow",),
+    "tests/test_linkage_scenes.py::test_penalized_bounds_the_drift_that_acceleration_only_gluing_lets_grow": ("slow",),
+    "tests/test_serve_api.py::test_a_parameter_sweep_from_the_form_shows_kpis_sensitivity_and_plots": ("slow",),
+    "tests/test_serve_api.py::test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form": ("slow",),
+    "tests/test_serve_processes.py::test_runs_in_flight_when_the_server_ends_show_as_interrupted": ("slow",),
+}
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m deselects by them
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        names = set(MODULE_MARKERS.get(item.path.name, ()))
+        if "ray_local" in item.fixturenames:
+            names.add("ray")
+        names.update(NODE_MARKERS.get(item.nodeid.split("[")[0], ()))
+        names.update(NODE_MARKERS.get(item.nodeid, ()))
+        for name in sorted(names):
+            item.add_marker(name)
