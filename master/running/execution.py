@@ -350,6 +350,23 @@ class Execution:
                       + (" (further cut steps are counted in the statistics: step_cuts)"
                          if cuts == CUTS_SAID else ""))
 
+    def _flush_rows(self) -> None:
+        """Write the rows still pending (a run shorter than a flush interval has all
+        of them pending): rows that cannot be written fail a run that had completed,
+        as they would have failed it during a step; after a failure or an interrupt
+        they are a warning beside how the run ended."""
+        for observer in self.observers:
+            flush = getattr(observer, "flush", None)
+            if flush is None:
+                continue
+            try:
+                flush()
+            except OutputError as error:
+                if self.status == "completed":
+                    self._fail(error)
+                else:
+                    self.warnings.append(str(error))
+
     def _fail(self, error: Exception) -> None:
         self.error = error
         self.status = "failed"
@@ -375,6 +392,7 @@ class Execution:
                     stepped(held)
             except OutputError as error:
                 self.warnings.append(str(error))
+        self._flush_rows()
         if self.backend is not None:  # said after how the run ended, not before
             self.warnings += [f"releasing the subsystems: {error}"
                               for error in self.backend.close()]
