@@ -66,6 +66,8 @@ _WHERE = {
     "Index": "sweeps.sensitivity",  # one sensitivity index of a KPI to a factor
     "ranking": "sweeps.sensitivity",  # the factors of a KPI, most influential first
     "end_process": "tools.process_exit",  # exit without the FMU libraries' exit handlers
+    "process_alive": "processes",  # whether a process (the one started then) still runs
+    "process_start_time": "processes",  # a process's start time, as process_alive takes it
 }
 
 __all__ = sorted(_WHERE) + ["__version__"]

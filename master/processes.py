@@ -23,7 +23,7 @@ def _stat_fields(pid: int) -> list[str] | None:
     return data.rsplit(")", 1)[1].split()
 
 
-def start_time(pid: int) -> str | None:
+def process_start_time(pid: int) -> str | None:
     """The process's start time (clock ticks since boot, as /proc gives it), or None
     where there is no such process or no /proc."""
     fields = _stat_fields(pid)
@@ -32,7 +32,7 @@ def start_time(pid: int) -> str | None:
 
 def process_alive(pid: int, started: str | None = None, zombies: bool = True) -> bool:
     """Whether process ``pid`` still runs.  ``started``: the start time
-    :func:`start_time` gave for it (``"-"``: none was known): only that process counts,
+    :func:`process_start_time` gave for it (``"-"``: none was known): only that process counts,
     not a later one the pid was given to again (and, without /proc, an identity that
     cannot be checked counts as gone).  ``zombies``: whether a process that has ended
     but whose exit status nobody collected yet counts as running."""

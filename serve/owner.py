@@ -21,26 +21,14 @@ import os
 import secrets
 from pathlib import Path
 
-from dsim import InputError
-
-
-def _start_time(pid: int) -> str | None:
-    """The start time of process ``pid`` in clock ticks since boot (field 22 of
-    /proc/PID/stat), which tells a process from a later one given the same pid;
-    None when there is no such process (or no /proc)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    # the command name (field 2) is in parentheses and may hold spaces
-    return stat.rsplit(")", 1)[1].split()[19]
+from dsim import InputError, process_alive, process_start_time
 
 
 def server_identity() -> str:
     """``pid:start-time:random`` of this server (the random part tells apart two
     applications in one process, as tests make)."""
     pid = os.getpid()
-    return f"{pid}:{_start_time(pid) or '-'}:{secrets.token_hex(4)}"
+    return f"{pid}:{process_start_time(pid) or '-'}:{secrets.token_hex(4)}"
 
 
 def owner_alive(owner: str | None) -> bool:
@@ -54,16 +42,7 @@ def owner_alive(owner: str | None) -> bool:
         pid = int(pid_text)
     except ValueError:
         return False
-    now = _start_time(pid)
-    if now is not None:
-        return started in ("-", now)
-    try:  # no /proc: only whether the pid exists
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return started == "-"
+    return process_alive(pid, started)
 
 
 class DatabaseLock:

@@ -7,13 +7,13 @@ import subprocess
 import sys
 import time
 
-from dsim.master.processes import process_alive, start_time
+from dsim.master.processes import process_alive, process_start_time
 
 
 def test_a_running_process_is_alive_and_known_by_its_start_time():
     pid = os.getpid()
-    assert process_alive(pid) and process_alive(pid, started=start_time(pid))
-    assert not process_alive(pid, started=str(int(start_time(pid)) + 1))  # pid reused
+    assert process_alive(pid) and process_alive(pid, started=process_start_time(pid))
+    assert not process_alive(pid, started=str(int(process_start_time(pid)) + 1))  # pid reused
 
 
 def test_an_ended_child_is_a_zombie_until_collected_then_gone():

@@ -139,11 +139,12 @@ def test_only_runs_of_a_dead_server_are_taken_over(tmp_path):
     those of a dead one (a process that has ended) are recorded as interrupted."""
     from fastapi.testclient import TestClient
 
-    from dsim.serve.owner import _start_time, server_identity
+    from dsim import process_start_time
+    from dsim.serve.owner import server_identity
     from dsim.serve.store import Store
 
     ended = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
-    dead = f"{ended.pid}:{_start_time(ended.pid)}:0"
+    dead = f"{ended.pid}:{process_start_time(ended.pid)}:0"
     ended.kill()
     ended.wait()
     store = Store(tmp_path / "db.sqlite")
