@@ -11,6 +11,7 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from dsim.master import __version__
 from dsim.master.api import simulate
 from dsim.master.checks.compare import band_origin, compare_files
 from dsim.master.checks.kernel_study import choose_kernels
@@ -26,6 +27,7 @@ from dsim.master.sweeps.folder import read_sensitivity
 from dsim.master.sweeps.sensitivity import Index, ranking
 from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, read_sweep_file,
                                       run_sweep)
+from dsim.master.sweeps.table import STATES, count_states, state
 from dsim.master.tools.info import scene_info
 from dsim.master.tools.plot import overlay_files
 
@@ -213,8 +215,10 @@ def _cmd_sweep(args) -> int:
                                     resumed=resumed)
     _print_sweep_summary(args, sweep, out, points)
     if interrupted:
-        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}; "
-              "run the same command again to finish the others", file=sys.stderr)
+        kept = [p for p in points if p.finished]
+        print(f"dsim: interrupted: {len(kept)} finished point{'s' * (len(kept) != 1)} "
+              f"kept in {out} ({count_states(points)}); run the same command again to run "
+              "the others", file=sys.stderr)
         return 128 + interrupted
     return 0
 
@@ -225,12 +229,14 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
     written = [out / name for name in ("sweep.csv", "sweep.md", "sweep.png", "kpis.png",
                                        "scatter.png", "sensitivity.md")
                if (out / name).is_file()]
-    print(f"sweep       {len(points)} points: {', '.join(str(w) for w in written)}")
-    failed = [p for p in points if p.status != "completed"]
-    if failed:
-        print(f"failed      {len(failed)} of {len(points)} points did not complete "
-              f"(their rows say why): points {', '.join(str(p.index) for p in failed[:12])}"
-              f"{' ...' if len(failed) > 12 else ''}")
+    print(f"sweep       {len(points)} points ({count_states(points)}): "
+          f"{', '.join(str(w) for w in written)}")
+    for word in ("unstable", "failed", "refused", "interrupted"):
+        these = [p for p in points if state(p) == word]
+        if these:
+            print(f"{word:<11} point{'s' * (len(these) > 1)} "
+                  f"{', '.join(str(p.index) for p in these[:12])}"
+                  f"{' ...' if len(these) > 12 else ''}: {STATES[word]}")
     front = sorted((p for p in points if p.pareto), key=lambda p: p.wall_seconds)
     for point in front:
         print(f"pareto      {point.label}: error {point.error:.2e}, {point.wall_seconds:.2f} s")
@@ -493,13 +499,27 @@ def _add_compare(commands) -> None:
     compare_parser.set_defaults(handler=_cmd_compare)
 
 
+class _CommandParser(argparse.ArgumentParser):
+    """A subcommand's parser: an option it does not know is its error, said with its
+    own usage (argparse would hand it up to the top-level parser, whose usage names
+    no option of the subcommand)."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace, extras
+
+
 def parser() -> argparse.ArgumentParser:
     """The command-line parser."""
     main_parser = argparse.ArgumentParser(
         prog="dsim", description="Co-simulation master: glues the FMUs of an SSP file (FMI 1.0 "
         "co-simulation, FMI 2.0 and 3.0 co-simulation and Model Exchange) with the T-T gluing "
         "algorithm.")
-    commands = main_parser.add_subparsers(dest="command", required=True)
+    main_parser.add_argument("--version", action="version", version=f"dsim {__version__}")
+    commands = main_parser.add_subparsers(dest="command", required=True,
+                                          parser_class=_CommandParser)
     _add_run(commands)
     _add_validate(commands)
     _add_plot(commands)
