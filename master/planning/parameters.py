@@ -152,9 +152,10 @@ class ArraySize:
 
     def text(self, component: str) -> str:
         """One line saying which entries are used, and how to use more."""
-        shown = ", ".join(self.families[:4]) + (" ..." if len(self.families) > 4 else "")
-        return (f"arrays {shown} are used to [{self.size}] of [{self.length}] ({self.parameter}"
-                f" = {self.size}); set {component}.{self.parameter} too to use more")
+        shown = ", ".join(self.families[:4]) + (", ..." if len(self.families) > 4 else "")
+        return (f"arrays {shown} used to [{self.size}] of [{self.length}] "
+                f"({self.parameter} = {self.size}; --set {component}.{self.parameter} to use "
+                "more)")
 
 
 def _whole(value) -> int | None:
