@@ -55,6 +55,7 @@ _WHERE = {
     "plot_signals": "recording.results", "plot_overlay": "recording.results",
     "Sweep": "sweeps.sweep", "sweep_of": "sweeps.sweep", "run_sweep": "sweeps.sweep",
     "check": "sweeps.sweep",  # a Sweep checked as dsim sweep checks a sweep file
+    "unrecorded_columns": "sweeps.sweep",  # a sweep's KPIs and columns a scene lacks
     "mark_pareto": "sweeps.sweep",  # mark the points no other beats in error and time
     "cheapest": "sweeps.sweep",  # a sweep's fastest stable point within a target error
     "TIGHTEST": "sweeps.sweep",  # a sweep's reference: its tightest point

@@ -312,17 +312,26 @@ def recorded_columns(plan) -> list[str]:
     return ["time"] + numbers + list(plan.text_columns)
 
 
-def check_columns(plan, sweep: Sweep, kpis) -> None:
-    """Every KPI's columns and every compared column (``columns``) among those a run
-    of ``plan`` records: InputError naming the closest, before any point runs (a
-    misspelled column would otherwise be found only in each point's row)."""
-    names = recorded_columns(plan)
-    problems = unresolved(kpis, names)
+def unrecorded_columns(sweep: Sweep, names) -> list[str]:
+    """One problem per KPI of ``sweep`` that matches none of the recorded columns
+    ``names`` (or whose ``final`` matches several), and per compared column
+    (``columns``) not among them, each naming the closest: what ``dsim sweep`` and
+    ``dsim serve``'s sweep form refuse before the first point."""
+    names = list(names)
+    problems = unresolved(parse_all(sweep.kpis), names)
     for column in sweep.columns or ():
         if column not in names:
             close = difflib.get_close_matches(column, names[:50000], n=3, cutoff=0.4)
             problems.append(f"--columns: the scene records no column '{column}'"
                             + (f" (closest: {', '.join(close)})" if close else ""))
+    return problems
+
+
+def check_columns(plan, sweep: Sweep) -> None:
+    """Every KPI's columns and every compared column among those a run of ``plan``
+    records (:func:`unrecorded_columns`): InputError before any point runs (a
+    misspelled column would otherwise be found only in each point's row)."""
+    problems = unrecorded_columns(sweep, recorded_columns(plan))
     if problems:
         raise InputError(problems)
 
@@ -382,7 +391,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     names = list(dict.fromkeys(k for c in configurations for k in c))
     plan = prepare(scene, **keywords(sweep.fixed))  # bad input before any point runs
     check_parameters(scene, sweep, configurations)
-    check_columns(plan, sweep, kpis)
+    check_columns(plan, sweep)
     reference_file, use_tightest = _reference_choice(sweep, plan)
     if use_tightest:  # the tightest run first: the others compare with it
         configurations.insert(0, configurations.pop(tightest(configurations)))

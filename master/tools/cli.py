@@ -24,7 +24,8 @@ from dsim.master.recording.observers import ProgressBar
 from dsim.master.settings import SETTINGS, choices
 from dsim.master.sweeps.design import DESIGNS, parse_vary
 from dsim.master.sweeps.folder import read_sensitivity
-from dsim.master.sweeps.sensitivity import Index, ranking
+from dsim.master.sweeps.sensitivity import (SPANS_ZERO, SPANS_ZERO_TEXT, Index,
+                                            cautions, ranking_text)
 from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, read_sweep_file,
                                       run_sweep)
 from dsim.master.sweeps.table import STATES, count_states, state
@@ -257,12 +258,16 @@ def _print_rankings(out: Path) -> None:
     """The factors of each KPI ranked by the sweep's sensitivity table."""
 
     rows = read_sensitivity(out)
-    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
-               for r in rows]
+    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]),
+                     float(r.get("confidence") or "nan"), r.get("note", "")) for r in rows]
     for kpi in dict.fromkeys(i.kpi for i in indices):
-        order = ranking(indices, kpi)
+        order = ranking_text(indices, kpi)
         if order:
-            print(f"ranking     {kpi}: {' > '.join(order)}")
+            print(f"ranking     {kpi}: {order}")
+            if SPANS_ZERO in order:
+                print(f"            {SPANS_ZERO}: {SPANS_ZERO_TEXT}")
+        for note in cautions(indices, kpi):
+            print(f"caution     {kpi}: {note}")
 
 
 def _cmd_regress(args) -> int:
