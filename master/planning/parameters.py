@@ -44,9 +44,9 @@ ORIGIN = "given for the run (--set, --set-file, parameters=)"
 #: The flexible law per dof is (k0 + k1|q|) q + (c0 + c1|qd|) qd = -F (docs/method.md).
 JOINT_COEFFICIENTS = {
     "k0": ("flexible", "stiffness, per dof (N/m; N.m/rad on a rotation)"),
-    "k1": ("flexible", "stiffness growing with |q|, per dof (N/m^2; N.m/rad^2)"),
+    "k1": ("flexible", "stiffness growing with abs(q), per dof (N/m^2; N.m/rad^2)"),
     "c0": ("flexible", "damping, per dof (N.s/m; N.m.s/rad)"),
-    "c1": ("flexible", "damping growing with |qd|, per dof (N.s^2/m^2; N.m.s^2/rad^2)"),
+    "c1": ("flexible", "damping growing with abs(qd), per dof (N.s^2/m^2; N.m.s^2/rad^2)"),
     "xi": ("penalized", "damping ratio of the penalized measure (1)"),
     "omega": ("penalized", "frequency of the penalized measure (rad/s)"),
 }
