@@ -35,6 +35,7 @@ _WHERE = {
     "StatisticsWriter": "recording.observers", "StepRecord": "recording.observers",
     "Plan": "planning.plan",
     "RunResult": "recording.results", "read_columns": "recording.results",
+    "MissingColumn": "recording.results",  # result["missing"]: a KeyError naming the closest
     "read_csv": "recording.results",
     "load_scene": "planning.load",
     # what a front end needs besides a run (dsim serve, serve/, imports only these names)
@@ -66,6 +67,7 @@ _WHERE = {
     "read_sensitivity": "sweeps.folder",  # a sweep folder's sensitivity.csv rows
     "Index": "sweeps.sensitivity",  # one sensitivity index of a KPI to a factor
     "ranking": "sweeps.sensitivity",  # the factors of a KPI, most influential first
+    "ranking_text": "sweeps.sensitivity",  # the same as text, indices spanning 0 marked ~0
     "end_process": "tools.process_exit",  # exit without the FMU libraries' exit handlers
 }
 

@@ -19,6 +19,7 @@ from dsim.master.checks.regress import (KernelChoice, find_cases, junit_xml, rea
                                         summary_lines)
 from dsim.master.checks.validate import validate
 from dsim.master.errors import InputError, SimulationError
+from dsim.master.planning.parameters import JOINT_COEFFICIENTS
 from dsim.master.reading.parameter_input import given_parameters
 from dsim.master.recording.observers import ProgressBar
 from dsim.master.settings import SETTINGS, choices
@@ -325,8 +326,8 @@ def _add_run_choices(run_parser) -> None:
                             help="a start value for this run, on top of the scene's "
                             "bindings and --parameter-set: COMPONENT.VARIABLE=VALUE "
                             "(nested components by their dotted path) or JOINT.k0=VALUE "
-                            "(k0 k1 c0 c1 xi omega); again for more (`dsim info` lists what "
-                            "can be set)")
+                            f"({' '.join(JOINT_COEFFICIENTS)}: those of the joint's law); "
+                            "again for more (`dsim info --all` lists what can be set)")
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "
                             "name,value rows (.csv) or a JSON object (.json); --set wins "
@@ -479,12 +480,14 @@ def _add_regress(commands) -> None:
 
 def _add_info(commands) -> None:
     """``dsim info``: what a scene is made of."""
-    info_parser = commands.add_parser("info", help="components, capabilities, ports, "
-                                      "joints and master settings of a scene")
+    info_parser = commands.add_parser("info", help="a one-screen summary of a scene: FMU "
+                                      "files, components, ports, joints, connections, what "
+                                      "can be set (counted), master settings")
     info_parser.add_argument("scene")
     info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
-    info_parser.add_argument("--all", action="store_true", help="list every input that "
-                             "can be set (default: the first 12 of each component)")
+    info_parser.add_argument("--all", action="store_true", help="every component in full, "
+                             "with the table of every variable a run may set (name, type, "
+                             "unit, start, the scene's value, limits, description)")
     info_parser.set_defaults(handler=_cmd_info)
 
 

@@ -78,14 +78,14 @@ async def _check_sweep_parameters(request: Request, scene_id: int, spec: dict) -
 def sweep_page(request: Request, run_id: int, target: str, context: dict) -> HTMLResponse:
     """The page of sweep ``run_id`` (``context``: the run's, as a run's page has it);
     ``target``: an error whose cheapest point to pick out."""
-    from dsim import Index, ranking, read_sensitivity
+    from dsim import Index, ranking_text, read_sensitivity
 
     folder = store_of(request).run_folder(run_id)
     names, kpis, points = results.sweep_table(folder)
     sensitivity = read_sensitivity(folder)
-    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
-               for r in sensitivity]
-    rankings = {k: ranking(indices, k) for k in dict.fromkeys(i.kpi for i in indices)}
+    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]),
+                     float(r.get("confidence") or "nan")) for r in sensitivity]
+    rankings = {k: ranking_text(indices, k) for k in dict.fromkeys(i.kpi for i in indices)}
     chosen, problem = None, None
     if target.strip():
         try:
