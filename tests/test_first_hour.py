@@ -145,6 +145,10 @@ def test_a_step_that_does_not_fit_the_span_is_said_and_refused_when_strict(
     assert said in capsys.readouterr().err
     assert main(["validate", scene, "--stop", "10", "--step", step, "--strict"]) == 2
     assert said in _one_error(capsys)
+    assert main(["run", scene, "--stop", "10", "--step", step, "--out",
+                 str(tmp_path / "r.csv")]) == 0
+    shown = capsys.readouterr()
+    assert said in shown.err and f"({said.split(': ', 1)[1]})" in shown.out
     result = dsim.simulate(scene, stop=10.0, step=float(step), handle_signals=False)
     assert result.ok and any(said in w for w in result.warnings)
     assert result.steps == (1 if step == "20" else 4)

@@ -22,6 +22,7 @@ from dsim.master.errors import InputError, SimulationError
 from dsim.master.planning.parameters import JOINT_COEFFICIENTS
 from dsim.master.reading.parameter_input import given_parameters
 from dsim.master.recording.observers import ProgressBar
+from dsim.master.running.timeline import span_note
 from dsim.master.settings import SETTINGS, choices
 from dsim.master.sweeps.design import DESIGNS, parse_vary
 from dsim.master.sweeps.folder import read_sensitivity
@@ -37,11 +38,13 @@ from dsim.master.tools.plot import overlay_files
 def _summary(result, plot: Path | None) -> str:
     data = result.statistics
     components = max(len(data["components"]), 1)
+    uneven = span_note(data["start_time"], data["stop_time"], data["master"]["step"])
     lines = [
         f"scene       {data['scene']}  ({data['file']}), {data['coupling']} coupling, "
         f"{data['backend']} backend",
         f"time        {data['start_time']:g} .. {data['stop_time']:g} s, "
-        f"step {data['master']['step']:g} s, {data['steps']} steps",
+        f"step {data['master']['step']:g} s, {data['steps']} steps"
+        + (f" ({uneven.split(': ', 1)[1]})" if uneven else ""),
         f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
         f"(max {data['iterations']['max_per_step']}), "
         f"Lambda refreshes {data['lambda_refreshes']}, "
