@@ -50,6 +50,11 @@ class Point:
         return " ".join(f"{k}={_short(v)}" for k, v in self.settings.items())
 
     @property
+    def state(self) -> str:
+        """Its one word of :data:`STATES` (:func:`state`)."""
+        return state(self)
+
+    @property
     def finished(self) -> bool:
         """Whether a rerun of the sweep keeps this point (an interrupted one runs again)."""
         return self.status not in ("", "interrupted")
