@@ -29,6 +29,7 @@ import math
 import numbers
 import re
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 
 from dsim.master.errors import InputError
@@ -116,16 +117,19 @@ def refusal(variable) -> str | None:
 def settable_variables(path: Path, component: str) -> list[Settable]:
     """Every variable of the FMU at ``path`` that a run may set, in the order of its
     modelDescription."""
-    result = []
-    for variable in describe(path).modelVariables:
-        if refusal(variable) is not None or variable.type not in KEPT_TYPE:
-            continue
-        result.append(Settable(component, variable.name, variable.type, variable.causality,
-                               variable.variability or "", _declared(variable, "unit"),
-                               variable.start, _declared(variable, "min"),
-                               _declared(variable, "max"), variable.description or "",
-                               items_of(variable)))
-    return result
+    return [Settable(component, *fields) for fields in _settable_fields(describe(path))]
+
+
+@lru_cache(maxsize=64)
+def _settable_fields(description) -> tuple[tuple, ...]:
+    """The fields of :class:`Settable` but the component, per settable variable of a
+    description (read once per FMU: a scene of thousands of components shares a few)."""
+    return tuple((variable.name, variable.type, variable.causality,
+                  variable.variability or "", _declared(variable, "unit"), variable.start,
+                  _declared(variable, "min"), _declared(variable, "max"),
+                  variable.description or "", items_of(variable))
+                 for variable in description.modelVariables
+                 if refusal(variable) is None and variable.type in KEPT_TYPE)
 
 
 # --- arrays sized by a parameter -----------------------------------------------------
@@ -146,9 +150,7 @@ class ArraySize:
 
     def beyond(self, name: str) -> bool:
         """Whether variable ``name`` is an entry past the used size."""
-        match = _ELEMENT.match(name)
-        return bool(match) and match.group(1) in self.families \
-            and int(match.group(2)) > self.size
+        return name in _past(self.families, self.size, self.length)
 
     def text(self, component: str) -> str:
         """One line saying which entries are used, and how to use more."""
@@ -166,6 +168,12 @@ def _whole(value) -> int | None:
     return int(number) if math.isfinite(number) and number.is_integer() else None
 
 
+@lru_cache(maxsize=256)
+def _past(families: tuple[str, ...], size: int, length: int) -> frozenset:
+    return frozenset(f"{family}[{i}]" for family in families
+                     for i in range(size + 1, length + 1))
+
+
 def array_size(description, values: dict) -> ArraySize | None:
     """The size parameter of an FMU's arrays and its value in a scene, or None.  FMI
     2.0 has no array dimensions, so dsim reads the convention its own FMUs keep (and
@@ -175,6 +183,22 @@ def array_size(description, values: dict) -> ArraySize | None:
     uses.  ``values``: the scene's values (name -> (type, value) as
     ``Component.parameters``), else the FMU's start.  Found only where exactly one
     such parameter matches, and its value is below N: nothing is hidden otherwise."""
+    found = _size_parameter(description)
+    if found is None:
+        return None
+    variable, limit, sized = found
+    given = values.get(variable.name)
+    size = _whole(given[1] if isinstance(given, tuple) else given)
+    size = size if size is not None else _whole(variable.start)
+    if size is None or not 1 <= size < limit:
+        return None
+    return ArraySize(variable.name, size, limit, sized)
+
+
+@lru_cache(maxsize=64)
+def _size_parameter(description):
+    """(the size parameter, N, the array families of length N) of a description, or
+    None (read once per FMU)."""
     families: dict[str, set[int]] = {}
     for variable in description.modelVariables:
         match = _ELEMENT.match(variable.name)
@@ -194,15 +218,7 @@ def array_size(description, values: dict) -> ArraySize | None:
         sized = tuple(base for base, length in lengths.items() if length == limit)
         if limit and sized:
             found.append((variable, limit, sized))
-    if len(found) != 1:
-        return None
-    variable, limit, sized = found[0]
-    given = values.get(variable.name)
-    size = _whole(given[1] if isinstance(given, tuple) else given)
-    size = size if size is not None else _whole(variable.start)
-    if size is None or not 1 <= size < limit:
-        return None
-    return ArraySize(variable.name, size, limit, sized)
+    return found[0] if len(found) == 1 else None
 
 
 def _past_size(scene, components: dict, given: list[tuple[str, str, str]]) -> list[str]:
