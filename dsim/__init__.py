@@ -35,6 +35,7 @@ _WHERE = {
     "StatisticsWriter": "recording.observers", "StepRecord": "recording.observers",
     "Plan": "planning.plan",
     "RunResult": "recording.results", "read_columns": "recording.results",
+    "MissingColumn": "recording.results",  # result["missing"]: a KeyError naming the closest
     "read_csv": "recording.results",
     "load_scene": "planning.load",
     # what a front end needs besides a run (dsim serve, serve/, imports only these names)
@@ -55,6 +56,7 @@ _WHERE = {
     "plot_signals": "recording.results", "plot_overlay": "recording.results",
     "Sweep": "sweeps.sweep", "sweep_of": "sweeps.sweep", "run_sweep": "sweeps.sweep",
     "check": "sweeps.sweep",  # a Sweep checked as dsim sweep checks a sweep file
+    "unrecorded_columns": "sweeps.sweep",  # a sweep's KPIs and columns a scene lacks
     "mark_pareto": "sweeps.sweep",  # mark the points no other beats in error and time
     "cheapest": "sweeps.sweep",  # a sweep's fastest stable point within a target error
     "TIGHTEST": "sweeps.sweep",  # a sweep's reference: its tightest point
@@ -65,6 +67,7 @@ _WHERE = {
     "read_sensitivity": "sweeps.folder",  # a sweep folder's sensitivity.csv rows
     "Index": "sweeps.sensitivity",  # one sensitivity index of a KPI to a factor
     "ranking": "sweeps.sensitivity",  # the factors of a KPI, most influential first
+    "ranking_text": "sweeps.sensitivity",  # the same as text, indices spanning 0 marked ~0
     "end_process": "tools.process_exit",  # exit without the FMU libraries' exit handlers
     "process_alive": "processes",  # whether a process (the one started then) still runs
     "process_start_time": "processes",  # a process's start time, as process_alive takes it

@@ -62,6 +62,12 @@ def checked(store, scene: dict, values: dict, max_unpacked: int) -> dict:
     return answer["parameters"]
 
 
+def _shown(value) -> str:
+    """A value as the form shows it: a float to 10 significant digits (14.14, not
+    14.139999999999999), anything else as text."""
+    return format(value, ".10g") if isinstance(value, float) else str(value)
+
+
 def form_groups(scene: dict, models: dict) -> list[dict]:
     """The form's rows, one group per component and one per flexible or penalized
     joint: ``{"title", "rows": [{"field", "name", "type", "unit", "value",
@@ -88,15 +94,15 @@ def form_groups(scene: dict, models: dict) -> list[dict]:
                 limits = f"[{row.get('min') or '-inf'}, {row.get('max') or 'inf'}]"
             shown.append({"field": f"{FIELD}{component['path']}.{row['name']}",
                           "name": row["name"], "type": row["type"], "unit": row["unit"] or "",
-                          "placeholder": "" if value is None else str(value),
+                          "placeholder": "" if value is None else _shown(value),
                           "limits": limits, "choices": row.get("items") or [],
                           "causality": row["causality"],
                           "description": row.get("description") or ""})
         groups.append({"title": f"component {component['path']}", "rows": shown})
     for joint in d["joints"]:
         rows = [{"field": f"{FIELD}{joint['name']}.{key}", "name": key, "type": "Real",
-                 "unit": "", "placeholder": " ".join(repr(v) for v in joint[key])
-                 if isinstance(joint[key], list) else repr(joint[key]), "limits": ">= 0"
+                 "unit": "", "placeholder": " ".join(_shown(v) for v in joint[key])
+                 if isinstance(joint[key], list) else _shown(joint[key]), "limits": ">= 0"
                  if key in ("k0", "c0", "xi", "omega") else "", "choices": [],
                  "causality": "joint law", "description": "one value for every dof, or one "
                  "per dof" if isinstance(joint[key], list) else ""}
@@ -120,5 +126,50 @@ def command_options(settings: dict) -> str:
                     repr(given) if isinstance(given, float) else str(given))
                 words += ["--set", shlex.quote(f"{name}={text}")]
         else:
-            words += [f"--{key.replace('_', '-')}", shlex.quote(str(value))]
+            words += [_option(key), shlex.quote(str(value))]
     return " ".join(words)
+
+
+def _option(keyword: str) -> str:
+    """The command-line option of a setting's keyword (``relative_tolerance`` ->
+    ``--relative-tolerance``), as dsim's table of settings names it."""
+    from dsim import SETTINGS
+
+    setting = SETTINGS.get(keyword)
+    return setting.option if setting is not None else f"--{keyword.replace('_', '-')}"
+
+
+def sweep_command(spec: dict, scene: str = "scene.ssp") -> str:
+    """The ``dsim sweep`` command that makes the sweep of a stored spec
+    (:func:`dsim.serve.forms.sweep_spec`: grid, fixed settings, vary lines, design,
+    samples, seed, KPIs, reference), quoted for a POSIX shell: run over the scene's
+    .ssp it gives the very same points."""
+    import shlex
+
+    words = ["dsim", "sweep", scene]
+    for keyword, values in (spec.get("grid") or {}).items():
+        words += [_option(keyword), ",".join(str(v) for v in values)]
+    for keyword, value in (spec.get("fixed") or {}).items():
+        words += [_option(keyword), str(value)]
+    for line in spec.get("vary") or ():
+        words += ["--vary", line]
+    if spec.get("design") and spec["design"] != "grid":
+        words += ["--design", spec["design"]]
+    for key in ("samples", "seed"):
+        if spec.get(key) is not None:
+            words += [f"--{key}", str(spec[key])]
+    for kpi in spec.get("kpis") or ():
+        words += ["--kpi", kpi]
+    if spec.get("reference"):
+        words += ["--reference", str(spec["reference"])]
+    return " ".join(shlex.quote(w) for w in words)
+
+
+def run_command(run: dict, scene: str = "scene.ssp") -> str:
+    """The command line that makes ``run`` (a stored run or sweep) again: ``dsim run``
+    with its settings and ``--set`` values, or ``dsim sweep`` with its design."""
+    if run.get("kind") == "sweep":
+        return sweep_command(run.get("settings") or {}, scene)
+    options = command_options(run.get("settings") or {})
+    return f"dsim run {scene}" + (f" {options}" if options else "")
+

@@ -179,7 +179,8 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
     status = ("interrupted" if interrupted else
               "failed" if not points or len(failed) == len(points) else "completed")
     reasons = "; ".join(f"point {p.index}: {p.message or p.status}" for p in failed[:3])
-    message = (f"interrupted after {len(points)} points" if interrupted else
+    message = (f"interrupted after {sum(p.finished for p in points)} finished points"
+               if interrupted else
                f"{len(failed)} of {len(points)} points failed: {reasons}" if failed else "")
     return {"status": status, "message": message,
             "exit_code": 128 + interrupted if interrupted else int(status == "failed"),

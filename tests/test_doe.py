@@ -134,7 +134,8 @@ def test_a_failed_point_is_a_row_with_its_reason_and_the_sweep_goes_on(built, tm
     failed, completed = rows(out / "sweep.csv")
     assert failed["status"] == "failed" and failed["message"]
     assert failed["maxabs(j1.f_x)"] == "nan" and float(completed["maxabs(j1.f_x)"]) > 0
-    assert "failed      1 of 2 points did not complete" in capsys.readouterr().out
+    shown = capsys.readouterr().out
+    assert "2 points (1 completed, 1 failed)" in shown and "failed      point 1: " in shown
 
 
 def test_a_folder_holding_another_sweep_is_refused(built, tmp_path, capsys):

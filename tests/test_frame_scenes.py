@@ -205,7 +205,7 @@ def test_the_scene_hands_its_mesh_files_to_the_fmus(built):
 
 
 def test_info_shows_the_gluable_ports_and_the_scene_files(built, capsys):
-    assert main(["info", str(built["ssp"] / "frame_nested_flat.ssp")]) == 0
+    assert main(["info", "--all", str(built["ssp"] / "frame_nested_flat.ssp")]) == 0
     text = capsys.readouterr().out
     rail = text[text.index("  rail_left:"):text.index("  rail_right:")]
     assert ("ports: port1[1..5](x y z), port2[1..5](x y z), port3[1..5](x y z), "

@@ -193,9 +193,9 @@ def test_a_run_takes_model_parameters_from_the_scene_form(server, tmp_path):
     queued, stored with the run, and gives dsim's own numbers."""
     client, store, scene_id = server
     page = html.unescape(client.get(f"/scenes/{scene_id}").text)
-    for expected in ('name="parameter:left.m[1]" placeholder="10.0"',
-                     'name="parameter:right.F0[2]" placeholder="10.0"',
-                     'name="parameter:j1.k0" placeholder="100.0"', "spring to ground k0, N/m",
+    for expected in ('name="parameter:left.m[1]" placeholder="10"',
+                     'name="parameter:right.F0[2]" placeholder="10"',
+                     'name="parameter:j1.k0" placeholder="100"', "spring to ground k0, N/m",
                      'name="parameter:right.P.f_x"'):  # a free port's force: a load
         assert expected in page, expected
     for written in ("left.P.f_x", "right.Q.f_x"):  # the joint sets these every step
@@ -609,3 +609,85 @@ def test_a_parameter_sweep_from_the_form_shows_kpis_sensitivity_and_plots(server
     problems = [" ".join(li.itertext()) for li in etree.HTML(bad.text).iter("li")]
     assert len(problems) == 1 and "'nope'" in problems[0], problems
     assert store.one("SELECT COUNT(*) AS n FROM runs")["n"] == before  # nothing queued
+
+
+# --- the first hour (issue 32): the page's command makes the job, the sweep form checks
+def _page_command(client, run_id: int) -> list[str]:
+    import shlex
+
+    tree = etree.HTML(client.get(f"/runs/{run_id}").text)
+    return shlex.split(" ".join(tree.find(".//code[@id='command']").itertext()))
+
+
+def test_a_runs_command_line_makes_the_same_run(server, tmp_path):
+    """The run page's command is the dsim run that gives the same results, bit for bit
+    (its settings and --set values, no Python reprs)."""
+    client, store, scene_id = server
+    answer = client.post(f"/scenes/{scene_id}/runs", follow_redirects=False, data={
+        "stop": "0.5", "step": "0.005", "relative_tolerance": "1e-9",
+        "signal": "right.x[2]", "parameter:right.m[2]": "12.5", "parameter:j1.c0": "20"})
+    assert answer.status_code == 303, answer.text
+    run = wait_run(client, int(answer.headers["location"].rsplit("/", 1)[1]))
+    assert run["status"] == "completed", run
+    words = _page_command(client, run["id"])
+    assert words[:3] == ["dsim", "run", "scene.ssp"] and "--relative-tolerance" in words
+    scene = tmp_path / "scene.ssp"
+    scene.symlink_to(store.blob_path(client.get(f"/api/scenes/{scene_id}").json()["sha256"]))
+    out = tmp_path / "again.csv"
+    assert dsim_main(words[1:2] + [str(scene)] + words[3:] + ["--out", str(out),
+                                                              "--quiet"]) == 0
+    assert out.read_bytes() == (store.run_folder(run["id"]) / "results.csv").read_bytes()
+
+
+def test_a_sweeps_command_line_is_the_dsim_sweep_that_makes_it(server, tmp_path):
+    """Regression: a sweep's command was `dsim run ... --grid '{}' --fixed '{...}'
+    --reference None`.  Now it is the dsim sweep command; run, it gives the same
+    points and KPI values."""
+    import csv
+
+    client, store, scene_id = server
+    answer = client.post(f"/scenes/{scene_id}/sweeps", follow_redirects=False, data={
+        "step": "0.02, 0.01", "vary": "right.m[2]=8,12", "kpis": "max(right.x[2])",
+        "stop": "0.3"})
+    assert answer.status_code == 303, answer.text
+    run_id = int(answer.headers["location"].rsplit("/", 1)[1])
+    assert wait_run(client, run_id)["status"] == "completed"
+    words = _page_command(client, run_id)
+    assert words[:3] == ["dsim", "sweep", "scene.ssp"], words
+    assert not any(w in ("--grid", "--fixed", "None", "{}") for w in words), words
+    scene = tmp_path / "scene.ssp"
+    scene.symlink_to(store.blob_path(client.get(f"/api/scenes/{scene_id}").json()["sha256"]))
+    out = tmp_path / "again"
+    assert dsim_main(words[1:2] + [str(scene)] + words[3:] + ["--out", str(out)]) == 0
+
+    def table(folder):
+        with open(folder / "sweep.csv", newline="") as file:
+            return sorted((r["step"], r["right.m[2]"], r["max(right.x[2])"], r["status"])
+                          for r in csv.DictReader(file))
+    served = table(store.run_folder(run_id))
+    assert len(served) == 4 and table(out) == served
+
+
+def test_the_sweep_form_refuses_a_kpi_of_a_column_the_scene_does_not_record(server):
+    client, store, scene_id = server
+    before = store.one("SELECT COUNT(*) AS n FROM runs")["n"]
+    bad = client.post(f"/scenes/{scene_id}/sweeps", data={
+        "step": "0.02, 0.01", "stop": "0.3", "kpis": "max(right.y[2])"})
+    assert bad.status_code == 400
+    problems = [" ".join(li.itertext()) for li in etree.HTML(bad.text).iter("li")]
+    assert len(problems) == 1 and "no recorded column matches 'right.y[2]'" in problems[0] \
+        and "closest: right.x[2]" in problems[0], problems
+    assert store.one("SELECT COUNT(*) AS n FROM runs")["n"] == before  # nothing queued
+
+
+def test_the_upload_text_says_the_library_is_never_loaded(server):
+    client, _, _ = server
+    text = " ".join(etree.HTML(client.get("/").text).itertext())
+    assert "library loads on this machine" not in text
+    assert "never loaded to inspect it" in text
+
+
+def test_the_scene_page_shows_numbers_not_reprs(server):
+    client, _, scene_id = server
+    page = client.get(f"/scenes/{scene_id}").text
+    assert "14.139999999999999" not in page and "<td>14.14</td>" in page

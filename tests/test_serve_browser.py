@@ -182,7 +182,7 @@ def _scenario(page, url: str, built, shots) -> None:
     page.goto(f"{url}/scenes/{scene}")
     page.click("#run-parameters summary:has-text('component right')")
     field = page.locator("#run-parameters input[name='parameter:right.F0[2]']")
-    expect(field).to_have_attribute("placeholder", "10.0")
+    expect(field).to_have_attribute("placeholder", "10")
     field.fill("20")
     page.fill("#run-form input[name=stop]", "2")
     shots(page, "run-parameters", whole=False)

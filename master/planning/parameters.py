@@ -27,7 +27,9 @@ from __future__ import annotations
 import difflib
 import math
 import numbers
+import re
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 
 from dsim.master.errors import InputError
@@ -37,10 +39,22 @@ from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 #: where a value given for the run came from (``Component.origins``), and how
 #: messages name it
 ORIGIN = "given for the run (--set, --set-file, parameters=)"
+#: every joint law coefficient a run may set (``--set j1.k0=VALUE``): what it is and
+#: which joints have it.  The one list ``dsim info``, the messages, the ``--set``
+#: help and docs/parameters.md give (tests/test_first_hour.py keeps the docs so).
+#: The flexible law per dof is (k0 + k1|q|) q + (c0 + c1|qd|) qd = -F (docs/method.md).
+JOINT_COEFFICIENTS = {
+    "k0": ("flexible", "stiffness, per dof (N/m; N.m/rad on a rotation)"),
+    "k1": ("flexible", "stiffness growing with abs(q), per dof (N/m^2; N.m/rad^2)"),
+    "c0": ("flexible", "damping, per dof (N.s/m; N.m.s/rad)"),
+    "c1": ("flexible", "damping growing with abs(qd), per dof (N.s^2/m^2; N.m.s^2/rad^2)"),
+    "xi": ("penalized", "damping ratio of the penalized measure (1)"),
+    "omega": ("penalized", "frequency of the penalized measure (rad/s)"),
+}
 #: joint law coefficients a run may set: per dof (one value for all, or one per dof)
-JOINT_PER_DOF = ("k0", "k1", "c0", "c1")
+JOINT_PER_DOF = tuple(k for k, (kind, _) in JOINT_COEFFICIENTS.items() if kind == "flexible")
 #: ... and of the penalized measure (one value)
-JOINT_SCALAR = ("xi", "omega")
+JOINT_SCALAR = tuple(k for k, (kind, _) in JOINT_COEFFICIENTS.items() if kind == "penalized")
 #: coefficients that are physical only when not negative
 NON_NEGATIVE = ("k0", "c0", "xi", "omega")
 #: the SSP value type dsim keeps for an FMU variable type
@@ -103,16 +117,125 @@ def refusal(variable) -> str | None:
 def settable_variables(path: Path, component: str) -> list[Settable]:
     """Every variable of the FMU at ``path`` that a run may set, in the order of its
     modelDescription."""
-    result = []
-    for variable in describe(path).modelVariables:
-        if refusal(variable) is not None or variable.type not in KEPT_TYPE:
+    return [Settable(component, *fields) for fields in _settable_fields(describe(path))]
+
+
+@lru_cache(maxsize=64)
+def _settable_fields(description) -> tuple[tuple, ...]:
+    """The fields of :class:`Settable` but the component, per settable variable of a
+    description (read once per FMU: a scene of thousands of components shares a few)."""
+    return tuple((variable.name, variable.type, variable.causality,
+                  variable.variability or "", _declared(variable, "unit"), variable.start,
+                  _declared(variable, "min"), _declared(variable, "max"),
+                  variable.description or "", items_of(variable))
+                 for variable in description.modelVariables
+                 if refusal(variable) is None and variable.type in KEPT_TYPE)
+
+
+# --- arrays sized by a parameter -----------------------------------------------------
+#: the largest size a "number of" parameter's description gives (``1 to 4``)
+_LIMIT_TEXT = re.compile(r"\b(?:1 to|1 \.\. ?|up to|at most)\s*(\d+)\b")
+_ELEMENT = re.compile(r"^(.+)\[(\d+)\]$")
+
+
+@dataclass(frozen=True)
+class ArraySize:
+    """Arrays of an FMU that a size parameter says how much of is used: the entries
+    ``family[1]`` .. ``family[size]`` of each family (of ``length`` declared)."""
+
+    parameter: str
+    size: int
+    length: int
+    families: tuple[str, ...]
+
+    def beyond(self, name: str) -> bool:
+        """Whether variable ``name`` is an entry past the used size."""
+        return name in _past(self.families, self.size, self.length)
+
+    def text(self, component: str) -> str:
+        """One line saying which entries are used, and how to use more."""
+        shown = ", ".join(self.families[:4]) + (", ..." if len(self.families) > 4 else "")
+        return (f"arrays {shown} used to [{self.size}] of [{self.length}] "
+                f"({self.parameter} = {self.size}; --set {component}.{self.parameter} to use "
+                "more)")
+
+
+def _whole(value) -> int | None:
+    try:
+        number = float(str(value).strip())
+    except (TypeError, ValueError):
+        return None
+    return int(number) if math.isfinite(number) and number.is_integer() else None
+
+
+@lru_cache(maxsize=256)
+def _past(families: tuple[str, ...], size: int, length: int) -> frozenset:
+    return frozenset(f"{family}[{i}]" for family in families
+                     for i in range(size + 1, length + 1))
+
+
+def array_size(description, values: dict) -> ArraySize | None:
+    """The size parameter of an FMU's arrays and its value in a scene, or None.  FMI
+    2.0 has no array dimensions, so dsim reads the convention its own FMUs keep (and
+    many others): arrays declared as ``m[1]`` .. ``m[N]`` for the largest model, and
+    one Integer parameter, described as "number of ..." with the limit N (its
+    ``max``, or "1 to N" in its description), saying how many entries the model
+    uses.  ``values``: the scene's values (name -> (type, value) as
+    ``Component.parameters``), else the FMU's start.  Found only where exactly one
+    such parameter matches, and its value is below N: nothing is hidden otherwise."""
+    found = _size_parameter(description)
+    if found is None:
+        return None
+    variable, limit, sized = found
+    given = values.get(variable.name)
+    size = _whole(given[1] if isinstance(given, tuple) else given)
+    size = size if size is not None else _whole(variable.start)
+    if size is None or not 1 <= size < limit:
+        return None
+    return ArraySize(variable.name, size, limit, sized)
+
+
+@lru_cache(maxsize=64)
+def _size_parameter(description):
+    """(the size parameter, N, the array families of length N) of a description, or
+    None (read once per FMU)."""
+    families: dict[str, set[int]] = {}
+    for variable in description.modelVariables:
+        match = _ELEMENT.match(variable.name)
+        if match:
+            families.setdefault(match.group(1), set()).add(int(match.group(2)))
+    lengths = {base: max(indices) for base, indices in families.items()
+               if indices == set(range(1, max(indices) + 1))}
+    found = []
+    for variable in description.modelVariables:
+        if variable.type != "Integer" or variable.causality != "parameter" or \
+                "number of" not in (variable.description or "").lower():
             continue
-        result.append(Settable(component, variable.name, variable.type, variable.causality,
-                               variable.variability or "", _declared(variable, "unit"),
-                               variable.start, _declared(variable, "min"),
-                               _declared(variable, "max"), variable.description or "",
-                               items_of(variable)))
-    return result
+        limit = _whole(variable.max)
+        if limit is None:
+            said = _LIMIT_TEXT.search(variable.description or "")
+            limit = int(said.group(1)) if said else None
+        sized = tuple(base for base, length in lengths.items() if length == limit)
+        if limit and sized:
+            found.append((variable, limit, sized))
+    return found[0] if len(found) == 1 else None
+
+
+def _past_size(scene, components: dict, given: list[tuple[str, str, str]]) -> list[str]:
+    """Problems of values given for a run to array entries past the size the scene
+    (with the run's own values) gives the component's arrays: the model would ignore
+    them.  ``given``: (full name, component path, variable name)."""
+    problems = []
+    for name, path, variable_name in given:
+        component = components[path]
+        description = scene.descriptions.get(component.source) or _described(component.source)
+        sizes = array_size(description, component.parameters) if description else None
+        if sizes is not None and sizes.beyond(variable_name):
+            problems.append(f"parameter '{name}': component '{path}' uses its arrays to "
+                            f"[{sizes.size}] ({sizes.parameter} = {sizes.size}): "
+                            f"{variable_name} would have no effect (set "
+                            f"{path}.{sizes.parameter} too to use it)")
+    return problems
 
 
 # --- values ------------------------------------------------------------------------
@@ -216,9 +339,14 @@ def _split(name: str, owners) -> tuple[str, str] | None:
 # --- joints ------------------------------------------------------------------------
 def _joint_value(joint, coefficient: str, value) -> tuple[object, str | None]:
     """A joint law coefficient: a tuple (one per dof) or a float, and its problem."""
-    if coefficient not in JOINT_PER_DOF + JOINT_SCALAR:
-        return None, (f"joint '{joint.name}' has no coefficient '{coefficient}' (it has: "
-                      f"{', '.join(JOINT_PER_DOF + JOINT_SCALAR)})")
+    if coefficient not in JOINT_COEFFICIENTS:
+        own = joint_coefficients(joint)
+        close = difflib.get_close_matches(coefficient, own, n=1, cutoff=0.5)
+        return None, (f"joint '{joint.name}' has no coefficient '{coefficient}' ("
+                      + (f"it has: {', '.join(own)}" if own else
+                         f"a {joint.kind} joint on the {joint.measure} measure has no law "
+                         "coefficient to set")
+                      + (f"; closest: {close[0]}" if close else "") + ")")
     if coefficient in JOINT_PER_DOF and joint.kind != "flexible":
         return None, (f"joint '{joint.name}' is {joint.kind}: it has no spring or damper "
                       f"law, so '{coefficient}' cannot be set (only a flexible joint's)")
@@ -267,7 +395,7 @@ def with_parameters(scene, parameters: dict):
     new_origins = {path: dict(c.origins) for path, c in components.items()}
     new_files = {path: dict(c.files) for path, c in components.items()}
     joint_changes: dict[str, dict] = {}
-    applied, inputs = {}, []
+    applied, inputs, given_variables = {}, [], []
     base = Path(scene.inputs[0]).parent if scene.inputs else Path(scene.file).parent
     for name, value in parameters.items():
         name = str(name).strip()
@@ -296,6 +424,7 @@ def with_parameters(scene, parameters: dict):
         if checked is None:
             continue
         kind, converted = checked
+        given_variables.append((name, path, variable_name))
         new_parameters[path][variable_name] = (kind, converted)
         new_origins[path][variable_name] = f"{where} {ORIGIN}"
         new_files[path].pop(variable_name, None)
@@ -309,6 +438,7 @@ def with_parameters(scene, parameters: dict):
         applied[name] = converted
     changed = tuple(replace(c, parameters=new_parameters[c.path], origins=new_origins[c.path],
                             files=new_files[c.path]) for c in scene.components)
+    problems += _past_size(scene, {c.path: c for c in changed}, given_variables)
     new_joints = tuple(replace(j, **joint_changes[j.name]) if j.name in joint_changes else j
                        for j in scene.joints)
     return replace(scene, components=changed, joints=new_joints,
@@ -360,10 +490,14 @@ def master_writes(spec, path: Path) -> set[str]:
 def free_settable(plan, index: int) -> list[Settable]:
     """What a run may set in component ``index`` of ``plan`` (``dsim info``'s list and
     the web form's rows): its settable variables but the inputs the master writes
-    itself (:func:`master_writes`)."""
+    itself (:func:`master_writes`), and array entries past the size the scene gives
+    them (:func:`array_size`)."""
     spec = plan.specs[index]
-    written = master_writes(spec, plan.scene.component(spec.name).source)
-    return [v for v in settable_variables(spec.path, spec.name) if v.name not in written]
+    component = plan.scene.component(spec.name)
+    written = master_writes(spec, component.source)
+    sizes = array_size(describe(spec.path), component.parameters)
+    return [v for v in settable_variables(spec.path, spec.name) if v.name not in written
+            and not (sizes and sizes.beyond(v.name))]
 
 
 def written_by_master(scene, specs, usable: dict) -> list[str]:

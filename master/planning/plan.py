@@ -31,7 +31,7 @@ from dsim.master.running.connections import (Transfer, build_text_transfer, buil
                                              check_connections)
 from dsim.master.running.fmi import SubsystemSpec
 from dsim.master.running.fmi.integrator import solver_problem
-from dsim.master.running.timeline import is_whole
+from dsim.master.running.timeline import is_whole, span_note
 from dsim.master.scene import Scene
 from dsim.master.settings import check_span
 
@@ -394,6 +394,9 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     links = check_connections(scene, usable, problems)
     _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
+    uneven = span_note(scene.start_time, scene.stop_time, scene.master.step)
+    if uneven:  # the run's summary would say "step 20 s" of a run that took 10 s
+        warnings.append(f"{scene.file}: {uneven}")
     if not scene.experiment:
         warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
                         f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "

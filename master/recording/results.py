@@ -3,6 +3,7 @@ that :func:`dsim.simulate` returns, reading a results CSV back, and plots."""
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import re
 import signal as signals_module
@@ -64,7 +65,49 @@ class RunResult:
         return self._signals or {}
 
     def __getitem__(self, column: str) -> np.ndarray:
-        return self.signals[column]
+        """The values of ``column`` over time; :class:`MissingColumn` (a KeyError)
+        naming the closest columns when the run recorded none of that name."""
+        signals = self.signals
+        try:
+            return signals[column]
+        except (KeyError, TypeError):
+            raise MissingColumn(column, list(signals)) from None
+
+    def to_pandas(self):
+        """The signals as a pandas DataFrame indexed by ``time`` (s), one column per
+        recorded column (numbers as floats, String outputs as objects).  pandas is
+        optional: ImportError saying how to install it when it is absent."""
+        try:  # optional: dsim itself needs no pandas
+            import pandas
+        except ImportError:
+            raise ImportError("RunResult.to_pandas needs pandas, which dsim does not "
+                              "install: pip install pandas (or use result.signals, a dict "
+                              "of numpy arrays)") from None
+        signals = self.signals
+        if not signals:
+            return pandas.DataFrame(index=pandas.Index([], name="time", dtype=float))
+        frame = pandas.DataFrame({n: v for n, v in signals.items() if n != "time"},
+                                 index=pandas.Index(signals["time"], name="time"))
+        return frame
+
+
+class MissingColumn(KeyError):
+    """A results column a run did not record: the message names the closest ones."""
+
+    def __init__(self, column, columns):
+        super().__init__(column)
+        self.column = column
+        close = difflib.get_close_matches(str(column), [c for c in columns][:50000], n=3,
+                                          cutoff=0.4)
+        self.closest = close
+        self.message = (f"no column '{column}' in the results"
+                        + (f" (closest: {', '.join(close)})" if close else
+                           f" (columns: {', '.join(list(columns)[:6])}"
+                           f"{', ...' if len(columns) > 6 else ''})" if columns else
+                           " (the run recorded no columns)"))
+
+    def __str__(self) -> str:
+        return self.message
 
 
 def _table(path) -> tuple[list[str], list[list[str]]]:

@@ -54,6 +54,27 @@ def is_whole(start: float, stop: float, step: float) -> bool:
     return abs(ratio - round(ratio)) <= ROUNDOFF * max(ratio, 1.0)
 
 
+def span_note(start: float, stop: float, step: float) -> str | None:
+    """What a run from ``start`` to ``stop`` (s) in macro steps of ``step`` (s) actually
+    does when the step does not fit the span (a step longer than the span, or one
+    that does not divide it: the last step is shorter), in one sentence; None when
+    the span is a whole number of steps."""
+    if not (math.isfinite(start) and math.isfinite(stop) and math.isfinite(step)) or \
+            step <= 0 or stop <= start:
+        return None  # check_span and the settings' checks refuse these
+    span = stop - start
+    if step > span and not same_size(step, span):
+        return (f"step {step:g} s is longer than the span {start:g} .. {stop:g} s: the run "
+                f"takes one step of {span:g} s")
+    if is_whole(start, stop, step):
+        return None
+    count = step_count(start, stop, step)
+    last = span - (count - 1) * step
+    return (f"step {step:g} s does not divide the span {start:g} .. {stop:g} s: the run "
+            f"takes {count - 1} step{'s' * (count > 2)} of {step:g} s and a last one of "
+            f"{last:.6g} s")
+
+
 def halves(start: float, size: float) -> tuple[tuple[float, float], tuple[float, float]]:
     """The two halves of the step of ``size`` from ``start`` (a cut step), each as
     (start, size): the second ends where the whole would in the FMUs' sum

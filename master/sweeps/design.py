@@ -21,6 +21,7 @@ gives the same points.
 """
 from __future__ import annotations
 
+import difflib
 import itertools
 import json
 import math
@@ -144,8 +145,11 @@ def parse_vary(text: str, sampled: bool) -> Factor:
                          "lo:hi:log:N)")
     name = name.replace("-", "_") if not is_parameter(name) else name
     if not is_parameter(name) and name not in SETTINGS:
-        raise InputError(f"{where}: '{name}' is not a setting ({', '.join(SETTINGS)}); a "
-                         "model parameter is named COMPONENT.VARIABLE")
+        close = difflib.get_close_matches(name, list(SETTINGS), n=3, cutoff=0.6)
+        raise InputError(f"{where}: '{name}' is not a setting"
+                         + (f" (closest: {', '.join(close)})" if close else
+                            f" ({', '.join(SETTINGS)})")
+                         + "; a model parameter is named COMPONENT.VARIABLE")
     if ":" not in spec:
         values = tuple(_list_value(v) for v in spec.split(",") if v.strip())
         if not values:

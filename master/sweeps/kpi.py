@@ -18,6 +18,7 @@ column ``x[2]``.
 """
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from dataclasses import dataclass
@@ -107,6 +108,28 @@ def parse_all(texts) -> list[Kpi]:
     if problems:
         raise InputError(problems)
     return list(dict.fromkeys(kpis))
+
+
+def unresolved(kpis, names) -> list[str]:
+    """One problem per KPI of ``kpis`` whose pattern matches none of the columns
+    ``names`` a run of the scene records (naming the closest), or whose ``final``
+    matches more than one: what ``dsim sweep`` refuses before its first point, as
+    ``dsim run --outputs`` does."""
+    names = list(names)
+    problems = []
+    for kpi in kpis:
+        found = kpi.columns(names)
+        if not found:
+            close = difflib.get_close_matches(kpi.pattern, names[:50000], n=3, cutoff=0.4)
+            problems.append(f"--kpi {kpi.label}: no recorded column matches '{kpi.pattern}'"
+                            + (f" (closest: {', '.join(close)})" if close else
+                               f" (columns: {', '.join(names[:6])}"
+                               f"{', ...' if len(names) > 6 else ''})"))
+        elif kpi.reduction == "final" and len(found) > 1:
+            problems.append(f"--kpi {kpi.label}: final needs one column; '{kpi.pattern}' "
+                            f"matches {len(found)} ({', '.join(found[:4])}"
+                            f"{' ...' if len(found) > 4 else ''})")
+    return problems
 
 
 def is_label(name: str) -> bool:

@@ -5,7 +5,12 @@
   deviations, with the fit's R^2.  For a KPI close to linear in the factors (R^2 near 1)
   SRC^2 is the factor's share of the KPI's variance (its first-order Sobol' index) and
   the sign says which way it moves it; a low R^2 says the ranking needs another method.
-  A few lines of numpy (lstsq): no library computes it on given samples for us.
+  Each SRC has a 95 % confidence half-width from the fit's standard errors (Student's
+  t on n - d - 1 degrees of freedom).  Where the sample's factors are correlated
+  (|r| above :data:`CORRELATED`, as a small Latin hypercube's often are) the factors
+  share the variance they explain: their SRC^2 no longer add up to R^2, and the table
+  says so instead of calling them variance shares.  A few lines of numpy (lstsq): no
+  library computes it on given samples for us.
 * ``grid`` (full factorial): the **main-effect index** of each factor, the variance of
   the KPI's mean at each of the factor's levels over the KPI's variance: on a balanced
   full-factorial grid this is the first-order Sobol' index of that grid (an analysis of
@@ -21,7 +26,8 @@
 Factors on a log range are analysed in log10 of their value (the coordinate the design
 is uniform in).  Points without a KPI value (failed runs) are left out of SRC, the
 main effects and RBD-FAST, and stop Sobol' and Morris, whose estimators need every
-point of their design; the table says so.
+point of their design; the table says so.  An index whose confidence interval spans
+zero is marked as not distinguishable from zero (:attr:`Index.spans_zero`).
 """
 from __future__ import annotations
 
@@ -41,6 +47,16 @@ RBD_LEAST = 32
 #: bootstrap resamples of SALib's confidence intervals, and their seed
 RESAMPLES = 200
 SEED = 0
+#: the largest correlation between two factors in a sample under which SRC^2 still
+#: reads as each factor's variance share: above it (|r| > 0.3, which a 16-point Latin
+#: hypercube reaches by chance) the shares overlap, and the output says so
+CORRELATED = 0.3
+#: the confidence level of the SRCs' intervals (SALib's bootstrap intervals are 95 % too)
+CONFIDENCE = 0.95
+#: what a mark of an index whose interval spans zero means
+SPANS_ZERO = "~0"
+SPANS_ZERO_TEXT = ("its 95 % confidence interval spans zero: not distinguishable from "
+                   "zero on these points")
 
 
 @dataclass
@@ -57,6 +73,13 @@ class Index:
     confidence: float = math.nan
     note: str = ""
 
+    @property
+    def spans_zero(self) -> bool:
+        """Whether the index's confidence interval holds zero (it is then not
+        distinguishable from zero)."""
+        return (bool(self.factor) and math.isfinite(self.value)
+                and math.isfinite(self.confidence) and abs(self.value) <= self.confidence)
+
 
 def coordinates(design: Design, configurations: list[dict]) -> np.ndarray:
     """(points, factors): each point's factors as analysed (log10 on log ranges)."""
@@ -67,18 +90,48 @@ def coordinates(design: Design, configurations: list[dict]) -> np.ndarray:
 
 def src(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     """Standardized regression coefficients of ``y`` on the columns of ``x`` and R^2."""
+    coefficients, _, r2 = src_with_intervals(x, y)
+    return coefficients, r2
+
+
+def src_with_intervals(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                float]:
+    """Standardized regression coefficients of ``y`` on the columns of ``x``, their 95 %
+    confidence half-widths (the least-squares standard errors times Student's t on
+    n - d - 1 degrees of freedom; nan without any) and R^2."""
+    from scipy.stats import t as student  # scipy.stats is slow to import: only here
+
     scale_x = x.std(axis=0)
     scale_y = y.std()
     usable = scale_x > 0
     coefficients = np.full(x.shape[1], math.nan)
+    halves = np.full(x.shape[1], math.nan)
     if scale_y == 0 or not usable.any():
-        return coefficients, math.nan
+        return coefficients, halves, math.nan
     z = (x[:, usable] - x[:, usable].mean(axis=0)) / scale_x[usable]
     w = (y - y.mean()) / scale_y
     beta, *_ = np.linalg.lstsq(z, w, rcond=None)
     coefficients[usable] = beta
     residual = w - z @ beta
-    return coefficients, float(1 - residual @ residual / (w @ w))
+    freedom = len(w) - z.shape[1] - 1
+    gram = z.T @ z
+    if freedom > 0 and np.linalg.matrix_rank(gram) == gram.shape[0]:
+        variance = residual @ residual / freedom
+        errors = np.sqrt(np.maximum(np.diag(np.linalg.inv(gram)) * variance, 0.0))
+        halves[usable] = errors * student.ppf(0.5 + CONFIDENCE / 2, freedom)
+    return coefficients, halves, float(1 - residual @ residual / (w @ w))
+
+
+def correlation(x: np.ndarray, names: list[str]) -> tuple[float, str, str]:
+    """The largest correlation (Pearson's r, by size) between two columns of ``x`` and
+    the names of those two; (0, "", "") with fewer than two varying columns."""
+    varying = [j for j in range(x.shape[1]) if np.ptp(x[:, j]) > 0]
+    if len(varying) < 2:
+        return 0.0, "", ""
+    r = np.corrcoef(x[:, varying], rowvar=False)
+    np.fill_diagonal(r, 0.0)
+    i, j = np.unravel_index(np.argmax(np.abs(r)), r.shape)
+    return float(r[i, j]), names[varying[i]], names[varying[j]]
 
 
 def main_effects(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -118,10 +171,20 @@ def analyse(design: Design, configurations: list[dict], kpis: dict) -> list[Inde
                                  note=f"the KPI is the same ({y[keep][0]:.6g}) at every point"))
             continue
         if keep.sum() > len(names) + 1:
-            coefficients, r2 = src(x[keep], y[keep])
-            indices += [Index(label, n, "regression", "SRC", float(c), note=note)
-                        for n, c in zip(names, coefficients)]
+            coefficients, halves, r2 = src_with_intervals(x[keep], y[keep])
+            indices += [Index(label, n, "regression", "SRC", float(c), float(h), note=note)
+                        for n, c, h in zip(names, coefficients, halves)]
             indices.append(Index(label, "", "regression", "R2", r2, note=note))
+            r, a, b = correlation(x[keep], names)
+            if abs(r) > CORRELATED:
+                shares = float(np.nansum(coefficients ** 2))
+                indices.append(Index(label, "", "regression", "correlation", r, note=(
+                    f"factors {a} and {b} are correlated at r = {r:.3f} in this sample "
+                    f"(above {CORRELATED:g}): they share the variance they explain, so "
+                    f"SRC^2 is not a variance share here (the SRC^2 add up to "
+                    f"{shares:.2f} against R^2 = {r2:.3f}) and the ranking is uncertain; "
+                    "more points, or a design whose factors are uncorrelated (sobol, "
+                    "saltelli), separate them")))
         else:
             indices.append(Index(label, "", "regression", "SRC", math.nan,
                                  note=f"{int(keep.sum())} points with a value: SRC needs "
@@ -178,17 +241,35 @@ def missing_any(keep: np.ndarray) -> bool:
     return not bool(np.all(keep))
 
 
-def ranking(indices: list[Index], kpi: str) -> list[str]:
-    """The factors by the size of their effect on ``kpi``, largest first, by the first
-    measure present of: main effect, Sobol' S1, Morris mu*, |SRC|, RBD-FAST S1 (last:
-    noisy on the few dozen points of a sweep)."""
+def ranked(indices: list[Index], kpi: str) -> list[Index]:
+    """The indices :func:`ranking` orders ``kpi``'s factors by, largest first."""
     for method, measure in (("main effect (ANOVA)", "main_effect"), ("Sobol'", "S1"),
                             ("Morris", "mu_star"), ("regression", "SRC"), ("RBD-FAST", "S1")):
         chosen = [i for i in indices if i.kpi == kpi and (i.method, i.measure) ==
                   (method, measure) and i.factor and math.isfinite(i.value)]
         if chosen:
-            return [i.factor for i in sorted(chosen, key=lambda i: -abs(i.value))]
+            return sorted(chosen, key=lambda i: -abs(i.value))
     return []
+
+
+def ranking(indices: list[Index], kpi: str) -> list[str]:
+    """The factors by the size of their effect on ``kpi``, largest first, by the first
+    measure present of: main effect, Sobol' S1, Morris mu*, |SRC|, RBD-FAST S1 (last:
+    noisy on the few dozen points of a sweep)."""
+    return [i.factor for i in ranked(indices, kpi)]
+
+
+def ranking_text(indices: list[Index], kpi: str) -> str:
+    """``a > b > c ~0``: :func:`ranking`, each factor whose index is not
+    distinguishable from zero marked ``~0`` (empty when nothing ranks)."""
+    return " > ".join(i.factor + (f" {SPANS_ZERO}" if i.spans_zero else "")
+                      for i in ranked(indices, kpi))
+
+
+def cautions(indices: list[Index], kpi: str) -> list[str]:
+    """What the reader of ``kpi``'s indices must know before trusting them: factors
+    correlated in the sample."""
+    return [i.note for i in indices if i.kpi == kpi and i.measure == "correlation"]
 
 
 def csv_text(indices: list[Index]) -> str:
@@ -200,8 +281,9 @@ def csv_text(indices: list[Index]) -> str:
     writer = csv.writer(text, lineterminator="\n")
     writer.writerow(["kpi", "factor", "method", "measure", "value", "confidence", "note"])
     for i in indices:
+        note = "; ".join([i.note] * bool(i.note) + [SPANS_ZERO_TEXT] * i.spans_zero)
         writer.writerow([i.kpi, i.factor, i.method, i.measure, repr(i.value),
-                         repr(i.confidence), i.note])
+                         repr(i.confidence), note])
     return text.getvalue()
 
 
@@ -213,10 +295,14 @@ def markdown(indices: list[Index]) -> str:
         measures = list(dict.fromkeys(f"{i.method}: {i.measure}" for i in mine if i.factor))
         lines += [f"### {kpi}", ""]
         r2 = [i for i in mine if i.measure == "R2"]
+        correlated = cautions(indices, kpi)
         if r2 and math.isfinite(r2[0].value):
-            lines.append(f"Linear fit R^2 = {r2[0].value:.3f} (SRC^2 is a variance share "
-                         "where it is close to 1).")
-        lines += [f"- {i.method}: {i.note}" for i in mine if i.note and not i.factor]
+            lines.append(f"Linear fit R^2 = {r2[0].value:.3f}" + (
+                "." if correlated else
+                " (SRC^2 is a factor's variance share where R^2 is close to 1)."))
+        lines += [f"- **Caution**: {note}" for note in correlated]
+        lines += [f"- {i.method}: {i.note}" for i in mine if i.note and not i.factor
+                  and i.measure != "correlation"]
         if measures:
             lines += ["", "| factor | " + " | ".join(measures) + " |",
                       "|---|" + "---|" * len(measures)]
@@ -227,9 +313,11 @@ def markdown(indices: list[Index]) -> str:
                              and f"{i.method}: {i.measure}" == m]
                     cells.append(_value(found[0]) if found else "")
                 lines.append(f"| {factor} | " + " | ".join(cells) + " |")
-            order = ranking(indices, kpi)
+            if any(i.spans_zero for i in mine):
+                lines.append(f"\n{SPANS_ZERO}: {SPANS_ZERO_TEXT}.")
+            order = ranking_text(indices, kpi)
             if order:
-                lines.append(f"\nRanking: {' > '.join(order)}")
+                lines.append(f"\nRanking: {order}")
         lines.append("")
     return "\n".join(lines)
 
@@ -238,4 +326,6 @@ def _value(index: Index) -> str:
     text = f"{index.value:.3f}" if math.isfinite(index.value) else "n/a"
     if math.isfinite(index.confidence):
         text += f" ± {index.confidence:.3f}"
+    if index.spans_zero:
+        text += f" {SPANS_ZERO}"
     return text

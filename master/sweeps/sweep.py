@@ -18,6 +18,7 @@ sensitivity indices (:mod:`dsim.master.sweeps.sensitivity`).
 """
 from __future__ import annotations
 
+import difflib
 import json
 import math
 import shlex
@@ -33,7 +34,7 @@ from dsim.master.recording.results import read_columns
 from dsim.master.settings import SETTINGS, convert
 from dsim.master.sweeps.design import SALIB, Design, Factor, parse_vary, split
 from dsim.master.sweeps.folder import open_folder, spec, write_outputs
-from dsim.master.sweeps.kpi import parse_all
+from dsim.master.sweeps.kpi import parse_all, unresolved
 from dsim.master.sweeps.plots import plot_points  # noqa: F401  (its place before the split)
 from dsim.master.sweeps.point import PointRun, keywords
 from dsim.master.sweeps.ray_points import run_points
@@ -301,6 +302,40 @@ def check_parameters(scene, sweep: Sweep, configurations: list[dict]) -> None:
         raise InputError(list(dict.fromkeys(problems)))
 
 
+def recorded_columns(plan) -> list[str]:
+    """The columns a run of ``plan`` records: its outputs and joint forces (those its
+    ``outputs`` choose), then its String outputs (``time`` first)."""
+    layout, _ = plan.assemble()
+    numbers = list(plan.columns) + list(layout.labels)
+    if plan.selected is not None:
+        numbers = [numbers[i] for i in plan.selected]
+    return ["time"] + numbers + list(plan.text_columns)
+
+
+def unrecorded_columns(sweep: Sweep, names) -> list[str]:
+    """One problem per KPI of ``sweep`` that matches none of the recorded columns
+    ``names`` (or whose ``final`` matches several), and per compared column
+    (``columns``) not among them, each naming the closest: what ``dsim sweep`` and
+    ``dsim serve``'s sweep form refuse before the first point."""
+    names = list(names)
+    problems = unresolved(parse_all(sweep.kpis), names)
+    for column in sweep.columns or ():
+        if column not in names:
+            close = difflib.get_close_matches(column, names[:50000], n=3, cutoff=0.4)
+            problems.append(f"--columns: the scene records no column '{column}'"
+                            + (f" (closest: {', '.join(close)})" if close else ""))
+    return problems
+
+
+def check_columns(plan, sweep: Sweep) -> None:
+    """Every KPI's columns and every compared column among those a run of ``plan``
+    records (:func:`unrecorded_columns`): InputError before any point runs (a
+    misspelled column would otherwise be found only in each point's row)."""
+    problems = unrecorded_columns(sweep, recorded_columns(plan))
+    if problems:
+        raise InputError(problems)
+
+
 def _reference_choice(sweep: Sweep, plan) -> tuple[Path | None, bool]:
     """The results file the points are measured against, and whether it is instead the
     sweep's tightest point: the sweep's own reference, else the twin the scene ships
@@ -356,6 +391,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     names = list(dict.fromkeys(k for c in configurations for k in c))
     plan = prepare(scene, **keywords(sweep.fixed))  # bad input before any point runs
     check_parameters(scene, sweep, configurations)
+    check_columns(plan, sweep)
     reference_file, use_tightest = _reference_choice(sweep, plan)
     if use_tightest:  # the tightest run first: the others compare with it
         configurations.insert(0, configurations.pop(tightest(configurations)))

@@ -50,9 +50,41 @@ class Point:
         return " ".join(f"{k}={_short(v)}" for k, v in self.settings.items())
 
     @property
+    def state(self) -> str:
+        """Its one word of :data:`STATES` (:func:`state`)."""
+        return state(self)
+
+    @property
     def finished(self) -> bool:
         """Whether a rerun of the sweep keeps this point (an interrupted one runs again)."""
         return self.status not in ("", "interrupted")
+
+
+#: one word per point's state, what each means: a point is in exactly one of them
+STATES = {
+    "completed": "ran to its stop time (and stayed within the reference where there is one)",
+    "unstable": "ran to its stop time, but off the reference by more than its peak",
+    "failed": "the run failed (its row says why)",
+    "refused": "its settings or parameters were refused before it ran (bad input)",
+    "interrupted": "stopped by SIGINT or SIGTERM; a rerun of the sweep runs it again",
+}
+
+
+def state(point: Point) -> str:
+    """The one word of :data:`STATES` for ``point``."""
+    if point.status == "completed":
+        return "completed" if point.stable else "unstable"
+    if point.status == "bad input":
+        return "refused"
+    return point.status if point.status in STATES else "failed"
+
+
+def count_states(points) -> str:
+    """``9 completed, 2 failed, 1 interrupted``: how many points are in each state."""
+    counts = {word: 0 for word in STATES}
+    for point in points:
+        counts[state(point)] += 1
+    return ", ".join(f"{n} {word}" for word, n in counts.items() if n) or "none"
 
 
 def _cell(value) -> str:
@@ -155,7 +187,7 @@ def markdown(points: list[Point], names: list[str], reference: str, kpis=()) -> 
     for p in points:
         cells = ([str(p.index)] + [_short(p.settings.get(n, "")) for n in names]
                  + [f"{p.kpis.get(k, math.nan):.4g}" for k in kpis]
-                 + [f"{p.status}{'' if p.stable else ' (unstable)'}"]
+                 + [state(p)]
                  + ([f"{p.error:.2e}"] if errors else [])
                  + [f"{p.wall_seconds:.3f}", f"{p.iterations_per_step:.2f}",
                     f"{p.do_steps_per_fmu_step:.2f}"]

@@ -11,6 +11,7 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from dsim.master import __version__
 from dsim.master.api import simulate
 from dsim.master.checks.compare import band_origin, compare_files
 from dsim.master.checks.kernel_study import choose_kernels
@@ -18,14 +19,18 @@ from dsim.master.checks.regress import (KernelChoice, find_cases, junit_xml, rea
                                         summary_lines)
 from dsim.master.checks.validate import validate
 from dsim.master.errors import InputError, SimulationError
+from dsim.master.planning.parameters import JOINT_COEFFICIENTS
 from dsim.master.reading.parameter_input import given_parameters
 from dsim.master.recording.observers import ProgressBar
+from dsim.master.running.timeline import span_note
 from dsim.master.settings import SETTINGS, choices
 from dsim.master.sweeps.design import DESIGNS, parse_vary
 from dsim.master.sweeps.folder import read_sensitivity
-from dsim.master.sweeps.sensitivity import Index, ranking
+from dsim.master.sweeps.sensitivity import (SPANS_ZERO, SPANS_ZERO_TEXT, Index,
+                                            cautions, ranking_text)
 from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, read_sweep_file,
                                       run_sweep)
+from dsim.master.sweeps.table import STATES, count_states, state
 from dsim.master.tools.info import scene_info
 from dsim.master.tools.plot import overlay_files
 
@@ -33,11 +38,13 @@ from dsim.master.tools.plot import overlay_files
 def _summary(result, plot: Path | None) -> str:
     data = result.statistics
     components = max(len(data["components"]), 1)
+    uneven = span_note(data["start_time"], data["stop_time"], data["master"]["step"])
     lines = [
         f"scene       {data['scene']}  ({data['file']}), {data['coupling']} coupling, "
         f"{data['backend']} backend",
         f"time        {data['start_time']:g} .. {data['stop_time']:g} s, "
-        f"step {data['master']['step']:g} s, {data['steps']} steps",
+        f"step {data['master']['step']:g} s, {data['steps']} steps"
+        + (f" ({uneven.split(': ', 1)[1]})" if uneven else ""),
         f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
         f"(max {data['iterations']['max_per_step']}), "
         f"Lambda refreshes {data['lambda_refreshes']}, "
@@ -213,8 +220,10 @@ def _cmd_sweep(args) -> int:
                                     resumed=resumed)
     _print_sweep_summary(args, sweep, out, points)
     if interrupted:
-        print(f"dsim: interrupted: the {len(points)} finished points are kept in {out}; "
-              "run the same command again to finish the others", file=sys.stderr)
+        kept = [p for p in points if p.finished]
+        print(f"dsim: interrupted: {len(kept)} finished point{'s' * (len(kept) != 1)} "
+              f"kept in {out} ({count_states(points)}); run the same command again to run "
+              "the others", file=sys.stderr)
         return 128 + interrupted
     return 0
 
@@ -225,12 +234,14 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
     written = [out / name for name in ("sweep.csv", "sweep.md", "sweep.png", "kpis.png",
                                        "scatter.png", "sensitivity.md")
                if (out / name).is_file()]
-    print(f"sweep       {len(points)} points: {', '.join(str(w) for w in written)}")
-    failed = [p for p in points if p.status != "completed"]
-    if failed:
-        print(f"failed      {len(failed)} of {len(points)} points did not complete "
-              f"(their rows say why): points {', '.join(str(p.index) for p in failed[:12])}"
-              f"{' ...' if len(failed) > 12 else ''}")
+    print(f"sweep       {len(points)} points ({count_states(points)}): "
+          f"{', '.join(str(w) for w in written)}")
+    for word in ("unstable", "failed", "refused", "interrupted"):
+        these = [p for p in points if state(p) == word]
+        if these:
+            print(f"{word:<11} point{'s' * (len(these) > 1)} "
+                  f"{', '.join(str(p.index) for p in these[:12])}"
+                  f"{' ...' if len(these) > 12 else ''}: {STATES[word]}")
     front = sorted((p for p in points if p.pareto), key=lambda p: p.wall_seconds)
     for point in front:
         print(f"pareto      {point.label}: error {point.error:.2e}, {point.wall_seconds:.2f} s")
@@ -251,12 +262,16 @@ def _print_rankings(out: Path) -> None:
     """The factors of each KPI ranked by the sweep's sensitivity table."""
 
     rows = read_sensitivity(out)
-    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
-               for r in rows]
+    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]),
+                     float(r.get("confidence") or "nan"), r.get("note", "")) for r in rows]
     for kpi in dict.fromkeys(i.kpi for i in indices):
-        order = ranking(indices, kpi)
+        order = ranking_text(indices, kpi)
         if order:
-            print(f"ranking     {kpi}: {' > '.join(order)}")
+            print(f"ranking     {kpi}: {order}")
+            if SPANS_ZERO in order:
+                print(f"            {SPANS_ZERO}: {SPANS_ZERO_TEXT}")
+        for note in cautions(indices, kpi):
+            print(f"caution     {kpi}: {note}")
 
 
 def _cmd_regress(args) -> int:
@@ -314,8 +329,8 @@ def _add_run_choices(run_parser) -> None:
                             help="a start value for this run, on top of the scene's "
                             "bindings and --parameter-set: COMPONENT.VARIABLE=VALUE "
                             "(nested components by their dotted path) or JOINT.k0=VALUE "
-                            "(k0 k1 c0 c1 xi omega); again for more (`dsim info` lists what "
-                            "can be set)")
+                            f"({' '.join(JOINT_COEFFICIENTS)}: those of the joint's law); "
+                            "again for more (`dsim info --all` lists what can be set)")
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "
                             "name,value rows (.csv) or a JSON object (.json); --set wins "
@@ -468,12 +483,14 @@ def _add_regress(commands) -> None:
 
 def _add_info(commands) -> None:
     """``dsim info``: what a scene is made of."""
-    info_parser = commands.add_parser("info", help="components, capabilities, ports, "
-                                      "joints and master settings of a scene")
+    info_parser = commands.add_parser("info", help="a one-screen summary of a scene: FMU "
+                                      "files, components, ports, joints, connections, what "
+                                      "can be set (counted), master settings")
     info_parser.add_argument("scene")
     info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
-    info_parser.add_argument("--all", action="store_true", help="list every input that "
-                             "can be set (default: the first 12 of each component)")
+    info_parser.add_argument("--all", action="store_true", help="every component in full, "
+                             "with the table of every variable a run may set (name, type, "
+                             "unit, start, the scene's value, limits, description)")
     info_parser.set_defaults(handler=_cmd_info)
 
 
@@ -493,13 +510,27 @@ def _add_compare(commands) -> None:
     compare_parser.set_defaults(handler=_cmd_compare)
 
 
+class _CommandParser(argparse.ArgumentParser):
+    """A subcommand's parser: an option it does not know is its error, said with its
+    own usage (argparse would hand it up to the top-level parser, whose usage names
+    no option of the subcommand)."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace, extras
+
+
 def parser() -> argparse.ArgumentParser:
     """The command-line parser."""
     main_parser = argparse.ArgumentParser(
         prog="dsim", description="Co-simulation master: glues the FMUs of an SSP file (FMI 1.0 "
         "co-simulation, FMI 2.0 and 3.0 co-simulation and Model Exchange) with the T-T gluing "
         "algorithm.")
-    commands = main_parser.add_subparsers(dest="command", required=True)
+    main_parser.add_argument("--version", action="version", version=f"dsim {__version__}")
+    commands = main_parser.add_subparsers(dest="command", required=True,
+                                          parser_class=_CommandParser)
     _add_run(commands)
     _add_validate(commands)
     _add_plot(commands)

@@ -11,7 +11,7 @@ from fastapi import HTTPException, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse
 
-from dsim.serve.run_parameters import checked, command_options
+from dsim.serve.run_parameters import checked, command_options, run_command
 from dsim.serve.store import Store
 
 
@@ -22,6 +22,12 @@ def add_filters(env) -> None:
     env.filters["when"] = lambda t: time.strftime("%Y-%m-%d %H:%M:%S",
                                                   time.localtime(t)) if t else ""
     env.filters["command_options"] = command_options
+    env.filters["command"] = run_command
+    # numbers as a person reads them (14.14, not 14.139999999999999), lists joined
+    env.filters["numbers"] = lambda v: " ".join(
+        format(x, ".10g") if isinstance(x, float) else str(x) for x in v) \
+        if isinstance(v, (list, tuple)) else (format(v, ".10g") if isinstance(v, float)
+                                              else str(v))
     env.globals["row_value"] = lambda fields, name, k: (
         str(fields[name][k]) if k is not None and k < len(fields.get(name, ())) else "")
 

@@ -13,7 +13,8 @@ from dsim import TIGHTEST
 from dsim.serve import results
 from dsim.serve.forms import FormError, sweep_spec
 from dsim.serve.routes.common import (first_values, form_fields, launch, or_404, redirect,
-                                      render, results_csv, store_of, with_parameters)
+                                      render, results_csv, store_of, stored,
+                                      with_parameters)
 
 router = APIRouter()
 
@@ -30,11 +31,26 @@ async def sweep_form(request: Request, scene_id: int):
         reference = str(or_404(results_csv(store, run), "results of that run"))
     try:
         spec = sweep_spec(fields, reference)
+        _check_sweep_columns(store, scene_id, spec)
         await _check_sweep_parameters(request, scene_id, spec)
     except FormError as error:
         return render(request, "error.html", 400, status=400, problems=error.problems,
                       back=f"/scenes/{scene_id}")
     return redirect(f"/runs/{launch(request, scene_id, spec, [], 'sweep')}")
+
+
+def _check_sweep_columns(store, scene_id: int, spec: dict) -> None:
+    """Every KPI of a sweep matches a column the stored scene records (as ``dsim
+    sweep`` checks them, closest names offered), before the sweep is queued."""
+    from dsim import unrecorded_columns
+    from dsim.serve.forms import job_sweep
+
+    columns = stored(store, "scenes", scene_id)["description"].get("columns")
+    if columns is None:  # a scene stored before descriptions listed them: the run says
+        return
+    problems = unrecorded_columns(job_sweep(spec), ["time"] + list(columns))
+    if problems:
+        raise FormError(problems)
 
 
 async def _check_sweep_parameters(request: Request, scene_id: int, spec: dict) -> None:
@@ -62,14 +78,14 @@ async def _check_sweep_parameters(request: Request, scene_id: int, spec: dict) -
 def sweep_page(request: Request, run_id: int, target: str, context: dict) -> HTMLResponse:
     """The page of sweep ``run_id`` (``context``: the run's, as a run's page has it);
     ``target``: an error whose cheapest point to pick out."""
-    from dsim import Index, ranking, read_sensitivity
+    from dsim import Index, ranking_text, read_sensitivity
 
     folder = store_of(request).run_folder(run_id)
     names, kpis, points = results.sweep_table(folder)
     sensitivity = read_sensitivity(folder)
-    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]))
-               for r in sensitivity]
-    rankings = {k: ranking(indices, k) for k in dict.fromkeys(i.kpi for i in indices)}
+    indices = [Index(r["kpi"], r["factor"], r["method"], r["measure"], float(r["value"]),
+                     float(r.get("confidence") or "nan")) for r in sensitivity]
+    rankings = {k: ranking_text(indices, k) for k in dict.fromkeys(i.kpi for i in indices)}
     chosen, problem = None, None
     if target.strip():
         try:
