@@ -50,6 +50,9 @@ class RunInfo:
     #: steps are recorded (and reach the observers) every this many macro steps, and
     #: at the last converged one (``output_interval``, dsim.master.recording.selection)
     record_every: int = 1
+    #: the unit of ``time`` and of every column of ``columns`` ('' where the FMU
+    #: declares none)
+    units: dict = None
 
 
 class StepRecord(NamedTuple):
