@@ -183,8 +183,8 @@ def set_title(scene: str, parameters: dict | None = None, width: int = 100) -> s
 
 def _panels(panels, png_path, title: str = "", note: str = "") -> None:
     """Panels over time, one under the other, legends right of the data: ``panels`` is
-    a list of (y label, [(curve label, time, values), ...], what the panel leaves out
-    ('' for nothing)); ``note``: a line under the figure."""
+    a list of (y label, [(curve label, time, values[, matplotlib style]), ...], what
+    the panel leaves out ('' for nothing)); ``note``: a line under the figure."""
     import matplotlib  # only when a plot is asked for: it takes a third of a second
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # only when a plot is asked for
@@ -193,8 +193,8 @@ def _panels(panels, png_path, title: str = "", note: str = "") -> None:
     figure, axes = plt.subplots(count, 1, sharex=True, squeeze=False, layout="constrained",
                                 figsize=(9.5, 2.3 * count + 0.9 + 0.2 * title.count("\n")))
     for axis, (label, curves, left_out) in zip(axes[:, 0], panels):
-        for name, time, values in curves:
-            axis.plot(time, values, label=name, linewidth=1.2)
+        for name, time, values, *style in curves:
+            axis.plot(time, values, label=name, linewidth=1.2, **(style[0] if style else {}))
         axis.set_ylabel(label, fontsize=9)
         axis.grid(True, alpha=0.3)
         axis.tick_params(labelsize=8)
@@ -237,22 +237,33 @@ def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = MAX
     return panels
 
 
+#: line styles that tell the results of an overlay apart (colours tell the signals)
+STYLES = ("-", "--", ":", "-.")
+
+
 def plot_overlay(results: dict, names: list[str], png_path, title: str = "",
-                 units: dict | None = None, max_panels: int = 8) -> None:
-    """One panel per signal of ``names`` (at most ``max_panels``), each with one curve
-    per result (``results``: label -> signals), for comparing runs; ``units``: column
-    -> unit, shown on each panel's axis."""
-    units = units or {}
-
-    def label(name):
-        unit = units.get(name)
-        return f"{name} ({unit})" if unit else name
-
-    _panels([(label(name), [(result, signals["time"], signals[name])
-                            for result, signals in results.items() if name in signals], "")
-             for name in names[:max_panels]], png_path, title,
-            f"{len(names) - max_panels} more signals not drawn: choose them by name"
-            if len(names) > max_panels else "")
+                 units: dict | None = None, max_curves: int = MAX_CURVES) -> list[Panel]:
+    """The signals ``names`` of several runs (``results``: label -> signals) in one
+    panel per unit, as :func:`plot_signals` groups them: one colour per signal, one
+    line style per result, at most ``max_curves`` signals a panel.  Returns the panels
+    drawn."""
+    panels, left = unit_panels(names, units, max_curves)
+    several = len(results) > 1
+    drawn = []
+    for panel in panels:
+        curves = []
+        for k, name in enumerate(panel.names):
+            for j, (label, signals) in enumerate(results.items()):
+                if name in signals:
+                    curves.append((f"{name} ({label})" if several else name,
+                                   signals["time"], signals[name],
+                                   {"color": f"C{k % 10}", "linestyle": STYLES[j % 4]}))
+        text = _left_out_text(panel).replace("--outputs", "their names")
+        drawn.append((panel.label, curves, text))
+    note = (f"{len(left)} more signals in other units not drawn: choose them by name"
+            if left else "")
+    _panels(drawn, png_path, title, note)
+    return panels
 
 
 def matlab_names(columns) -> list[str]:
