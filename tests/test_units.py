@@ -208,3 +208,25 @@ def test_sweep_axes_name_the_units_of_factors_and_kpis(built, tmp_path):
     assert units == {"right.m[1]": "kg", "step": "s", "j1.k0": "",
                      "max(right.x[2])": "m", "maxabs(*.f_x)": "N",
                      "argmax(right.a[2])": "s", "max(right.*)": ""}
+
+
+def test_a_third_party_fmus_units_are_shown_as_it_declares_them(tmp_path, capsys):
+    """The C bouncing ball (tests/third_party/kinds) declares h in m and v in m/s in
+    its own UnitDefinitions, FMI 2.0 and FMI 3.0 alike: dsim info, the statistics and
+    the plot's panels show them."""
+    from tests.test_fmi_kinds import scene
+    from tests.third_party.kinds.build import build_fmu
+
+    for version in ("2.0", "3.0"):
+        fmu = build_fmu(tmp_path / version, "bouncing_ball", version)
+        path = scene(tmp_path / f"ball{version}.ssp", {"ball": (fmu, "CoSimulation", "")},
+                     stop=0.2)
+        result = dsim.simulate(path, out=tmp_path / f"ball{version}.csv")
+        assert result.ok, result.statistics["message"]
+        assert result.statistics["units"] == {"time": "s", "ball.h": "m", "ball.v": "m/s"}
+        panels = plot_signals(result.signals, tmp_path / "ball.png",
+                              units=result.statistics["units"])
+        assert [p.label for p in panels] == ["position (m)", "velocity (m/s)"]
+        assert main(["info", str(path)]) == 0
+        table = capsys.readouterr().out
+        assert any(line.split()[:3] == ["g", "Real", "m/s2"] for line in table.splitlines())
