@@ -174,6 +174,10 @@ def test_panels_group_columns_by_unit_and_count_what_they_leave_out():
     panels, left = unit_panels(names, units, max_curves=8, max_panels=2)
     assert [p.unit for p in panels] == ["rad", "m"] and left == [
         n for n in names if units[n] not in ("rad", "m")]
+    panels, left = unit_panels(["a.x", "j.f_x", "b.x"], None)  # no statistics beside
+    assert [(p.label, p.names) for p in panels] == [
+        ("outputs (units not recorded)", ["a.x", "b.x"]),
+        ("joint forces (units not recorded)", ["j.f_x"])]
 
 
 def test_plots_are_written_with_their_panels_and_title(built, tmp_path, capsys):

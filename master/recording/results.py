@@ -135,12 +135,14 @@ class Panel:
     unit: str
     names: list
     left_out: int = 0
+    #: the label of a panel of columns whose units nobody recorded
+    unknown: str = "no unit declared"
 
     @property
     def label(self) -> str:
         """The y axis label: the quantity and its unit ('position (m)')."""
         if not self.unit:
-            return "no unit declared"
+            return self.unknown
         quantity = QUANTITIES.get(self.unit)
         return f"{quantity} ({self.unit})" if quantity else f"({self.unit})"
 
@@ -151,14 +153,17 @@ def unit_panels(names, units: dict | None, max_curves: int = MAX_CURVES,
     none declared), one :class:`Panel` per unit in the order the units first appear,
     each drawing at most ``max_curves`` columns; past ``max_panels`` the columns of the
     remaining units are returned as left out (second item)."""
-    units = units or {}
-    groups: dict[str, list] = {}
+    groups: dict[tuple, list] = {}
     for name in names:
-        groups.setdefault(units.get(name) or "", []).append(name)
-    panels = [Panel(unit, columns[:max_curves], max(0, len(columns) - max_curves))
-              for unit, columns in groups.items()]
-    left = [n for panel in panels[max_panels:] for n in
-            groups[panel.unit]]
+        if units:
+            key = (units.get(name) or "", "no unit declared")
+        else:  # a CSV without its statistics: joint forces apart, by their names
+            key = ("", "joint forces (units not recorded)" if ".f_" in name
+                   else "outputs (units not recorded)")
+        groups.setdefault(key, []).append(name)
+    panels = [Panel(unit, columns[:max_curves], max(0, len(columns) - max_curves), unknown)
+              for (unit, unknown), columns in groups.items()]
+    left = [n for key in list(groups)[max_panels:] for n in groups[key]]
     return panels[:max_panels], left
 
 
