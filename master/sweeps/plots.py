@@ -166,7 +166,8 @@ def plot_scatter(points, factors, kpis: list[str], title: str,
     """The scatter matrix of the numeric factors and the KPIs (histograms on the
     diagonal); at most :data:`MATRIX_LIMIT` of them."""
     plt = _pyplot()
-    names = ([f.name for f in factors if f.numeric] + list(kpis))[:MATRIX_LIMIT]
+    every = [f.name for f in factors if f.numeric] + list(kpis)
+    names = every[:MATRIX_LIMIT]
     logs = {f.name for f in factors if f.kind == "log"}
     good = [p for p in points if all(math.isfinite(_value(p, n)) for n in names)]
     size = len(names)
@@ -191,5 +192,8 @@ def plot_scatter(points, factors, kpis: list[str], title: str,
             if c == 0:
                 axis.set_ylabel(("log10 " if y in logs else "") + _with_unit(y, units),
                                 fontsize=7)
-    figure.suptitle(f"{title}: scatter matrix of {len(good)} completed points", fontsize=9)
+    left = (f"\n{len(names)} of {len(every)} factors and KPIs drawn (the first; a sweep "
+            "with fewer --vary or --kpi draws the others)" if len(every) > len(names) else "")
+    figure.suptitle(f"{title}: scatter matrix of {len(good)} completed points{left}",
+                    fontsize=9)
     return _png(figure)
