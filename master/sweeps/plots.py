@@ -153,7 +153,7 @@ def plot_kpis(points, factors, kpis: list[str], title: str,
                 axis.set_xlabel(_with_unit(factor.name, units), fontsize=8)
             if c == 0:
                 axis.set_ylabel(_with_unit(kpi, units), fontsize=8)
-            axis.tick_params(labelsize=7)
+            axis.tick_params(which="both", labelsize=7)
     if failed is not None:  # one legend for the figure, outside every panel
         figure.legend([failed], ["no value (failed), drawn at the lowest value"],
                       loc="outside lower center", fontsize=7, frameon=False)
