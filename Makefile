@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN = $(VENV)/bin
 SCENE ?= spring_mass_nonlinear
 
-.PHONY: demo test quick test-serial test-beside test-rest fmus browser screenshots benchmarks baselines clean
+.PHONY: demo test quick test-serial test-beside test-rest fmus browser screenshots figures benchmarks baselines clean
 
 $(VENV)/installed: pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
@@ -63,6 +63,17 @@ browser:
 # the screenshots of docs/serve.md, made by the browser tests
 screenshots: fmus browser
 	DSIM_SCREENSHOTS=docs/serve OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs tests/test_serve_browser.py
+
+# docs/figures/: one `dsim run --plot` per kind of shipped scene (SCENE:STOP, shortened where
+# a whole run takes minutes), the plots the README and docs/results.md show
+FIGURES = spring_mass_nonlinear:10 chain_10:1 crank_slider_rigid:2 four_bar_singular_flexible:2 \
+          four_post_fixed:1 frame_split:0.05
+figures: fmus
+	@mkdir -p docs/figures results/figures
+	@for item in $(FIGURES); do scene=$${item%%:*}; stop=$${item##*:}; \
+	  echo "figure docs/figures/$$scene.png"; \
+	  OMP_NUM_THREADS=1 $(BIN)/dsim run build/ssp/$$scene.ssp --stop $$stop --quiet \
+	    --out results/figures/$$scene.csv --plot docs/figures/$$scene.png || exit 1; done
 
 benchmarks: fmus
 	OMP_NUM_THREADS=1 $(BIN)/python -m benchmarks.run_benchmarks

@@ -8,7 +8,8 @@ The default DIR is build/ in a checkout, ./build when dsim is installed.
 
 pythonfmu writes no ModelStructure/InitialUnknowns, which FMI 2.0 requires for
 outputs that are calculated at initialization (``fmpy validate`` flags it), so
-the built modelDescription.xml is completed here.
+the built modelDescription.xml is completed here; so are the units, which pythonfmu
+does not write either (:mod:`dsim.build_fmus.units`).
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from pathlib import Path
 
 from lxml import etree
 from dsim.build_fmus.twins import TWINS, twin_csv
+from dsim.build_fmus.units import add_units
 
 #: the folder that holds fmus/ and ssp/: the checkout, or the installed dsim package
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,11 +61,12 @@ def _shown(path: Path) -> str:
 def _sources(root: Path) -> list[Path]:
     files = [p for p in (root / "fmus").rglob("*") if p.is_file()
              and "__pycache__" not in p.parts and p.suffix != ".pyc"]
-    return files + [Path(__file__)]
+    return files + [Path(__file__), Path(__file__).with_name("units.py")]
 
 
 def _complete_model_description(fmu: Path) -> None:
-    """Add ModelStructure/InitialUnknowns listing every output (FMI 2.0 3.3.1)."""
+    """Add ModelStructure/InitialUnknowns listing every output (FMI 2.0 3.3.1), and the
+    units of every Real variable with their UnitDefinitions (FMI 2.0 2.2.2)."""
     with zipfile.ZipFile(fmu) as archive:
         entries = {name: archive.read(name) for name in archive.namelist()}
     root = etree.fromstring(entries["modelDescription.xml"])
@@ -74,6 +77,8 @@ def _complete_model_description(fmu: Path) -> None:
         unknowns = etree.SubElement(structure, "InitialUnknowns")
         for index in outputs:
             etree.SubElement(unknowns, "Unknown", index=index)
+    add_units(root, root.find("CoSimulation").get("modelIdentifier"))
+    etree.indent(root, space="\t")
     entries["modelDescription.xml"] = etree.tostring(root, xml_declaration=True,
                                                      encoding="UTF-8", pretty_print=True)
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:

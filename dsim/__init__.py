@@ -37,6 +37,7 @@ _WHERE = {
     "RunResult": "recording.results", "read_columns": "recording.results",
     "MissingColumn": "recording.results",  # result["missing"]: a KeyError naming the closest
     "read_csv": "recording.results",
+    "read_units": "recording.results",  # column -> unit of a results CSV (its statistics)
     "load_scene": "planning.load",
     # what a front end needs besides a run (dsim serve, serve/, imports only these names)
     "validate": "checks.validate",  # dsim validate's checks of a scene: a Validation

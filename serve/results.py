@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from dsim import (InputError, Point, compare_files, mark_pareto, mat_bytes, plot_overlay,
-                  plot_signals, read_columns, read_table)
+                  plot_signals, read_columns, read_table, read_units)
 
 #: most points per curve sent to a browser chart
 MAX_POINTS = 4000
@@ -96,7 +96,7 @@ def png(csv_path: Path, title: str) -> bytes:
     """dsim's plot of a run's signals (``dsim run --plot``)."""
     image = io.BytesIO()
     with _PLOT_LOCK:
-        plot_signals(read_columns(csv_path), image, title)
+        plot_signals(read_columns(csv_path), image, title, units=read_units(csv_path))
     return image.getvalue()
 
 
@@ -105,10 +105,11 @@ def overlay_png(results: dict, names: list[str], title: str) -> bytes:
     image = io.BytesIO()
     with _PLOT_LOCK:
         plot_overlay({label: read_columns(path) for label, path in results.items()},
-                     names, image, title)
+                     names, image, title,
+                     {k: v for path in results.values() for k, v in read_units(path).items()})
     return image.getvalue()
 
 
 def mat(csv_path: Path) -> bytes:
     """A run's signals as a MATLAB .mat file (``dsim run --mat``)."""
-    return mat_bytes(read_columns(csv_path))
+    return mat_bytes(read_columns(csv_path), read_units(csv_path))

@@ -65,6 +65,7 @@ class LiveObserver(Observer):
         self._start = time.perf_counter()
         names = list(getattr(self.execution.plan, "specs", ()))
         self._write({"type": "start", "columns": self._columns,
+                     "units": [(info.units or {}).get(c, "") for c in self._columns],
                      "components": [spec.name for spec in names],
                      "start": info.start_time, "stop": info.stop_time,
                      "planned": info.planned_steps, "coupling": info.coupling})

@@ -24,7 +24,8 @@ from dsim.master.reading.fmi_description import (CO_SIMULATION, can_roll_back,
                                                 description_warning)
 from dsim.master.reading.ports import NEEDED, component_ports, joint_port_dofs
 from dsim.master.reading.ssp_values import TYPES
-from dsim.master.reading.units import conversion, fmu_units, variable_unit
+from dsim.master.reading.units import (column_units, conversion, fmu_units,
+                                        joint_unit_problem, variable_unit)
 from dsim.master.recording.selection import record_every, select_columns
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.connections import (Transfer, build_text_transfer, build_transfer,
@@ -91,6 +92,9 @@ class Plan:
     #: the components whose connections the strong coupling iterates (they can roll
     #: back and take part in a connection moved every step)
     iterated: tuple[int, ...] = ()
+    #: the unit of every numeric column (``time``, outputs, joint forces; '' where the
+    #: FMU declares none), as the FMUs declare them
+    units: dict = None
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -266,6 +270,21 @@ def _sides(scene: Scene, ports: dict, problems: list, chosen: dict) -> dict:
     return sides
 
 
+def _check_joint_units(scene: Scene, sides: dict, usable: dict, problems: list) -> None:
+    """Both sides of every joint in one unit per exchanged quantity (a joint converts
+    nothing): one line per joint that mixes units."""
+    known: dict = {}
+    for joint in scene.joints:
+        if joint.name not in sides:
+            continue
+        for path in (joint.a[0], joint.b[0]):
+            if path not in known:
+                known[path] = {**fmu_units(scene.component(path).source), **scene.units}
+        problem = joint_unit_problem(joint, *sides[joint.name], usable, known)
+        if problem:
+            problems.append(problem)
+
+
 def _why_no_rollback(source, interface: str) -> str:
     """Why an FMU cannot go back to a saved state, in its FMI version's words."""
     description = describe(source)
@@ -394,6 +413,7 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     links = check_connections(scene, usable, problems)
     _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
+    _check_joint_units(scene, sides, usable, problems)
     uneven = span_note(scene.start_time, scene.stop_time, scene.master.step)
     if uneven:  # the run's summary would say "step 20 s" of a run that took 10 s
         warnings.append(f"{scene.file}: {uneven}")
@@ -548,4 +568,5 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         outputs=tuple([outputs] if isinstance(outputs, str) else outputs or ()),
         output_interval=None if output_interval is None else float(output_interval),
         loops=loops, loop_positions=_loop_positions(loops, paths, moves["writes"]),
-        iterated=iterated)
+        iterated=iterated, units=column_units(checked["usable"], recorded, layout.labels,
+                                              layout.joint_of, checked["sides"]))

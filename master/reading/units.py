@@ -43,3 +43,75 @@ def conversion(start: Unit, end: Unit) -> tuple[float, float]:
         raise ValueError(f"'{start.name}' ({describe(start)}) and '{end.name}' "
                          f"({describe(end)}) are not the same dimension")
     return start.factor / end.factor, (start.offset - end.offset) / end.factor
+
+
+def same_unit(first: str, second: str, known: dict) -> bool:
+    """Whether unit names ``first`` and ``second`` mean one unit: the same name, or two
+    definitions (``known``: name -> Unit) with the same exponents, factor and offset."""
+    if first == second:
+        return True
+    a, b = known.get(first), known.get(second)
+    return a is not None and b is not None and (a.exponents, a.factor, a.offset) == (
+        b.exponents, b.factor, b.offset)
+
+
+def _units_by_reference(variables: dict) -> dict[int, str]:
+    """value reference -> unit of the Real variables of an FMU (``variables``: by name)."""
+    return {v.valueReference: v.unit for v in variables.values()
+            if v.type in ("Real", "Float64", "Float32") and v.unit}
+
+
+#: what a joint exchanges for each glued dof, with the port variable's kind letter
+_JOINT_KINDS = (("force", "f"), ("position", "u"), ("velocity", "v"),
+                ("acceleration", "a"))
+
+
+def joint_unit_problem(joint, a_dofs, b_dofs, usable: dict, known: dict) -> str | None:
+    """The first place where joint ``joint`` glues port variables of two units (one line),
+    or None.  A joint exchanges the numbers as they are, with no conversion (unlike a
+    connection), so both sides' force and kinematics of a dof must be in one unit; a side
+    that declares no unit is taken as it is.  ``usable``: component path -> its
+    variables by name; ``known``: component path -> its units by name (with the SSD's)."""
+    by_reference = {}
+    for port_dof in list(a_dofs) + list(b_dofs):
+        if port_dof.component not in by_reference:
+            by_reference[port_dof.component] = _units_by_reference(
+                usable.get(port_dof.component, {}))
+    for name, letter in _JOINT_KINDS:
+        for dof in joint.dofs:
+            seen = {}
+            for side in (a_dofs, b_dofs):
+                for port_dof in side:
+                    reference = getattr(port_dof, name)
+                    unit = by_reference[port_dof.component].get(reference)
+                    if port_dof.dof != dof or reference is None or not unit:
+                        continue
+                    where = f"{port_dof.component}.{port_dof.port}.{letter}_{dof}"
+                    for other_unit, (other, owner) in seen.items():
+                        units = {**known.get(port_dof.component, {}), **known.get(owner, {})}
+                        if not same_unit(unit, other_unit, units):
+                            return (f"{joint.location}: joint '{joint.name}' glues {other} in "
+                                    f"'{other_unit}' to {where} in '{unit}': a joint "
+                                    "exchanges values unconverted, so both ports must use "
+                                    "one unit")
+                    seen.setdefault(unit, (where, port_dof.component))
+    return None
+
+
+def column_units(usable: dict, recorded, labels, joint_of, sides: dict) -> dict[str, str]:
+    """The unit of every numeric column a run records: ``time`` in s, each output
+    ``component.variable`` in its FMU variable's unit, each joint force ``J.f_dof`` in the
+    unit of the force variable it feeds ('' where an FMU declares none).  ``recorded``:
+    (component, variable) pairs; ``labels``, ``joint_of``: the gluing layout's force
+    columns and their joints; ``sides``: joint -> (side a, side b) PortDofs."""
+    units = {"time": "s"}
+    for path, name in recorded:
+        variable = usable.get(path, {}).get(name)
+        units[f"{path}.{name}"] = (variable.unit or "") if variable is not None else ""
+    by_reference = {path: _units_by_reference(variables) for path, variables in usable.items()}
+    for label, joint in zip(labels, joint_of):
+        dof = label.rsplit(".f_", 1)[-1]
+        found = [by_reference.get(p.component, {}).get(p.force)
+                 for side in sides.get(joint, ((), ())) for p in side if p.dof == dof]
+        units[label] = next((u for u in found if u), "")
+    return units

@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from dsim.master.recording.output_files import OutputError, OutputFile, check_fits
-from dsim.master.recording.results import mat_bytes, plot_signals
+from dsim.master.recording.results import mat_bytes, plot_signals, set_title
 from dsim.master.recording.selection import recorded_rows
 
 
@@ -50,6 +50,9 @@ class RunInfo:
     #: steps are recorded (and reach the observers) every this many macro steps, and
     #: at the last converged one (``output_interval``, dsim.master.recording.selection)
     record_every: int = 1
+    #: the unit of ``time`` and of every column of ``columns`` ('' where the FMU
+    #: declares none)
+    units: dict = None
 
 
 class StepRecord(NamedTuple):
@@ -344,13 +347,16 @@ class PlotWriter(FileWriter):
 
     def started(self, info: RunInfo) -> None:
         super().started(info)
-        self.title = self.title or info.scene
+        self.scene = info.scene
+        self.units = info.units
 
     def content(self, result) -> bytes | None:
         if result.steps == 0:
             return None
         image = io.BytesIO()
-        plot_signals(result.signals, image, self.title)
+        # the title says the scene and the values given for this run (--set)
+        plot_signals(result.signals, image, self.title or set_title(
+            self.scene, result.statistics.get("parameters")), units=self.units)
         return image.getvalue()
 
 
@@ -359,8 +365,12 @@ class MatWriter(FileWriter):
 
     kind = "mat"
 
+    def started(self, info: RunInfo) -> None:
+        super().started(info)
+        self.units = info.units
+
     def content(self, result) -> bytes | None:
-        return mat_bytes(result.signals) if result.signals else None
+        return mat_bytes(result.signals, self.units) if result.signals else None
 
 
 @dataclass

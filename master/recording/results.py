@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import difflib
 import io
+import json
 import re
 import signal as signals_module
 from dataclasses import dataclass, field
@@ -159,46 +160,158 @@ def read_csv(path) -> tuple[list[str], np.ndarray]:
     return header, np.column_stack([columns[n] for n in header]).reshape(-1, len(header))
 
 
-def _panels(panels, png_path, title: str = "") -> None:
-    """Panels over time, one under the other: ``panels`` is a list of (y label,
-    [(curve label, time, values), ...])."""
+#: what a unit measures, for a panel's axis label (other units show as themselves)
+QUANTITIES = {"m": "position", "m/s": "velocity", "m/s2": "acceleration", "rad": "angle",
+              "rad/s": "angular velocity", "rad/s2": "angular acceleration", "N": "force",
+              "N.m": "moment", "s": "time", "kg": "mass", "Pa": "stress", "J": "energy",
+              "W": "power", "K": "temperature", "V": "voltage", "A": "current"}
+#: most panels of one figure, and most curves of one panel (more is unreadable)
+MAX_PANELS = 6
+MAX_CURVES = 8
+
+
+@dataclass
+class Panel:
+    """One axis of a plot: the signals of one unit.  ``names``: those drawn,
+    ``left_out``: how many more of this unit the panel does not draw."""
+
+    unit: str
+    names: list
+    left_out: int = 0
+    #: the label of a panel of columns whose units nobody recorded
+    unknown: str = "no unit declared"
+
+    @property
+    def label(self) -> str:
+        """The y axis label: the quantity and its unit ('position (m)')."""
+        if not self.unit:
+            return self.unknown
+        quantity = QUANTITIES.get(self.unit)
+        return f"{quantity} ({self.unit})" if quantity else f"({self.unit})"
+
+
+def unit_panels(names, units: dict | None, max_curves: int = MAX_CURVES,
+                max_panels: int = MAX_PANELS) -> tuple[list[Panel], list[str]]:
+    """Group the columns ``names`` by unit (``units``: column -> unit; '' or missing:
+    none declared), one :class:`Panel` per unit in the order the units first appear,
+    each drawing at most ``max_curves`` columns; past ``max_panels`` the columns of the
+    remaining units are returned as left out (second item)."""
+    groups: dict[tuple, list] = {}
+    for name in names:
+        if units:
+            key = (units.get(name) or "", "no unit declared")
+        else:  # a CSV without its statistics: joint forces apart, by their names
+            key = ("", "joint forces (units not recorded)" if ".f_" in name
+                   else "outputs (units not recorded)")
+        groups.setdefault(key, []).append(name)
+    panels = [Panel(unit, columns[:max_curves], max(0, len(columns) - max_curves), unknown)
+              for (unit, unknown), columns in groups.items()]
+    left = [n for key in list(groups)[max_panels:] for n in groups[key]]
+    return panels[:max_panels], left
+
+
+def set_title(scene: str, parameters: dict | None = None, width: int = 100) -> str:
+    """A figure title: the scene and the values given for the run (``--set``), cut to
+    about ``width`` characters a line, three lines at most."""
+    values = []
+    for name, value in (parameters or {}).items():
+        value = value[0] if isinstance(value, (list, tuple)) and len(value) == 1 else value
+        values.append(f"{name}={value:g}" if isinstance(value, float) else f"{name}={value}")
+    if not values:
+        return scene
+    lines, line = [], f"{scene}: --set"
+    for value in values:
+        if len(line) + len(value) + 1 > width:
+            lines.append(line)
+            line = " "
+        line += " " + value
+    lines.append(line)
+    return "\n".join(lines[:3]) + (" ..." if len(lines) > 3 else "")
+
+
+def _panels(panels, png_path, title: str = "", note: str = "") -> None:
+    """Panels over time, one under the other, legends right of the data: ``panels`` is
+    a list of (y label, [(curve label, time, values[, matplotlib style]), ...], what
+    the panel leaves out ('' for nothing)); ``note``: a line under the figure."""
     import matplotlib  # only when a plot is asked for: it takes a third of a second
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # only when a plot is asked for
 
-    figure, axes = plt.subplots(max(len(panels), 1), 1, sharex=True, squeeze=False,
-                                figsize=(8, 2.4 * max(len(panels), 1) + 0.6))
-    for axis, (label, curves) in zip(axes[:, 0], panels):
-        for name, time, values in curves:
-            axis.plot(time, values, label=name)
-        axis.set_ylabel(label, fontsize=8)
+    count = max(len(panels), 1)
+    figure, axes = plt.subplots(count, 1, sharex=True, squeeze=False, layout="constrained",
+                                figsize=(9.5, 2.3 * count + 0.9 + 0.2 * title.count("\n")))
+    for axis, (label, curves, left_out) in zip(axes[:, 0], panels):
+        for name, time, values, *style in curves:
+            axis.plot(time, values, label=name, linewidth=1.2, **(style[0] if style else {}))
+        axis.set_ylabel(label, fontsize=9)
         axis.grid(True, alpha=0.3)
-        axis.legend(fontsize=8, loc="best")
+        axis.tick_params(labelsize=8)
+        # outside the data, on the right: a legend never covers a curve
+        axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                    borderaxespad=0.0, frameon=False)
+        if left_out:
+            axis.set_title(left_out, fontsize=7, loc="right", color="0.35")
     axes[-1, 0].set_xlabel("time (s)")
     if title:
-        axes[0, 0].set_title(title)
+        figure.suptitle(title, fontsize=10)
+    if note:
+        figure.supxlabel(note, fontsize=7, color="0.35")
     save_figure(figure, png_path)
 
 
-def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = 8) -> None:
-    """Two panels over time: recorded outputs, and joint forces (``*.f_*``); ``png_path``
-    is a path or a binary file object."""
+def _left_out_text(panel: Panel) -> str:
+    if not panel.left_out:
+        return ""
+    return (f"{len(panel.names)} of {len(panel.names) + panel.left_out} curves drawn "
+            "(choose with --outputs)")
+
+
+def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = MAX_CURVES,
+                 units: dict | None = None) -> list[Panel]:
+    """One panel per unit (positions, velocities, forces, angles ...), each with at
+    most ``max_curves`` curves and a note of how many it leaves out; ``units``: column
+    -> unit (the statistics JSON's "units"); ``png_path`` is a path or a binary file
+    object.  Returns the panels drawn."""
     time = signals["time"]
     names = [n for n in signals if n != "time" and signals[n].dtype != object]
-    forces = [n for n in names if ".f_" in n]
-    outputs = [n for n in names if n not in forces]
-    _panels([(label, [(n, time, signals[n]) for n in columns[:max_curves]])
-             for columns, label in ((outputs, "recorded outputs"),
-                                    (forces, "joint forces (N, N.m)")) if columns],
-            png_path, title)
+    panels, left = unit_panels(names, units, max_curves)
+    note = ""
+    if left:
+        note = (f"{len(left)} more columns in other units not drawn "
+                f"({', '.join(dict.fromkeys((units or {}).get(n) or '-' for n in left))}): "
+                "choose with --outputs")
+    _panels([(panel.label, [(n, time, signals[n]) for n in panel.names],
+              _left_out_text(panel)) for panel in panels], png_path, title, note)
+    return panels
 
 
-def plot_overlay(results: dict, names: list[str], png_path, title: str = "") -> None:
-    """One panel per signal of ``names`` (at most eight), each with one curve per
-    result (``results``: label -> signals), for comparing runs."""
-    _panels([(name, [(label, signals["time"], signals[name])
-                      for label, signals in results.items() if name in signals])
-             for name in names[:8]], png_path, title)
+#: line styles that tell the results of an overlay apart (colours tell the signals)
+STYLES = ("-", "--", ":", "-.")
+
+
+def plot_overlay(results: dict, names: list[str], png_path, title: str = "",
+                 units: dict | None = None, max_curves: int = MAX_CURVES) -> list[Panel]:
+    """The signals ``names`` of several runs (``results``: label -> signals) in one
+    panel per unit, as :func:`plot_signals` groups them: one colour per signal, one
+    line style per result, at most ``max_curves`` signals a panel.  Returns the panels
+    drawn."""
+    panels, left = unit_panels(names, units, max_curves)
+    several = len(results) > 1
+    drawn = []
+    for panel in panels:
+        curves = []
+        for k, name in enumerate(panel.names):
+            for j, (label, signals) in enumerate(results.items()):
+                if name in signals:
+                    curves.append((f"{name} ({label})" if several else name,
+                                   signals["time"], signals[name],
+                                   {"color": f"C{k % 10}", "linestyle": STYLES[j % 4]}))
+        text = _left_out_text(panel).replace("--outputs", "their names")
+        drawn.append((panel.label, curves, text))
+    note = (f"{len(left)} more signals in other units not drawn: choose them by name"
+            if left else "")
+    _panels(drawn, png_path, title, note)
+    return panels
 
 
 def matlab_names(columns) -> list[str]:
@@ -218,10 +331,12 @@ def matlab_names(columns) -> list[str]:
     return result
 
 
-def mat_bytes(signals: dict) -> bytes:
+def mat_bytes(signals: dict, units: dict | None = None) -> bytes:
     """A MATLAB .mat (version 5) file of the signals: ``time``, ``data`` (one column
-    per numeric signal), ``names`` (their column names) and a struct ``signals`` with
-    one field per signal, String ones as cell arrays (names made valid identifiers)."""
+    per numeric signal), ``names`` (their column names), ``units`` (the unit of each
+    column of ``data``, '' where none is declared; ``units``: column -> unit),
+    ``time_unit`` and a struct ``signals`` with one field per signal, String ones as
+    cell arrays (names made valid identifiers)."""
     from scipy.io import savemat  # only when a .mat file is asked for
 
     names = [n for n in signals if n != "time" and signals[n].dtype != object]
@@ -230,6 +345,8 @@ def mat_bytes(signals: dict) -> bytes:
             else np.zeros((len(signals["time"]), 0)))
     content = {"time": np.asarray(signals["time"], float), "data": data,
                "names": np.array(names, dtype=object),
+               "units": np.array([(units or {}).get(n, "") for n in names], dtype=object),
+               "time_unit": "s",
                "signals": dict(zip(matlab_names(names + texts),
                                    [signals[n] for n in names + texts]))}
     buffer = io.BytesIO()
@@ -237,18 +354,41 @@ def mat_bytes(signals: dict) -> bytes:
     return buffer.getvalue()
 
 
-def plot_results(csv_path, png_path, title: str = "", max_curves: int = 8) -> None:
-    """:func:`plot_signals` of a results CSV."""
+def read_statistics(csv_path) -> dict:
+    """The statistics JSON dsim writes beside a results CSV (``NAME.stats.json`` for
+    ``NAME.csv``), or {} when there is none or it is not one."""
+    path = Path(csv_path).with_suffix(".stats.json")
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def read_units(csv_path) -> dict[str, str]:
+    """Column -> unit of a results CSV, from the statistics JSON beside it (its
+    "units"; {} when there is none: a CSV of an older dsim or of another tool)."""
+    units = read_statistics(csv_path).get("units")
+    return {str(k): str(v) for k, v in units.items()} if isinstance(units, dict) else {}
+
+
+def plot_results(csv_path, png_path, title: str = "", max_curves: int = MAX_CURVES) -> None:
+    """:func:`plot_signals` of a results CSV, with the units and the ``--set`` values
+    of the statistics JSON beside it."""
     header, data = read_csv(csv_path)
-    plot_signals({name: data[:, i] for i, name in enumerate(header)}, png_path, title,
-                 max_curves)
+    statistics = read_statistics(csv_path)
+    plot_signals({name: data[:, i] for i, name in enumerate(header)}, png_path,
+                 title or set_title(statistics.get("scene", Path(csv_path).stem),
+                                    statistics.get("parameters")),
+                 max_curves, read_units(csv_path))
 
 
 def save_figure(figure, png_path) -> None:
     """Lay out, write as PNG (creating the folder) and release a matplotlib figure."""
     import matplotlib.pyplot as plt
 
-    figure.tight_layout()
+    if figure.get_layout_engine() is None:
+        figure.tight_layout()
     if isinstance(png_path, (str, Path)):
         Path(png_path).parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(png_path, dpi=110, format="png")

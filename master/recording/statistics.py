@@ -39,6 +39,18 @@ def _components(execution) -> dict:
     return result
 
 
+def recorded_units(execution) -> dict[str, str]:
+    """Column of the results CSV -> its unit ('' where the FMU declares none; String
+    columns have none)."""
+    plan = execution.plan
+    units = plan.units or {}
+    columns = getattr(execution, "_columns", None) or tuple(plan.columns)
+    if plan.selected is not None:
+        columns = tuple(columns[i] for i in plan.selected)
+    return {name: units.get(name, "") for name in ("time",) + columns
+            + tuple(plan.text_columns)}
+
+
 def run_statistics(execution, wall_seconds: float, components: dict | None = None) -> dict:
     """The statistics of an ended :class:`~dsim.master.running.execution.Execution` (seconds, counts);
     ``components``: what is known of them, when they cannot be asked (an abandoned run
@@ -91,6 +103,8 @@ def run_statistics(execution, wall_seconds: float, components: dict | None = Non
         # chosen, the values given on top (docs/parameters.md) and what was recorded
         "parameter_sets": list(scene.parameter_sets),
         "parameters": dict(scene.overrides),
+        # the unit of each column of the results CSV (docs/results.md, "Units")
+        "units": recorded_units(execution),
         "recording": {"outputs": list(execution.plan.outputs),
                       "output_interval": execution.plan.output_interval,
                       "every_steps": execution.plan.record_every},

@@ -133,7 +133,8 @@ class Execution:
         info = RunInfo(self.scene.name, self.scene.file, shown, self.scene.start_time,
                        self.scene.stop_time, self.settings.step, self.planned_steps,
                        plan.coupling, plan.backend, tuple(plan.inputs), plan.text_columns,
-                       plan.record_every)
+                       plan.record_every, units={c: (plan.units or {}).get(c, "")
+                                                 for c in ("time",) + shown})
         started = []
         try:
             for observer in self.observers:

@@ -22,7 +22,8 @@ from dsim.master.recording.output_files import finish_dead_partial, write_whole
 from dsim.master.settings import SETTINGS, convert
 from dsim.master.sweeps import sensitivity
 from dsim.master.sweeps.design import Design, describe, same_json
-from dsim.master.sweeps.plots import plot_kpis, plot_points, plot_scatter
+from dsim.master.sweeps.plots import (plot_kpis, plot_points, plot_scatter, sweep_title,
+                                      sweep_units)
 from dsim.master.sweeps.table import Point, markdown, read_table
 
 DESIGN_FILE = "design.json"
@@ -99,11 +100,14 @@ def finished(out: Path, configurations: list[dict]) -> dict[int, Point]:
 
 
 def write_outputs(out: Path, points: list[Point], sweep, names: list[str], labels: list[str],
-                  reference_label: str, title: str, inputs, total: int) -> list[str]:
+                  reference_label: str, title: str, inputs, total: int,
+                  plan=None) -> list[str]:
     """``sweep.md``, ``sweep.png`` (where errors were measured), and for KPIs
     ``kpis.png``, ``scatter.png``, ``sensitivity.csv`` and ``sensitivity.md``; the
     names of the files written.  ``total``: how many points the sweep has (a design
-    not run whole has no Sobol' or Morris indices)."""
+    not run whole has no Sobol' or Morris indices); ``plan``: the scene's plan, whose
+    FMUs say the varied parameters' units."""
+    title = sweep_title(title, sweep.fixed)
 
     written = ["sweep.md"]
     write_whole(out / "sweep.md", markdown(points, names, reference_label, labels).encode(),
@@ -114,9 +118,11 @@ def write_outputs(out: Path, points: list[Point], sweep, names: list[str], label
     design: Design = sweep.plan()
     if not labels or not design.factors or not points:
         return written
-    write_whole(out / "kpis.png", plot_kpis(points, design.factors, labels, title), inputs)
-    write_whole(out / "scatter.png", plot_scatter(points, design.factors, labels, title),
+    units = sweep_units(plan, [f.name for f in design.factors], labels, points)
+    write_whole(out / "kpis.png", plot_kpis(points, design.factors, labels, title, units),
                 inputs)
+    write_whole(out / "scatter.png", plot_scatter(points, design.factors, labels, title,
+                                                  units), inputs)
     written += ["kpis.png", "scatter.png"]
     if sweep.points:
         return written  # explicit points are outside the design: no indices of it

@@ -456,5 +456,5 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
         ordered = [points[k] for k in sorted(points)]
         mark_pareto(ordered)
         write_outputs(out, ordered, sweep, names, labels, label, plan.scene.name,
-                      plan.inputs, total)
+                      plan.inputs, total, plan=plan)
     return ordered, interrupted

@@ -56,10 +56,11 @@ def _summary(result, plot: Path | None) -> str:
     names = [n for n in signals if n != "time"]
     if names and len(signals["time"]):
         width = max(len(n) for n in names)
-        lines.append(f"{'column':<{width}}  {'final':>13}  {'max |value|':>13}")
+        units = data.get("units") or {}
+        lines.append(f"{'column':<{width}}  {'final':>13}  {'max |value|':>13}  unit")
         for name in names[:12]:
             lines.append(f"{name:<{width}}  {signals[name][-1]:>13.6g}  "
-                         f"{abs(signals[name]).max():>13.6g}")
+                         f"{abs(signals[name]).max():>13.6g}  {units.get(name) or '-'}")
         if len(names) > 12:
             lines.append(f"... {len(names) - 12} more columns in the CSV")
     for kind in ("csv", "statistics", "plot", "mat"):

@@ -1,4 +1,5 @@
-"""``dsim plot``: chosen signals of one or more results CSVs, overlaid in one PNG."""
+"""``dsim plot``: chosen signals of one or more results CSVs, overlaid in one PNG, one
+panel per unit (the units and ``--set`` values come from each CSV's statistics JSON)."""
 from __future__ import annotations
 
 import io
@@ -7,11 +8,9 @@ from pathlib import Path
 
 from dsim.master.errors import InputError
 from dsim.master.recording.output_files import write_whole
-from dsim.master.recording.results import plot_overlay, read_columns
+from dsim.master.recording.results import (plot_overlay, read_columns, read_statistics,
+                                            read_units, set_title)
 from dsim.master.recording.selection import column_matches
-
-#: panels of one plot (plot_overlay draws the first this many signals)
-MAX_PANELS = 8
 
 
 @dataclass
@@ -27,9 +26,11 @@ class Overlay:
 
 def overlay_files(files, patterns=(), out=None, title: str = "") -> Overlay:
     """Plot the signals of ``files`` (results CSVs) that match ``patterns`` (every
-    signal when none), one panel per signal (at most eight) with one curve per file,
-    into ``out`` (default: the first file's name with .png; written whole, never over
-    one of the CSVs).  Raises InputError when there is no CSV or nothing matches."""
+    signal when none), one panel per unit with one curve per signal and file (at most
+    eight signals a panel; the figure says how many it leaves out), into ``out``
+    (default: the first file's name with .png; written whole, never over one of the
+    CSVs); the title names the scene and each file's ``--set`` values unless ``title``
+    is given.  Raises InputError when there is no CSV or nothing matches."""
     files = [Path(f) for f in files]
     if not files:
         raise InputError("dsim plot: give at least one results CSV")
@@ -47,7 +48,22 @@ def overlay_files(files, patterns=(), out=None, title: str = "") -> Overlay:
         raise InputError(f"dsim plot: no column matches {', '.join(unmatched) or 'anything'} "
                          f"(columns: {', '.join(columns)})")
     out = Path(out or files[0].with_suffix(".png"))
+    units = {}
+    for path in files:  # the first file that declares a column's unit names it
+        for name, unit in read_units(path).items():
+            units.setdefault(name, unit)
     image = io.BytesIO()
-    plot_overlay(results, names, image, title)
+    panels = plot_overlay(results, names, image, title or _title(files, list(results)), units)
     write_whole(out, image.getvalue(), files)
-    return Overlay(out, names, names[:MAX_PANELS], len(results))
+    return Overlay(out, names, [n for panel in panels for n in panel.names], len(results))
+
+
+def _title(files, labels) -> str:
+    """The scenes of ``files`` and, per file, the values its run was given (--set)."""
+    statistics = [read_statistics(path) for path in files]
+    scenes = list(dict.fromkeys(s.get("scene") or "" for s in statistics if s.get("scene")))
+    lines = [", ".join(scenes) or ", ".join(labels)]
+    for label, data in zip(labels, statistics):
+        if data.get("parameters"):
+            lines.append(set_title(label, data["parameters"]).replace("\n", " "))
+    return "\n".join(lines[:4]) + (" ..." if len(lines) > 4 else "")

@@ -5,10 +5,12 @@
   var COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf",
                 "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"];
 
-  function plot(el, xLabel, labels, extraScale) {
+  function plot(el, xLabel, labels, extraScale, units) {
     var series = [{label: xLabel}];
     labels.forEach(function (label, i) {
-      var s = {label: label, stroke: COLORS[i % COLORS.length], width: 1.5, spanGaps: true};
+      // a column's unit beside its name in the legend ("right.x[2] (m)")
+      var shown = units && units[i] ? label + " (" + units[i] + ")" : label;
+      var s = {label: shown, stroke: COLORS[i % COLORS.length], width: 1.5, spanGaps: true};
       if (extraScale && extraScale.labels.indexOf(label) >= 0) { s.scale = extraScale.name; }
       series.push(s);
     });
@@ -17,7 +19,7 @@
     var opts = {width: Math.max(320, el.clientWidth || 600), height: 230,
                 scales: {x: {time: false}}, series: series, axes: axes};
     var data = [[]].concat(labels.map(function () { return []; }));
-    return {chart: new uPlot(opts, data, el), data: data};
+    return {chart: new uPlot(opts, data, el), data: data, names: labels};
   }
 
   function redraw(p) { if (p) { p.chart.setData(p.data); } }
@@ -32,7 +34,8 @@
       if (line.type === "start") {
         if (state.signals) { return; }  // a reconnect sends the history again
         start = line.start; stop = line.stop;
-        state.signals = plot(document.getElementById("chart-signals"), "time (s)", line.columns);
+        state.signals = plot(document.getElementById("chart-signals"), "time (s)", line.columns,
+                             null, line.units);
         state.health = plot(document.getElementById("chart-health"), "time (s)",
                             ["iterations per step (mean)", "iterations in one step (most)",
                              "Lambda refreshes"],
@@ -77,7 +80,7 @@
         return r.ok ? r.json() : null;
       }).then(function (full) {
         if (full && state.signals) {
-          var labels = state.signals.chart.series.slice(1).map(function (s) { return s.label; });
+          var labels = state.signals.names;
           state.signals.data = [full.time].concat(labels.map(function (l) {
             return full.columns[l] || full.time.map(function () { return null; });
           }));
