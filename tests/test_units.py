@@ -231,6 +231,6 @@ def test_a_third_party_fmus_units_are_shown_as_it_declares_them(tmp_path, capsys
         panels = plot_signals(result.signals, tmp_path / "ball.png",
                               units=result.statistics["units"])
         assert [p.label for p in panels] == ["position (m)", "velocity (m/s)"]
-        assert main(["info", str(path)]) == 0
+        assert main(["info", "--all", str(path)]) == 0
         table = capsys.readouterr().out
         assert any(line.split()[:3] == ["g", "Real", "m/s2"] for line in table.splitlines())

@@ -85,15 +85,16 @@ def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> li
         return ["can be set: nothing"]
     bound = plan.scene.component(spec.name).parameters
     width = max(len(v.name) for v in listed)
+    units = max([4] + [len(v.unit or "-") for v in listed])
     lines = [f"can be set (--set {spec.name}.NAME=VALUE; start: the FMU's, scene: what the "
              "scene binds):",
-             f"  {'name':<{width}}  {'type':<7} {'unit':<6} causality/variability  values"]
+             f"  {'name':<{width}}  {'type':<7} {'unit':<{units}}  causality/variability  values"]
     for v in listed:
         limits = f" [{v.min or '-inf'}, {v.max or 'inf'}]" if v.min or v.max else ""
         if v.items:
             limits = " {" + ", ".join(f"{name}={value}" for name, value in v.items) + "}"
         scene = f" scene {_short(bound[v.name][1])}" if v.name in bound else ""
-        lines.append(f"  {v.name:<{width}}  {v.type:<7} {v.unit or '-':<6} "
+        lines.append(f"  {v.name:<{width}}  {v.type:<7} {v.unit or '-':<{units}}  "
                      f"{v.causality}/{v.variability}  start {_short(v.start)}{scene}{limits}"
                      + (f"  ({v.description})" if v.description else ""))
     hidden = len(found) - len(listed)
