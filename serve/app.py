@@ -28,6 +28,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from dsim.serve.jobs import Jobs
 from dsim.serve.owner import lock_database, server_identity
 from dsim.serve.store import Store
+from dsim.serve import routes
 
 HERE = Path(__file__).parent
 COOKIE = "dsim_token"
@@ -157,8 +158,6 @@ def create_app(db_path, token: str | None = None, slots: int = 2,
     """The application over the database at ``db_path`` (created on first use);
     ``slots``: runs at once; ``max_upload``: largest upload in bytes; ``hosts``: the
     Host headers it answers (:class:`Guard`, :func:`accepted_hosts`)."""
-    from dsim.serve import routes
-
     if hosts is None and not token:  # any Host and no token: open to DNS rebinding
         raise ValueError("a server that accepts any Host header needs a token")
     # before the database is touched: one server per database (InputError naming

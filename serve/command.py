@@ -9,6 +9,7 @@ import secrets
 import socket
 
 from dsim import InputError
+from dsim.serve.app import accepted_hosts, create_app
 
 #: the packages of the ``serve`` extra, by import name
 NEEDED = ("fastapi", "uvicorn", "jinja2", "multipart")
@@ -58,8 +59,6 @@ def serve(args) -> int:
     if not loopback(args.host) and not token:
         token = secrets.token_urlsafe(24)
     import uvicorn
-
-    from dsim.serve.app import accepted_hosts, create_app
 
     listening = _bind(args.host, args.port)
     port = listening.getsockname()[1]  # the one the system chose for --port 0

@@ -8,6 +8,8 @@ import math
 
 from dsim.serve.assemble import ComponentSpec, SceneSpec, typed_value
 from dsim.serve.store import Store
+from dsim import (DESIGNS, SETTINGS, check, InputError, MasterSettings, parse_vary, resolve,
+                  Sweep, sweep_of)
 
 
 class FormError(Exception):
@@ -21,8 +23,6 @@ class FormError(Exception):
 def run_settings(fields: dict) -> dict:
     """``dsim run``'s settings from form fields named as its keywords; an empty field
     keeps the scene's value."""
-    from dsim import SETTINGS, InputError, MasterSettings, resolve
-
     # the scene a run reads is the one stored, described by its own SystemStructure.ssd
     settings = {k: str(fields[k]).strip() for k in SETTINGS if k != "ssd"
                 and str(fields.get(k) or "").strip()}
@@ -49,8 +49,6 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
     ``design``, ``samples``, ``seed``), its KPIs (``kpis``: one ``--kpi`` per line) and
     fixed settings (``stop``; ``backend``: ray runs the points side by side), checked
     as ``dsim sweep`` checks a sweep file."""
-    from dsim import DESIGNS, InputError, Sweep, check, parse_vary
-
     grid = {name: _list(str(fields.get(name) or "")) for name in
             ("step", "tolerance", "coupling", "predictor")}
     grid = {name: values for name, values in grid.items() if values}
@@ -95,8 +93,6 @@ def sweep_spec(fields: dict, reference: str | None) -> dict:
 def job_sweep(spec: dict):
     """The :class:`~dsim.Sweep` of a stored sweep spec (:func:`sweep_spec`):
     a sweep file's object whose fixed settings are stored as ``fixed``."""
-    from dsim import sweep_of
-
     data = {key: value for key, value in spec.items() if key != "fixed"}
     return sweep_of({**data, "settings": spec.get("fixed", {})})
 

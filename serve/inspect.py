@@ -29,7 +29,9 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from dsim import MAX_UNPACKED, check_archive as shared_check_archive
+from dsim import (MAX_UNPACKED, check_archive as shared_check_archive, conventional_ports,
+                  describe, fmu_problem, free_settable, InputError, joint_coefficients,
+                  prepare, validate)
 
 #: capability flags of <CoSimulation> shown on a model's page
 CAPABILITIES = ("canGetAndSetFMUstate", "canSerializeFMUstate",
@@ -47,8 +49,6 @@ def check_archive(path: Path, what: str, max_unpacked: int = MAX_UNPACKED) -> li
     """Member names of a zip archive, refused (:class:`Refused`) on the command line's
     grounds (:func:`dsim.check_archive`: not a zip, a zip bomb, a member outside itself, a
     name that is not UTF-8)."""
-    from dsim import InputError
-
     try:
         return shared_check_archive(path, what, max_unpacked)
     except InputError as error:
@@ -65,8 +65,6 @@ def _start(variable):
 def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     """The summary of an FMU's modelDescription that a model's page shows, after
     dsim's checks of an FMU (:func:`dsim.fmu_problem`)."""
-    from dsim import conventional_ports, describe, fmu_problem
-
     names = check_archive(path, "FMU", max_unpacked)
     problem = fmu_problem(path, load=False)
     if problem:
@@ -102,8 +100,6 @@ def describe_fmu(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
 
 
 def _joint(joint) -> dict:
-    from dsim import joint_coefficients
-
     return {"name": joint.name, "a": ".".join(joint.a), "b": ".".join(joint.b),
             "dofs": list(joint.dofs), "kind": joint.kind, "measure": joint.measure,
             "k0": list(joint.k0), "k1": list(joint.k1), "c0": list(joint.c0),
@@ -115,8 +111,6 @@ def _settable(plan, index: int) -> list[dict]:
     """What a run may set in component ``index`` (``dsim info``'s list): the
     parameters, and the inputs that no joint or connection writes, with the value
     the scene binds."""
-    from dsim import free_settable
-
     component = plan.scene.component(plan.specs[index].name)
     rows = []
     for v in free_settable(plan, index):
@@ -159,8 +153,6 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
     """What a scene's page shows of an .ssp archive, after ``dsim validate``'s
     checks (a scene that does not validate is refused with every problem)."""
     import hashlib
-
-    from dsim import prepare, validate
 
     names = check_archive(path, "SSP", max_unpacked)
     if "SystemStructure.ssd" not in names:
@@ -230,8 +222,6 @@ def check_parameters(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -
     """The model parameters ``given`` (name -> value, from a run form) as a run of the
     stored scene at ``path`` applies them, after every check of ``dsim run --set``
     (an InputError lists what is wrong); no library is loaded."""
-    from dsim import InputError, prepare
-
     if not isinstance(given, dict):
         raise Refused("give the parameters as a JSON object of name: value")
     check_archive(path, "SSP", max_unpacked)
@@ -257,8 +247,6 @@ def _ssd_root(folder: Path):
 
 def main(argv=None) -> int:
     """Print the JSON answer for one file; exit 0 whatever the answer."""
-    from dsim import InputError
-
     argv = sys.argv[1:] if argv is None else argv
     kind, path = argv[0], Path(argv[1])
     max_unpacked = int(argv[2]) if len(argv) > 2 else MAX_UNPACKED

@@ -12,6 +12,8 @@ from __future__ import annotations
 import json
 
 from dsim.serve.forms import FormError
+from dsim import SETTINGS
+from dsim.serve.uploads import inspect_file, UploadError
 
 #: the prefix of a form field that sets a parameter (``parameter:left.m[1]``)
 FIELD = "parameter:"
@@ -49,8 +51,6 @@ def form_values(fields: dict) -> dict:
 def checked(store, scene: dict, values: dict, max_unpacked: int) -> dict:
     """``values`` (name -> text or JSON value) as a run of ``scene`` applies them, after
     every check of ``dsim run --set``; FormError listing what is wrong."""
-    from dsim.serve.uploads import UploadError, inspect_file
-
     if not values:
         return {}
     _limited(values)
@@ -133,8 +133,6 @@ def command_options(settings: dict) -> str:
 def _option(keyword: str) -> str:
     """The command-line option of a setting's keyword (``relative_tolerance`` ->
     ``--relative-tolerance``), as dsim's table of settings names it."""
-    from dsim import SETTINGS
-
     setting = SETTINGS.get(keyword)
     return setting.option if setting is not None else f"--{keyword.replace('_', '-')}"
 

@@ -25,7 +25,9 @@ import time
 import traceback
 from pathlib import Path
 
-from dsim import Observer
+from dsim import (CsvRecorder, Execution, InputError, Observer, prepare, run_sweep,
+                  StatisticsWriter)
+from dsim.serve.forms import job_sweep
 
 #: seconds between two live samples (the first and last step are always sent)
 SAMPLE_SECONDS = 0.05
@@ -145,8 +147,6 @@ def input_hashes(plan, scene_sha: str) -> dict:
 
 def run_scene(job: dict, folder: Path) -> dict:
     """One run of ``dsim run`` with the job's settings; its outcome."""
-    from dsim import CsvRecorder, Execution, StatisticsWriter, prepare
-
     plan = prepare(folder / "scene.ssp", **job["settings"])
     (folder / "inputs.json").write_text(json.dumps(input_hashes(plan, job["scene_sha256"])))
     live = LiveObserver(folder / "live.jsonl", job.get("signals", ()))
@@ -163,9 +163,6 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
     """A ``dsim sweep`` of the scene; its outcome (points as ``point`` lines).  A sweep
     whose points all ran is completed, also when some of them failed: its message says
     how many failed and why (the first reasons); it fails only when no point ran."""
-    from dsim import run_sweep
-    from dsim.serve.forms import job_sweep
-
     sweep = job_sweep(job)
     (folder / "inputs.json").write_text(json.dumps({"scene.ssp": job["scene_sha256"]}))
     with open(folder / "live.jsonl", "a") as live:
@@ -190,8 +187,6 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
 
 def main(argv=None) -> int:
     """Run the job of one folder; exit 0 when ``outcome.json`` was written."""
-    from dsim import InputError
-
     folder = Path((sys.argv[1:] if argv is None else argv)[0])
     job = json.loads((folder / "job.json").read_text())
     threading.Thread(target=_watch_parent, args=(job["server_pid"],), daemon=True).start()

@@ -21,6 +21,7 @@ from dsim.serve.routes.common import (download_name, first_values, form_fields, 
                                       with_parameters)
 from dsim.serve.run_parameters import form_values
 from dsim.serve.store import ACTIVE
+from dsim import SETTINGS
 
 router = APIRouter()
 api = APIRouter()
@@ -202,8 +203,6 @@ async def run_api(request: Request, scene_id: int):
         raise HTTPException(400, '"parameters" must be a JSON object of name: value')
     if not isinstance(signals, list) or not all(isinstance(s, str) for s in signals):
         raise HTTPException(400, '"signals" must be a JSON list of column names')
-    from dsim import SETTINGS
-
     unknown = sorted(set(settings) - set(SETTINGS) | ({"ssd"} & set(settings)))
     if unknown:  # a form has other fields; a JSON body names settings only
         raise HTTPException(400, f"unknown setting {', '.join(map(repr, unknown))} "

@@ -15,6 +15,8 @@ from dsim.serve.routes.common import (family, first_values, form_fields, redirec
 from dsim.serve.run_parameters import form_groups
 from dsim.serve.store import Store
 from dsim.serve.uploads import UploadError, store_scene
+from dsim import SETTINGS, choices
+from dsim.serve.assemble import add_parameter_set, write_scene
 
 router = APIRouter()
 api = APIRouter()
@@ -110,8 +112,6 @@ async def assemble(request: Request):
 
 
 def _save_assembled(request: Request, spec, files) -> int:
-    from dsim.serve.assemble import write_scene
-
     store = store_of(request)
     path = write_scene(spec, files, store.temporary(".ssp"))
     try:
@@ -123,8 +123,6 @@ def _save_assembled(request: Request, spec, files) -> int:
 
 @router.get("/scenes/{scene_id}", response_class=HTMLResponse)
 def scene_page(request: Request, scene_id: int, parameter_set: str = ""):
-    from dsim import SETTINGS, choices
-
     store = store_of(request)
     scene = stored(store, "scenes", scene_id)
     root, members = family(store, scene_id)
@@ -187,8 +185,6 @@ async def parameters_save(request: Request, scene_id: int):
 
 
 def _save_parameter_set(request: Request, scene: dict, name: str, values) -> tuple[int, str]:
-    from dsim.serve.assemble import add_parameter_set
-
     store = store_of(request)
     path = store.temporary(".ssp")
     try:

@@ -9,9 +9,9 @@ import json
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
-from dsim import TIGHTEST
+from dsim import TIGHTEST, cheapest, Index, ranking_text, read_sensitivity, unrecorded_columns
 from dsim.serve import results
-from dsim.serve.forms import FormError, sweep_spec
+from dsim.serve.forms import FormError, job_sweep, sweep_spec
 from dsim.serve.routes.common import (first_values, form_fields, launch, or_404, redirect,
                                       render, results_csv, store_of, stored,
                                       with_parameters)
@@ -42,9 +42,6 @@ async def sweep_form(request: Request, scene_id: int):
 def _check_sweep_columns(store, scene_id: int, spec: dict) -> None:
     """Every KPI of a sweep matches a column the stored scene records (as ``dsim
     sweep`` checks them, closest names offered), before the sweep is queued."""
-    from dsim import unrecorded_columns
-    from dsim.serve.forms import job_sweep
-
     columns = stored(store, "scenes", scene_id)["description"].get("columns")
     if columns is None:  # a scene stored before descriptions listed them: the run says
         return
@@ -57,8 +54,6 @@ async def _check_sweep_parameters(request: Request, scene_id: int, spec: dict) -
     """Every value a sweep's model parameters take at the ends of their ranges (every
     entry of a list), checked as ``dsim run --set`` checks them, over the stored scene
     in a child process, before the sweep is queued (FormError listing the problems)."""
-    from dsim.serve.forms import job_sweep
-
     factors = [f for f in job_sweep(spec).plan().factors if f.is_parameter]
     if not factors:
         return
@@ -78,8 +73,6 @@ async def _check_sweep_parameters(request: Request, scene_id: int, spec: dict) -
 def sweep_page(request: Request, run_id: int, target: str, context: dict) -> HTMLResponse:
     """The page of sweep ``run_id`` (``context``: the run's, as a run's page has it);
     ``target``: an error whose cheapest point to pick out."""
-    from dsim import Index, ranking_text, read_sensitivity
-
     folder = store_of(request).run_folder(run_id)
     names, kpis, points = results.sweep_table(folder)
     sensitivity = read_sensitivity(folder)
@@ -99,5 +92,4 @@ def sweep_page(request: Request, run_id: int, target: str, context: dict) -> HTM
 
 
 def _cheapest(points, target: float):
-    from dsim import cheapest
     return cheapest(points, target)
