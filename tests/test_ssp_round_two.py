@@ -1,0 +1,223 @@
+"""SSP files as more tools write them (issue 29): a scene without FMU components, an
+FMU that ends the simulation itself, .ssv enumeration values given as item names,
+startElement="" inside a nested system, Dymola-style connectors that name nothing,
+Integer/Real mismatches, an element order that changes nothing, FMUs outside the
+scene (--allow-outside) and one error per cause.  Every archive is built here."""
+from __future__ import annotations
+
+import shutil
+import uuid
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dsim
+from dsim.master.tools.cli import main
+from tests.scene_files import component, scene_folder, ssd
+from tests.third_party.build import Variable, compile_library, model_description
+
+# --- an FMU of our own that ends the simulation itself -------------------------------
+
+#: FMI 2.0 co-simulation, a mass under a constant force F plus the port force P.f_x,
+#: integrated exactly over each step (the force held): x = x0 + v t + F t^2 / (2 m).  At
+#: t = T_end it ends the simulation as the standard says: the step that reaches T_end
+#: advances to T_end only, returns fmi2Discard, and fmi2GetBooleanStatus(fmi2Terminated)
+#: is true, fmi2GetRealStatus(fmi2LastSuccessfulTime) T_end.
+ENDER_C = r"""
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "fmi2Functions.h"
+
+enum { M, F, T_END, FX, UX, VX, AX, N };
+typedef struct { double r[N]; double time; int terminated; int steps_after; } Model;
+
+static void accelerate(Model *m) { m->r[AX] = (m->r[F] + m->r[FX]) / m->r[M]; }
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n,
+                               const fmi2String k[]) { return fmi2OK; }
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid,
+                              fmi2String res, const fmi2CallbackFunctions *f,
+                              fmi2Boolean visible, fmi2Boolean logging) {
+    Model *m = calloc(1, sizeof(Model));
+    m->r[M] = 1.0; m->r[F] = 0.0; m->r[T_END] = 1e300;
+    return m;
+}
+void fmi2FreeInstance(fmi2Component c) { free(c); }
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean td, fmi2Real tol, fmi2Real t0,
+                               fmi2Boolean sd, fmi2Real stop) {
+    ((Model *)c)->time = t0; return fmi2OK;
+}
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return fmi2OK; }
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) { accelerate(c); return fmi2OK; }
+fmi2Status fmi2Terminate(fmi2Component c) { return fmi2OK; }
+fmi2Status fmi2Reset(fmi2Component c) { return fmi2OK; }
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                       fmi2Real v[]) {
+    Model *m = c;
+    for (size_t k = 0; k < n; k++) { if (vr[k] >= N) return fmi2Error; v[k] = m->r[vr[k]]; }
+    return fmi2OK;
+}
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                       const fmi2Real v[]) {
+    Model *m = c;
+    for (size_t k = 0; k < n; k++) { if (vr[k] >= N) return fmi2Error; m->r[vr[k]] = v[k]; }
+    accelerate(m);
+    return fmi2OK;
+}
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                          fmi2Integer v[]) { return n ? fmi2Error : fmi2OK; }
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                          const fmi2Integer v[]) { return n ? fmi2Error : fmi2OK; }
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                          fmi2Boolean v[]) { return n ? fmi2Error : fmi2OK; }
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                          const fmi2Boolean v[]) { return n ? fmi2Error : fmi2OK; }
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                         fmi2String v[]) { return n ? fmi2Error : fmi2OK; }
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                         const fmi2String v[]) { return n ? fmi2Error : fmi2OK; }
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) {
+    if (!*s) *s = malloc(sizeof(Model));
+    memcpy(*s, c, sizeof(Model)); return fmi2OK;
+}
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
+    memcpy(c, s, sizeof(Model)); return fmi2OK;
+}
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) {
+    free(*s); *s = NULL; return fmi2OK;
+}
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *n) {
+    return fmi2Error;
+}
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) {
+    return fmi2Error;
+}
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n,
+                                   fmi2FMUstate *s) { return fmi2Error; }
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[],
+        size_t nu, const fmi2ValueReference z[], size_t nz, const fmi2Real du[],
+        fmi2Real dz[]) { return fmi2Error; }
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
+        size_t n, const fmi2Integer o[], const fmi2Real v[]) { return fmi2Error; }
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
+        size_t n, const fmi2Integer o[], fmi2Real v[]) { return fmi2Error; }
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean prior) {
+    Model *m = c;
+    if (m->terminated) return fmi2Error;  /* no step after the end */
+    double end = t + h, d;
+    int ends = end >= m->r[T_END] - 1e-12;
+    d = (ends ? m->r[T_END] : end) - t;
+    accelerate(m);
+    m->r[UX] += m->r[VX] * d + 0.5 * m->r[AX] * d * d;
+    m->r[VX] += m->r[AX] * d;
+    m->time = t + d;
+    if (ends) { m->terminated = 1; return fmi2Discard; }
+    return fmi2OK;
+}
+fmi2Status fmi2CancelStep(fmi2Component c) { return fmi2Error; }
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *v) {
+    return fmi2Discard;
+}
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *v) {
+    if (s != fmi2LastSuccessfulTime) return fmi2Discard;
+    *v = ((Model *)c)->time; return fmi2OK;
+}
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *v) {
+    return fmi2Discard;
+}
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *v) {
+    if (s != fmi2Terminated) return fmi2Discard;
+    *v = ((Model *)c)->terminated; return fmi2OK;
+}
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *v) {
+    return fmi2Discard;
+}
+"""
+
+ENDER_VARIABLES = (
+    Variable("m", 0, causality="parameter", start=1.0),
+    Variable("F", 1, causality="parameter", start=0.0),
+    Variable("T_end", 2, causality="parameter", start=1e300),
+    Variable("P.f_x", 3, causality="input", start=0.0),
+    Variable("P.u_x", 4, causality="output", initial="exact", start=0.0),
+    Variable("P.v_x", 5, causality="output", initial="exact", start=0.0),
+    Variable("P.a_x", 6, causality="output", initial="calculated"),
+)
+
+
+@pytest.fixture(scope="module")
+def ender(tmp_path_factory) -> Path:
+    """The FMU of ENDER_C, compiled with gcc against fmpy's FMI 2.0 headers."""
+    folder = tmp_path_factory.mktemp("ender")
+    source = folder / "ender.c"
+    source.write_text(ENDER_C)
+    library = compile_library(source, folder / "ender.so")
+    fmu = folder / "ender.fmu"
+    with zipfile.ZipFile(fmu, "w") as archive:
+        archive.writestr("modelDescription.xml",
+                         model_description("ender", ENDER_VARIABLES))
+        archive.write(library, "binaries/linux64/ender.so")
+    return fmu
+
+
+def _ender_scene(folder: Path, fmu: Path, t_end: float, glued: bool, coupling: str,
+                 stop: float = 1.0, step: float = 0.1) -> Path:
+    """One ender pushed by F = 2 N (x = t^2), or (glued) two of 1 kg and 3 kg joined at
+    P by a fixed joint, the first pushed by F = 8 N (x = t^2 for both); the first ends
+    the simulation at ``t_end``."""
+    parts = [component("a", "resources/ender.fmu",
+                       {"m": 1.0, "F": 8.0 if glued else 2.0, "T_end": t_end},
+                       outputs=("P.u_x",))]
+    gluing = ""
+    if glued:
+        parts.append(component("b", "resources/ender.fmu", {"m": 3.0}))
+        gluing = '<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="fixed"/>'
+    text = ssd("ender", parts, gluing=gluing, stop=stop,
+               master=f'step="{step!r}" coupling="{coupling}"')
+    return scene_folder(folder, text, {"ender.fmu": fmu})
+
+
+@pytest.mark.parametrize("t_end, last", [(0.35, 0.3), (0.4, 0.4)])
+@pytest.mark.parametrize("glued, coupling", [(False, "causal"), (True, "explicit"),
+                                             (True, "iterative"), (True, "strong")])
+def test_an_fmu_that_ends_the_simulation_ends_the_run_normally(ender, tmp_path, t_end, last,
+                                                               glued, coupling):
+    """The run ends at the last communication point every component reached (the step's
+    start when the FMU ended inside a step, its end when it ended there), exit 0, every
+    row on x = t^2, the statistics naming the component and the time it reached."""
+    folder = _ender_scene(tmp_path / "scene", ender, t_end, glued, coupling)
+    out = tmp_path / "out.csv"
+    assert main(["run", str(folder), "--out", str(out), "--quiet"]) == 0
+    result = dsim.simulate(folder)
+    assert result.ok and result.status == "completed"
+    time = result["time"]
+    assert time[-1] == pytest.approx(last, abs=1e-12)
+    assert len(time) == round(last / 0.1) + 1
+    # the rows are the run's without the end, up to where it ended
+    whole = dsim.simulate(_ender_scene(tmp_path / "whole", ender, 1e300, glued, coupling))
+    assert whole.ok and whole.statistics["ended_by"] is None and len(whole["time"]) == 11
+    np.testing.assert_array_equal(result["a.P.u_x"], whole["a.P.u_x"][:len(time)])
+    if coupling != "explicit":  # (one explicit trial per step is not exact at 0.1 s)
+        assert np.max(np.abs(result["a.P.u_x"] - time ** 2)) < 1e-9
+    ended = result.statistics["ended_by"]
+    assert ended["component"] == "a" and ended["time"] == pytest.approx(t_end, abs=1e-12)
+    assert result.statistics["time_reached"] == pytest.approx(last, abs=1e-12)
+    assert any("component 'a' ended the simulation" in w for w in result.warnings)
+    rows = out.read_text().strip().splitlines()
+    assert len(rows) == len(time) + 1  # the header and every row
+
+
+def test_an_fmu_that_ends_the_simulation_in_a_worker_ends_the_run_the_same(
+        ender, tmp_path, ray_local):
+    """The isolated and Ray backends end the run where the in-process one does."""
+    folder = _ender_scene(tmp_path / "scene", ender, 0.35, True, "iterative")
+    here = dsim.simulate(folder)
+    for backend in ("isolated", "ray"):
+        there = dsim.simulate(folder, backend=backend)
+        assert there.ok and there.statistics["ended_by"] == here.statistics["ended_by"]
+        np.testing.assert_array_equal(there["a.P.u_x"], here["a.P.u_x"])
