@@ -221,3 +221,51 @@ def test_an_fmu_that_ends_the_simulation_in_a_worker_ends_the_run_the_same(
         there = dsim.simulate(folder, backend=backend)
         assert there.ok and there.statistics["ended_by"] == here.statistics["ended_by"]
         np.testing.assert_array_equal(there["a.P.u_x"], here["a.P.u_x"])
+
+
+# --- a scene without FMU components --------------------------------------------------
+
+EMPTY_SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="setup"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssd:System name="root">
+    <ssd:Connectors>
+      <ssd:Connector name="k" kind="parameter"><ssc:Real/></ssd:Connector>
+    </ssd:Connectors>
+    <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+      <ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>
+        <ssv:Parameter name="k"><ssv:Real value="2.5"/></ssv:Parameter>
+      </ssv:Parameters></ssv:ParameterSet>
+    </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="0.5"/>
+</ssd:SystemStructureDescription>
+"""
+
+
+@pytest.mark.parametrize("coupling", ["causal", "explicit", "iterative", "strong"])
+def test_a_scene_without_components_runs_to_its_time_column(tmp_path, capsys, coupling):
+    """Only system connectors and a parameter set (a parameter setup exported alone):
+    validate says why in a warning, a run writes the time column and exits 0, --strict
+    refuses it in one line."""
+    folder = tmp_path / "setup"
+    folder.mkdir()
+    (folder / "SystemStructure.ssd").write_text(EMPTY_SSD)
+    assert main(["validate", str(folder)]) == 0
+    assert "has no FMU component" in capsys.readouterr().err
+    out = tmp_path / "out.csv"
+    assert main(["run", str(folder), "--out", str(out), "--coupling", coupling,
+                 "--step", "0.1", "--quiet"]) == 0
+    lines = out.read_text().split()
+    assert lines[0] == "time"
+    np.testing.assert_allclose([float(x) for x in lines[1:]], 0.1 * np.arange(6), atol=1e-15)
+    result = dsim.simulate(folder, coupling=coupling, step=0.1)
+    assert result.ok and len(result["time"]) == 6
+    assert any("has no FMU component" in w for w in result.statistics["warnings"])
+    capsys.readouterr()
+    for command in (["validate"], ["run", "--out", str(tmp_path / "strict.csv")]):
+        assert main([command[0], str(folder), "--strict", *command[1:]]) == 2
+        errors = capsys.readouterr().err.strip().splitlines()
+        assert len(errors) == 1 and "has no FMU component" in errors[0]

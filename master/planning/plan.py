@@ -394,6 +394,10 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     links = check_connections(scene, usable, problems)
     _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
+    if not scene.components:
+        # (a parameter setup exported alone: connectors, .ssv and .ssm, nothing to run)
+        warnings.append(f"{scene.file}: the scene has no FMU component: a run records "
+                        "only its time column")
     if not scene.experiment:
         warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
                         f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "
