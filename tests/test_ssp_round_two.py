@@ -32,9 +32,12 @@ ENDER_C = r"""
 #include "fmi2Functions.h"
 
 enum { M, F, T_END, FX, UX, VX, AX, N };
-typedef struct { double r[N]; double time; int terminated; int steps_after; } Model;
+typedef struct { double r[N]; int direction; double time; int terminated; } Model;
 
-static void accelerate(Model *m) { m->r[AX] = (m->r[F] + m->r[FX]) / m->r[M]; }
+/* direction (an Enumeration): 1 Push (F pushes), 2 Pull (F pulls) */
+static void accelerate(Model *m) {
+    m->r[AX] = ((m->direction == 2 ? -1.0 : 1.0) * m->r[F] + m->r[FX]) / m->r[M];
+}
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char *fmi2GetVersion(void) { return fmi2Version; }
@@ -44,7 +47,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid,
                               fmi2String res, const fmi2CallbackFunctions *f,
                               fmi2Boolean visible, fmi2Boolean logging) {
     Model *m = calloc(1, sizeof(Model));
-    m->r[M] = 1.0; m->r[F] = 0.0; m->r[T_END] = 1e300;
+    m->r[M] = 1.0; m->r[F] = 0.0; m->r[T_END] = 1e300; m->direction = 1;
     return m;
 }
 void fmi2FreeInstance(fmi2Component c) { free(c); }
@@ -70,9 +73,19 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
     return fmi2OK;
 }
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
-                          fmi2Integer v[]) { return n ? fmi2Error : fmi2OK; }
+                          fmi2Integer v[]) {
+    for (size_t k = 0; k < n; k++) { if (vr[k]) return fmi2Error; v[k] = ((Model *)c)->direction; }
+    return fmi2OK;
+}
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
-                          const fmi2Integer v[]) { return n ? fmi2Error : fmi2OK; }
+                          const fmi2Integer v[]) {
+    for (size_t k = 0; k < n; k++) {
+        if (vr[k] || v[k] < 1 || v[k] > 2) return fmi2Error;
+        ((Model *)c)->direction = v[k];
+    }
+    accelerate(c);
+    return fmi2OK;
+}
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                           fmi2Boolean v[]) { return n ? fmi2Error : fmi2OK; }
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n,
@@ -147,7 +160,12 @@ ENDER_VARIABLES = (
     Variable("P.u_x", 4, causality="output", initial="exact", start=0.0),
     Variable("P.v_x", 5, causality="output", initial="exact", start=0.0),
     Variable("P.a_x", 6, causality="output", initial="calculated"),
+    Variable("direction", 0, "Enumeration", "parameter", start=1),
 )
+#: the enumeration type of ``direction`` (FMI 2.0 needs one declared)
+DIRECTION = ('<TypeDefinitions><SimpleType name="Direction"><Enumeration>'
+             '<Item name="Push" value="1"/><Item name="Pull" value="2"/>'
+             "</Enumeration></SimpleType></TypeDefinitions>")
 
 
 @pytest.fixture(scope="module")
@@ -159,8 +177,10 @@ def ender(tmp_path_factory) -> Path:
     library = compile_library(source, folder / "ender.so")
     fmu = folder / "ender.fmu"
     with zipfile.ZipFile(fmu, "w") as archive:
-        archive.writestr("modelDescription.xml",
-                         model_description("ender", ENDER_VARIABLES))
+        description = model_description("ender", ENDER_VARIABLES).replace(
+            "<ModelVariables>", DIRECTION + "<ModelVariables>").replace(
+            '<Enumeration start="1"/>', '<Enumeration declaredType="Direction" start="1"/>')
+        archive.writestr("modelDescription.xml", description)
         archive.write(library, "binaries/linux64/ender.so")
     return fmu
 
@@ -269,3 +289,43 @@ def test_a_scene_without_components_runs_to_its_time_column(tmp_path, capsys, co
         assert main([command[0], str(folder), "--strict", *command[1:]]) == 2
         errors = capsys.readouterr().err.strip().splitlines()
         assert len(errors) == 1 and "has no FMU component" in errors[0]
+
+
+# --- .ssv enumeration values given as item names (SSP 1.0) ---------------------------
+
+def _ssv(values: dict) -> str:
+    """An .ssv of Enumeration parameters (``name: value text``)."""
+    parameters = "".join(f'<ssv:Parameter name="{k}"><ssv:Enumeration value="{v}"/>'
+                         "</ssv:Parameter>" for k, v in values.items())
+    return ('<?xml version="1.0" encoding="UTF-8"?><ssv:ParameterSet version="1.0" '
+            'name="set" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">'
+            f"<ssv:Parameters>{parameters}</ssv:Parameters></ssv:ParameterSet>")
+
+
+def _enumeration_scene(folder: Path, fmu: Path, value: str) -> Path:
+    text = ssd("enum", [component("a", "resources/ender.fmu", {"F": 2.0},
+                                  outputs=("P.u_x",))], stop=0.5, master='step="0.1"')
+    text = text.replace("<ssd:ParameterBinding>", '<ssd:ParameterBinding source='
+                        '"resources/set.ssv"/><ssd:ParameterBinding>')
+    folder = scene_folder(folder, text, {"ender.fmu": fmu})
+    (folder / "resources" / "set.ssv").write_text(_ssv({"direction": value}))
+    return folder
+
+
+@pytest.mark.parametrize("value, sign", [("Pull", -1.0), ("Push", 1.0), ("2", -1.0)])
+def test_an_enumeration_value_named_by_its_item_is_that_items_value(ender, tmp_path, value,
+                                                                   sign):
+    """<ssv:Enumeration value="Pull"/> sets the item Pull (2) of the FMU's type: the mass
+    is pulled, x = -t^2; an integer is still read as the item's value."""
+    result = dsim.simulate(_enumeration_scene(tmp_path / "scene", ender, value))
+    assert result.ok
+    np.testing.assert_allclose(result["a.P.u_x"], sign * result["time"] ** 2, atol=1e-12)
+
+
+def test_an_enumeration_name_that_is_no_item_is_refused_in_one_line(ender, tmp_path, capsys):
+    folder = _enumeration_scene(tmp_path / "scene", ender, "Sideways")
+    assert main(["validate", str(folder)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1
+    assert "parameter 'direction' = 'Sideways' is no item of 'a.direction' (its items: " \
+        "Push, Pull)" in lines[0]

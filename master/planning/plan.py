@@ -209,12 +209,22 @@ def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list
 
 def _with_files(component, variables: dict) -> dict:
     """The component's parameter values with each scene file it names (a String
-    ``resources/...``) given as the file's absolute path; names that are no variable
-    of its FMU are left out (:func:`_check_parameters` warned about them)."""
-    return {name: value for name, value in {
+    ``resources/...``) given as the file's absolute path, and each enumeration item
+    name (SSP 1.0 .ssv) as its item's value; names that are no variable of its FMU are
+    left out (:func:`_check_parameters` warned about them)."""
+    return {name: _item_value(value, variables[name]) for name, value in {
         **component.parameters,
         **{name: ("String", str(file)) for name, file in component.files.items()}}.items()
         if name in variables}
+
+
+def _item_value(value: tuple, variable):
+    """An enumeration value given by its item's name, as ("Integer", the item's
+    value); any other value as it is (:func:`_check_parameters` refused unknown names)."""
+    kind, given = value
+    if kind != "Enumeration":
+        return value
+    return "Integer", dict(variable.items).get(given, 0)
 
 
 def _check_parameters(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
@@ -233,6 +243,13 @@ def _check_parameters(scene: Scene, usable: dict, problems: list, warnings: list
             if variable is None:
                 warnings.append(f"{where}: parameter '{name}' is not a variable of component "
                                 f"'{component.path}' ({component.source.name}): not applied")
+                continue
+            kind, value = component.parameters[name]
+            if kind == "Enumeration" and value not in dict(variable.items):
+                items = ", ".join(item for item, _ in variable.items) or "none: " + (
+                    f"'{name}' is a {variable.type}, not an Enumeration")
+                problems.append(f"{where}: parameter '{name}' = '{value}' is no item of "
+                                f"'{component.path}.{name}' (its items: {items})")
             elif variable.variability == "constant" or not (
                     variable.causality in ("parameter", "input")
                     or variable.initial in ("exact", "approx")):
