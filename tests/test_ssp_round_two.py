@@ -329,3 +329,22 @@ def test_an_enumeration_name_that_is_no_item_is_refused_in_one_line(ender, tmp_p
     assert len(lines) == 1
     assert "parameter 'direction' = 'Sideways' is no item of 'a.direction' (its items: " \
         "Push, Pull)" in lines[0]
+
+
+# --- startElement="" inside a nested system ------------------------------------------
+
+def test_an_empty_start_element_in_a_nested_system_is_that_system(ender, tmp_path):
+    """b (pushed by 2 N: its acceleration is 2 m/s^2) feeds the nested system's input
+    connector sub.u; inside sub, startElement="" (as OMSimulator writes) is sub itself,
+    carried on to a's port force: a, unpushed otherwise, moves as x = t^2."""
+    b = component("b", "resources/ender.fmu", {"F": 2.0}, outputs=("P.a_x",))
+    a = component("a", "resources/ender.fmu", outputs=("P.u_x",), inputs=("P.f_x",))
+    sub = ('<ssd:System name="sub"><ssd:Connectors><ssd:Connector name="u" kind="input">'
+           f"<ssc:Real/></ssd:Connector></ssd:Connectors><ssd:Elements>{a}</ssd:Elements>"
+           '<ssd:Connections><ssd:Connection startElement="" startConnector="u" '
+           'endElement="a" endConnector="P.f_x"/></ssd:Connections></ssd:System>')
+    text = ssd("nested", [b, sub], [("b", "P.a_x", "sub", "u")], stop=0.5,
+               master='step="0.1"')
+    result = dsim.simulate(scene_folder(tmp_path / "scene", text, {"ender.fmu": ender}))
+    assert result.ok
+    np.testing.assert_allclose(result["sub.a.P.u_x"], result["time"] ** 2, atol=1e-12)

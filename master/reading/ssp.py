@@ -278,9 +278,11 @@ class _Reader:
                 self.problems.append(f"{self.where(child)}: element kind '{tag}' not supported")
         for connection in element.iterfind("ssd:Connections/ssd:Connection", NS):
             where = f"{self.shown} ({self.ssd.name} line {connection.sourceline}): Connection"
+            # startElement="" (or none) names the system itself (OMSimulator writes "")
             self.connections.append(RawConnection(
-                path, (connection.get("startElement"), connection.get("startConnector", "")),
-                (connection.get("endElement"), connection.get("endConnector", "")),
+                path, (connection.get("startElement") or None,
+                       connection.get("startConnector", "")),
+                (connection.get("endElement") or None, connection.get("endConnector", "")),
                 transformation(connection, where, self.problems), where,
                 connection.get("suppressUnitConversion", "false") not in ("true", "1")))
         for gluing in element.iterfind(
