@@ -175,24 +175,41 @@ def _records(scene: Scene, usable: dict) -> tuple[dict, dict]:
 
 def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
     """Every declared connector of a component is a variable of its FMU, of the same
-    causality, type and (where both say one) unit dimension."""
+    causality, type and (where both say one) unit dimension.  Connectors that name no
+    variable and that no connection uses (Dymola declares ``_x_start``,
+    ``fmi_StartTime``, ... beside the model's) change nothing: dropped, with one warning
+    per component; a connection through one is refused where the connections are
+    checked (one error for one cause).  A connector declared Real for an Integer
+    variable, or Integer for a Real one, is read as the variable is, with a warning."""
+    connected = {end for c in scene.connections for end in (c.start, c.end)}
     for component in scene.components:
         variables = usable.get(component.path)
         if variables is None:
             continue
         units = None
+        dropped = [c.name for c in component.connectors if c.name not in variables
+                   and (component.path, c.name) not in connected]
+        if dropped:
+            warnings.append(f"{component.location}: {len(dropped)} connector(s) name no "
+                            f"variable of {component.source.name} and are connected to "
+                            f"nothing: dropped ({', '.join(dropped[:3])}"
+                            f"{', ...' if len(dropped) > 3 else ''})")
         for connector in component.connectors:
             where = f"{component.location}: connector '{connector.name}'"
             variable = variables.get(connector.name)
             if variable is None:
-                problems.append(f"{where} is not a variable of {component.source.name}")
-                continue
+                continue  # dropped above, or refused with its connection
             if connector.kind and connector.kind != variable.causality:
                 problems.append(f"{where} is declared {connector.kind}, but the FMU's "
                                 f"variable is {variable.causality}")
-            if connector.type and connector.type != TYPES.get(variable.type, variable.type):
-                problems.append(f"{where} is declared {connector.type}, but the FMU's "
-                                f"variable is {variable.type}")
+            kind = TYPES.get(variable.type, variable.type)
+            if connector.type and connector.type != kind:
+                mismatch = (f"{where} is declared {connector.type}, but the FMU's "
+                            f"variable is {variable.type}")
+                if {connector.type, kind} == {"Real", "Integer"}:
+                    warnings.append(f"{mismatch}: read as {variable.type}")
+                else:
+                    problems.append(mismatch)
             declared = variable_unit(variable)
             if connector.unit and declared and connector.unit != declared:
                 units = units or {**fmu_units(component.source), **scene.units}
@@ -408,7 +425,7 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
         problems += [f"{component.location}: {problem}" for problem in
                      (solver_problem(name, value) for name, value in component.solver) if problem]
     records, text_records = _records(scene, usable)
-    links = check_connections(scene, usable, problems)
+    links = check_connections(scene, usable, problems, warnings)
     _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
     if not scene.components:

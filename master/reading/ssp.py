@@ -131,12 +131,43 @@ def _check_schema(root, shown: str, schema_name: str, problems: list, warnings: 
         for element, version in zip(versioned, originals):
             element.set("version", version)
     errors = list(schema.error_log)
+    if errors and _only_out_of_order(root, schema):
+        # what the elements say is the same in either order (OMSimulator reads it too)
+        warnings.append(f"{shown} line {errors[0].line}: elements out of the order SSP 1.0 "
+                        f"gives ({errors[0].message}): read as if in order")
+        return
     if versioned:
         unknown = [e for e in errors if any(text in e.message for text in UNKNOWN_CONTENT)]
         warnings += [f"{shown} line {e.line}: SSP 2.0 content dsim does not use: {e.message}"
                      for e in unknown[:3]]
         errors = [e for e in errors if e not in unknown]
     problems += [f"{shown} line {e.line}: not valid SSP 1.0: {e.message}" for e in errors[:3]]
+
+
+#: the order SSP 1.0's sequences give the SSD elements that may stand side by side
+#: (elements of other namespaces, and those that form a choice, keep their places)
+SSD_ORDER = {name: rank for rank, name in enumerate((
+    "System", "Enumerations", "Units", "DefaultExperiment", "Connectors", "ElementGeometry",
+    "ParameterBindings", "Elements", "Connections", "SignalDictionaries", "SystemGeometry",
+    "GraphicalElements", "ParameterValues", "ParameterMapping", "ConnectorGeometry",
+    "ConnectionGeometry", "Annotations"), start=1)}
+
+
+def _only_out_of_order(root, schema: etree.XMLSchema) -> bool:
+    """Whether the document is valid once the SSD elements of every parent stand in the
+    order of SSP 1.0's sequences (an order error that changes nothing the reader reads:
+    it finds elements by name)."""
+    copy = etree.fromstring(etree.tostring(root))
+    for element in copy.iter():
+        if SSP2.fullmatch(element.get("version") or ""):
+            element.set("version", "1.0")
+        children = list(element)
+        ranked = sorted(children, key=lambda child: SSD_ORDER.get(
+            etree.QName(child).localname, 0) if isinstance(child.tag, str) and
+            etree.QName(child).namespace == NS["ssd"] else 0)
+        if ranked != children:
+            element[:] = ranked
+    return bool(schema.validate(copy))
 
 
 class _Reader:
