@@ -428,7 +428,7 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     links = check_connections(scene, usable, problems, warnings)
     _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
-    if not scene.components:
+    if not scene.components and not problems:
         # (a parameter setup exported alone: connectors, .ssv and .ssm, nothing to run)
         warnings.append(f"{scene.file}: the scene has no FMU component: a run records "
                         "only its time column")
