@@ -459,3 +459,80 @@ def test_annotations_before_connectors_are_a_warning(ender, tmp_path, capsys):
     result = dsim.simulate(folder)
     np.testing.assert_allclose(result["a.P.u_x"], result["time"] ** 2, atol=1e-12)
     assert main(["validate", "--strict", str(folder)]) == 2
+
+
+# --- FMUs outside the scene: refused in one line, or trusted with --allow-outside -----
+
+def _outside_scene(root: Path, fmu: Path, source: str = "../../fmi2/ender.fmu",
+                   glued: bool = False) -> Path:
+    """root/fmi2/ender.fmu beside root/scenes/loader/ (a platform's loader test): a
+    (source ``source``) pushed by 2 N feeds b (inside the scene) through a connection;
+    ``glued``: a and b in a fixed joint as well."""
+    (root / "fmi2").mkdir(parents=True, exist_ok=True)
+    shutil.copy(fmu, root / "fmi2" / "ender.fmu")
+    a = component("a", source, {"F": 2.0}, outputs=("P.u_x", "P.a_x"))
+    b = component("b", "resources/ender.fmu", outputs=("P.u_x",), inputs=("P.f_x",))
+    gluing = '<glue:Joint name="j" a="a.P" b="c.P" dofs="x" kind="fixed"/>' if glued else ""
+    parts = [a, b] + ([component("c", "resources/ender.fmu")] if glued else [])
+    text = ssd("loader", parts, [("a", "P.a_x", "b", "P.f_x")], gluing=gluing, stop=0.3,
+               master='step="0.1"')
+    return scene_folder(root / "scenes" / "loader", text, {"ender.fmu": fmu})
+
+
+@pytest.mark.parametrize("glued", [False, True])
+def test_an_fmu_outside_the_scene_is_one_line_without_follow_on_errors(ender, tmp_path,
+                                                                       capsys, glued):
+    folder = _outside_scene(tmp_path, ender, glued=glued)
+    for command in (["validate"], ["run", "--out", str(tmp_path / "out.csv")]):
+        assert main([command[0], str(folder), *command[1:]]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1, lines
+        assert "FMU source '../../fmi2/ender.fmu' is outside the scene (--allow-outside " \
+            "DIR trusts a folder: docs/security.md)" in lines[0]
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_allow_outside_trusts_one_folder(ender, tmp_path, capsys):
+    folder = _outside_scene(tmp_path, ender)
+    trusted = str(tmp_path / "fmi2")
+    assert main(["validate", str(folder), "--allow-outside", trusted]) == 0
+    out = tmp_path / "out.csv"
+    assert main(["run", str(folder), "--allow-outside", trusted, "--out", str(out),
+                 "--quiet"]) == 0
+    result = dsim.simulate(folder, allow_outside=trusted)
+    np.testing.assert_allclose(result["a.P.u_x"], result["time"] ** 2, atol=1e-12)
+    np.testing.assert_allclose(result["b.P.u_x"], result["time"] ** 2, atol=1e-12)
+    # a folder that does not exist is one line
+    capsys.readouterr()
+    assert main(["validate", str(folder), "--allow-outside", str(tmp_path / "nowhere")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "no such folder" in lines[0]
+
+
+@pytest.mark.parametrize("attack", ["dotdot", "symlink", "link_in_trusted", "absolute"])
+def test_allow_outside_trusts_nothing_beyond_its_folder(ender, tmp_path, capsys, attack):
+    """With --allow-outside fmi2: a ../ escape to another folder, a link in the scene to
+    a file outside both, a link inside the trusted folder that leads out of it, and an
+    absolute path are all refused (links resolved before the check); without the
+    option, a link to the trusted folder's FMU is refused too."""
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(ender, other / "ender.fmu")
+    source = {"dotdot": "../../other/ender.fmu", "symlink": "resources/link.fmu",
+              "link_in_trusted": "../../fmi2/link.fmu",
+              "absolute": str(other / "ender.fmu")}[attack]
+    folder = _outside_scene(tmp_path, ender, source)
+    (folder / "resources" / "link.fmu").symlink_to(other / "ender.fmu")
+    (tmp_path / "fmi2" / "link.fmu").symlink_to(other / "ender.fmu")
+    assert main(["validate", str(folder), "--allow-outside", str(tmp_path / "fmi2")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert ("is an absolute path" if attack == "absolute" else "is outside the scene and "
+            "the folders --allow-outside trusts") in lines[0]
+    # a link in the scene to the trusted folder's FMU: refused unless that folder is trusted
+    (folder / "resources" / "trusted.fmu").symlink_to(tmp_path / "fmi2" / "ender.fmu")
+    text = (folder / "SystemStructure.ssd").read_text().replace(source, "resources/trusted.fmu")
+    (folder / "SystemStructure.ssd").write_text(text)
+    assert main(["validate", str(folder)]) == 2
+    capsys.readouterr()
+    assert main(["validate", str(folder), "--allow-outside", str(tmp_path / "fmi2")]) == 0

@@ -173,11 +173,16 @@ def _only_out_of_order(root, schema: etree.XMLSchema) -> bool:
 class _Reader:
     """Walks one SystemStructure.ssd, collecting problems instead of stopping."""
 
-    def __init__(self, ssd: Path, shown: str):
+    def __init__(self, ssd: Path, shown: str, allow_outside=()):
         self.ssd = ssd
         self.base = ssd.parent
         #: the scene's folder with links resolved: every file it names must be inside
         self.root = self.base.resolve()
+        #: folders the user trusts besides it (``--allow-outside``), links resolved
+        self.trusted = tuple(Path(folder).resolve() for folder in allow_outside)
+        #: components whose FMU was refused before it was read: what depends on them
+        #: (their connections, joints, placements) is not checked again
+        self.refused: set[str] = set()
         self.shown = shown
         self.problems: list[str] = []
         #: rules broken that do not change what the run computes (``strict`` refuses them)
@@ -212,7 +217,9 @@ class _Reader:
             return None
         file = self.base / source
         try:  # the name itself may be unusable (too long): one line, not a traceback
-            outside = not file.resolve().is_relative_to(self.root)
+            resolved = file.resolve()
+            outside = not resolved.is_relative_to(self.root) and not any(
+                resolved.is_relative_to(folder) for folder in self.trusted)
             file.is_file()
         except OSError as error:
             shown = source if len(source) <= 80 else source[:80] + "..."
@@ -220,7 +227,10 @@ class _Reader:
                                  f"cannot be a file name: {error.strerror}")
             return None
         if outside:
-            self.problems.append(f"{where}: {what} '{source}' is outside the scene")
+            self.problems.append(f"{where}: {what} '{source}' is outside the scene"
+                                 + (" and the folders --allow-outside trusts"
+                                    if self.trusted else
+                                    " (--allow-outside DIR trusts a folder: docs/security.md)"))
             return None
         return file
 
@@ -334,9 +344,11 @@ class _Reader:
         if kind != "application/x-fmu-sharedlibrary":
             self.problems.append(f"{where}: type '{kind}' is not an FMU (dsim runs FMU "
                                  "components; a referenced SSP or SSD is not supported)")
+            self.refused.add(prefix + element.get("name", ""))
             return
         file = self.inside(source, where, "FMU source")
         if file is None:
+            self.refused.add(prefix + element.get("name", ""))
             return
         if not source or not file.is_file():
             self.problems.append(f"{where}: FMU '{source}' not found")
@@ -388,7 +400,7 @@ class _Reader:
             self.bindings, paths, self.system_connectors, self.problems, self.warnings)
         connections, starts = resolve_connections(
             self.connections, paths, connectors, self.system_connectors, connector_values,
-            self.problems)
+            self.problems, self.refused)
         components = []
         for c in self.components:
             parameters = {**starts[c["path"]], **values[c["path"]]}
@@ -441,7 +453,8 @@ def _master_annotation(root, shown: str, problems: list) -> tuple[float, float, 
     return start, stop, attributes, other
 
 
-def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None) -> Scene:
+def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None,
+               allow_outside=()) -> Scene:
     """Read and check an SSP system; raise InputError listing every problem (or, not
     ``strict``, keep the problems in ``Scene.problems`` when the system could still be
     read, so that the plan's checks can add theirs).  The master settings are kept as
@@ -451,14 +464,16 @@ def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
     ``parameter_sets``: parameter sets applied on top of every binding of the scene,
     as if bound to the root system last: each an .ssv file of the scene (its path in
     the scene, like ``resources/heavy.ssv``) or the name of a ParameterSet in one.
-    ``ssd``: which .ssd of the archive or folder (default SystemStructure.ssd)."""
+    ``ssd``: which .ssd of the archive or folder (default SystemStructure.ssd).
+    ``allow_outside``: folders whose files the scene may name besides its own (the
+    user trusts them: docs/security.md)."""
     path = Path(path)
     ssd, shown = _open(path, ssd)
     root = _parse_xml(ssd, shown)
     if etree.QName(root).localname != "SystemStructureDescription":
         raise InputError(f"{shown}: SystemStructure.ssd: root element is "
                          f"'{etree.QName(root).localname}', not ssd:SystemStructureDescription")
-    reader = _Reader(ssd, shown)
+    reader = _Reader(ssd, shown, allow_outside)
     _check_schema(root, shown, "SystemStructureDescription.xsd", reader.problems,
                   reader.warnings)
     others = [name for name in ssd_files(path) if name != ssd.name]
@@ -499,7 +514,7 @@ def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
 
 def _check_references(reader: _Reader, components, connections) -> None:
     """Joints, port maps and connections must name components that exist."""
-    paths = {c.path for c in components}
+    paths = {c.path for c in components} | reader.refused  # (refused: said once already)
     # every check here is linear in the scene's size: a scene of a million components
     # is read in seconds, never hours
     uses = Counter(c.path for c in components)

@@ -121,13 +121,16 @@ def _role(node, components: set[str], component_connectors, system_connectors) -
 def resolve_connections(raws: list[RawConnection], components: set[str],
                         component_connectors: dict[str, dict[str, Connector]],
                         system_connectors: dict[str, dict[str, Connector]],
-                        connector_values: dict, problems: list):
+                        connector_values: dict, problems: list, refused=frozenset()):
     """Connections between component variables (through any chain of system connectors),
     and start values that system connector parameters give to component variables
-    (component path -> {variable: (type, value)})."""
+    (component path -> {variable: (type, value)}).  A connection to a component in
+    ``refused`` (its FMU refused already) is left out without a problem of its own."""
     feeds = {}  # (owner, connector) -> (source (owner, connector), transformation, where, units)
     for raw in raws:
         start, end = _node(raw, raw.start), _node(raw, raw.end)
+        if start[0] in refused or end[0] in refused:
+            continue
         for node, side in ((start, "start"), (end, "end")):
             owner, connector, _ = node
             if owner not in components and connector not in system_connectors.get(owner, {}):

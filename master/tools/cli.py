@@ -304,7 +304,7 @@ def _run_choices(args) -> dict:
         solver[name.strip()] = value.strip()
     return {"parameters": given_parameters(args.set_file, args.set),
             "outputs": args.outputs, "output_interval": args.output_interval,
-            "solver": solver}
+            "solver": solver, "allow_outside": args.allow_outside}
 
 
 def _add_run_choices(run_parser) -> None:
@@ -316,6 +316,10 @@ def _add_run_choices(run_parser) -> None:
                             "(nested components by their dotted path) or JOINT.k0=VALUE "
                             "(k0 k1 c0 c1 xi omega); again for more (`dsim info` lists what "
                             "can be set)")
+    run_parser.add_argument("--allow-outside", action="append", metavar="DIR",
+                            help="let the scene name files (FMUs, parameter sets) in DIR "
+                            "too, outside its own folder: only for files you trust "
+                            "(docs/security.md); again for more")
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "
                             "name,value rows (.csv) or a JSON object (.json); --set wins "
