@@ -536,3 +536,31 @@ def test_allow_outside_trusts_nothing_beyond_its_folder(ender, tmp_path, capsys,
     assert main(["validate", str(folder)]) == 2
     capsys.readouterr()
     assert main(["validate", str(folder), "--allow-outside", str(tmp_path / "fmi2")]) == 0
+
+
+# --- one error per cause, the most fundamental first ---------------------------------
+
+def test_no_binary_for_this_platform_is_said_before_a_description_complaint(
+        ender, tmp_path, capsys):
+    """An FMU whose description names a unit it does not define (fmpy's check refuses
+    it) and that has a library only for Windows: the one line says what no fix of the
+    description would cure, no binary for this platform; its connection adds nothing."""
+    broken = tmp_path / "windows.fmu"
+    with zipfile.ZipFile(ender) as source, zipfile.ZipFile(broken, "w") as target:
+        text = source.read("modelDescription.xml").decode().replace(
+            'name="m" valueReference="0" causality="parameter" variability="fixed"><Real',
+            'name="m" valueReference="0" causality="parameter" variability="fixed"><Real '
+            'unit="kg"')
+        assert 'unit="kg"' in text
+        target.writestr("modelDescription.xml", text)
+        target.writestr("binaries/win64/ender.dll", source.read("binaries/linux64/ender.so"))
+    a = component("a", "resources/windows.fmu", outputs=("P.a_x",))
+    b = component("b", "resources/ender.fmu", inputs=("P.f_x",))
+    text = ssd("blocked", [a, b], [("a", "P.a_x", "b", "P.f_x")], stop=0.3)
+    folder = scene_folder(tmp_path / "scene", text, {"ender.fmu": ender,
+                                                      "windows.fmu": broken})
+    assert main(["validate", str(folder)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert "FMU windows.fmu: no binary for this platform (binaries/linux64/ender.so " \
+        "missing; the FMU has win64)" in lines[0]

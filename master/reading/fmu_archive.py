@@ -17,7 +17,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from fmpy import sharedLibraryExtension
+from fmpy import platform, platform_tuple, read_model_description, sharedLibraryExtension
 
 from dsim.master.errors import InputError
 from dsim.master.reading.fmi_description import chosen_interface, describe, library_folder
@@ -73,6 +73,30 @@ def _description_problem(path: Path) -> str | None:
     if clocks:
         return (f"variable '{clocks[0]}' is a Clock: dsim does not run clocked FMI 3.0 "
                 "FMUs (clocks and clocked partitions)")
+    return None
+
+
+def _no_binary_here(path: Path) -> str | None:
+    """Whether the FMU lacks a library for this platform, read from its description
+    without fmpy's checks: the most fundamental blocker, said before any complaint
+    about the description itself (one error for one cause; an unreadable description
+    is said by :func:`_description_problem`)."""
+    try:
+        md = read_model_description(str(path), validate=False)
+        folder = platform_tuple if int(md.fmiVersion.split(".")[0]) >= 3 else platform
+        identifiers = dict.fromkeys(i.modelIdentifier for i in (md.coSimulation,
+                                                                 md.modelExchange) if i)
+        with zipfile.ZipFile(path) as archive:
+            names = archive.namelist()
+    except Exception:  # fmpy raises several kinds for a broken description
+        return None
+    for identifier in identifiers:
+        member = f"binaries/{folder}/{identifier}{sharedLibraryExtension}"
+        if member not in names:
+            found = sorted({n.split("/")[1] for n in names
+                            if n.startswith("binaries/") and n.count("/") >= 2})
+            return (f"no binary for this platform ({member} missing; the FMU has "
+                    f"{', '.join(found) or 'no binaries'})")
     return None
 
 
@@ -184,7 +208,8 @@ def fmu_problem(path: Path, load: bool = True) -> str | None:
     path = Path(path)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     if (digest, False) not in _CHECKED:  # what reading the files finds, nothing loaded
-        _CHECKED[digest, False] = (_archive_problem(path) or _description_problem(path)
+        _CHECKED[digest, False] = (_archive_problem(path) or _no_binary_here(path)
+                                   or _description_problem(path)
                                    or _library_bytes_problem(path))
     if load and (digest, True) not in _CHECKED:
         _CHECKED[digest, True] = _CHECKED[digest, False] or _library_problem(path)
