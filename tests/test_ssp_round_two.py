@@ -243,6 +243,126 @@ def test_an_fmu_that_ends_the_simulation_in_a_worker_ends_the_run_the_same(
         np.testing.assert_array_equal(there["a.P.u_x"], here["a.P.u_x"])
 
 
+
+# --- the same end in every FMI version and interface ---------------------------------
+# The kinds skeletons (tests/third_party/kinds) know no end of the simulation: a copy of
+# them, changed here, ends it when the model sets its discrete flag to 99 (at a time
+# event), as each version says: FMI 1.0 and 2.0 co-simulation discard the step and
+# answer fmi(2)GetBooleanStatus(fmi(2)Terminated = 3) true; FMI 3.0 co-simulation sets
+# fmi3DoStep's terminateSimulation; Model Exchange sets terminateSimulation in the event
+# update.
+
+ENDS_MODEL_C = r"""
+#include "model.h"
+enum { A, T_END, X, V, DER_V, N_VARS };
+const int model_n_vars = N_VARS, model_n_states = 2, model_n_indicators = 0;
+const char model_kinds[] = "ppccc";
+const unsigned model_state_vr[] = {X, V}, model_derivative_vr[] = {V, DER_V};
+void model_start(ModelData *m) { m->r[A] = 2.0; m->r[T_END] = 1e300; }
+void model_initialize(ModelData *m) { m->r[X] = 0.0; m->r[V] = 0.0; m->flags = 0; }
+void model_compute(ModelData *m) { m->r[DER_V] = m->r[A]; }
+void model_indicators(const ModelData *m, double z[]) { (void)m; (void)z; }
+int model_event(ModelData *m, double *next_time) {
+    if (time_reached(m->time, m->r[T_END])) m->flags = 99;
+    else *next_time = m->r[T_END];
+    return 0;
+}
+"""
+
+#: (file, text as the skeleton has it, what the copy has instead)
+ENDS_PATCHES = (
+    ("core.c", "        if (c->d.time >= t_end) break;",
+     "        if (c->d.flags == 99 || c->d.time >= t_end) break;"),
+    ("core.c", "    c->d.time = t_end;\n    core_set_states(c, x);",
+     "    if (c->d.flags != 99) c->d.time = t_end;  /* ended: where it is */\n"
+     "    core_set_states(c, x);"),
+    ("fmi3.c", "    if (terminate) *terminate = fmi3False;",
+     "    if (terminate) *terminate = m->core.d.flags == 99;"),
+    ("fmi3.c", "    if (earlyReturn) *earlyReturn = fmi3False;",
+     "    if (earlyReturn) *earlyReturn = m->core.d.flags == 99 && m->core.d.time < t + h;"),
+    ("fmi2.c", '    CHECK("fmi2DoStep", core_do_step(&m->core, t, h));\n    return fmi2OK;',
+     '    CHECK("fmi2DoStep", core_do_step(&m->core, t, h));\n'
+     "    return m->core.d.flags == 99 ? fmi2Discard : fmi2OK;"),
+    ("fmi2.c", "    *value = fmi2False;", "    *value = m->core.d.flags == 99;"),
+    ("fmi2.c", "    info->terminateSimulation = fmi2False;",
+     "    info->terminateSimulation = m->core.d.flags == 99;"),
+    ("fmi1cs.c", '    CHECK("fmiDoStep", core_do_step(&m->core, t, h));\n    return fmi1OK;',
+     '    CHECK("fmiDoStep", core_do_step(&m->core, t, h));\n'
+     "    return m->core.d.flags == 99 ? fmi1Discard : fmi1OK;"),
+    ("fmi1cs.c", "    (void)s; (void)value;\n    return fmi1Discard;\n}\n\n"
+     "fmi1Status FMI1_FUNCTION(fmiGetStringStatus)",
+     "    if (s != 3 || !value) return fmi1Discard;\n    *value = m->core.d.flags == 99;\n"
+     "    return fmi1OK;\n}\n\nfmi1Status FMI1_FUNCTION(fmiGetStringStatus)"),
+)
+
+
+@pytest.fixture(scope="module")
+def ends(tmp_path_factory):
+    """fmu(version, interfaces) -> the model x'' = a (a = 2: x = t^2) that ends the
+    simulation at T_end, built from the changed copy of the kinds skeletons."""
+    import subprocess
+
+    import fmpy
+
+    from tests.third_party.kinds import build as kinds
+
+    folder = tmp_path_factory.mktemp("ends")
+    for name in ("core.c", "core.h", "model.h", "fmi1cs.c", "fmi2.c", "fmi3.c"):
+        shutil.copy(kinds.HERE / name, folder / name)
+    for name, before, after in ENDS_PATCHES:
+        text = (folder / name).read_text()
+        assert before in text, (name, before)
+        (folder / name).write_text(text.replace(before, after))
+    (folder / "ends.c").write_text(ENDS_MODEL_C)
+    model = kinds.Model("ends", "x'' = a until T_end", (
+        kinds.Var("a", 0, "parameter", start=2.0),
+        kinds.Var("T_end", 1, "parameter", start=1e300),
+        kinds.Var("x", 2, "output", depends=("x",)),
+        kinds.Var("v", 3, "output", derivative="x", depends=("v",)),
+        kinds.Var("der(v)", 4, derivative="v", depends=())), states=("x", "v"))
+
+    def fmu(version: str, interfaces) -> Path:
+        guid = f"{{{uuid.uuid4()}}}"
+        name = f"ends{version[0]}"
+        library = folder / f"{name}.so"
+        subprocess.run(["gcc", "-shared", "-fPIC", "-O2", "-std=c99", "-fvisibility=hidden",
+                        f"-DMODEL_IDENTIFIER={name}", f'-DMODEL_GUID="{guid}"',
+                        f"-DTIME_VR={kinds.TIME_VR}",
+                        f"-I{Path(fmpy.__file__).parent / 'c-code'}", f"-I{folder}",
+                        str(folder / kinds.SKELETONS[version]), str(folder / "core.c"),
+                        str(folder / "ends.c"), "-o", str(library), "-lm"], check=True)
+        path = folder / f"{name}_{'_'.join(interfaces)}.fmu"
+        with zipfile.ZipFile(path, "w") as archive:
+            archive.writestr("modelDescription.xml", kinds.model_description(
+                model, version, interfaces, True, name, guid))
+            archive.write(library, f"binaries/{kinds._platform(version)}/{name}.so")
+        return path
+
+    return fmu
+
+
+@pytest.mark.parametrize("version, interface", [("1.0", "CoSimulation"),
+                                                ("2.0", "CoSimulation"),
+                                                ("3.0", "CoSimulation"),
+                                                ("2.0", "ModelExchange"),
+                                                ("3.0", "ModelExchange")])
+@pytest.mark.parametrize("t_end, last", [(0.35, 0.3), (0.4, 0.4)])
+def test_every_fmi_version_and_interface_ends_the_run_the_same(ends, tmp_path, version,
+                                                               interface, t_end, last):
+    fmu = ends(version, (interface,))
+    part = component("e", "resources/ends.fmu", {"T_end": t_end}, outputs=("x",)).replace(
+        'source="resources/ends.fmu"', f'source="resources/ends.fmu" '
+        f'implementation="{interface}"')
+    folder = scene_folder(tmp_path / "scene", ssd("ends", [part], stop=1.0,
+                                                  master='step="0.1"'), {"ends.fmu": fmu})
+    result = dsim.simulate(folder)
+    assert result.ok, result.statistics["message"]
+    time = result["time"]
+    assert time[-1] == pytest.approx(last, abs=1e-12) and len(time) == round(last / 0.1) + 1
+    np.testing.assert_allclose(result["e.x"], time ** 2, atol=1e-12)
+    ended = result.statistics["ended_by"]
+    assert ended["component"] == "e" and ended["time"] == pytest.approx(t_end, abs=1e-9)
+
 # --- a scene without FMU components --------------------------------------------------
 
 EMPTY_SSD = """<?xml version="1.0" encoding="UTF-8"?>
