@@ -186,7 +186,7 @@ def ender(tmp_path_factory) -> Path:
 
 
 def _ender_scene(folder: Path, fmu: Path, t_end: float, glued: bool, coupling: str,
-                 stop: float = 1.0, step: float = 0.1) -> Path:
+                 stop: float = 1.0, step: float = 0.1, joint: str = "") -> Path:
     """One ender pushed by F = 2 N (x = t^2), or (glued) two of 1 kg and 3 kg joined at
     P by a fixed joint, the first pushed by F = 8 N (x = t^2 for both); the first ends
     the simulation at ``t_end``."""
@@ -196,7 +196,7 @@ def _ender_scene(folder: Path, fmu: Path, t_end: float, glued: bool, coupling: s
     gluing = ""
     if glued:
         parts.append(component("b", "resources/ender.fmu", {"m": 3.0}))
-        gluing = '<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="fixed"/>'
+        gluing = joint or '<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="fixed"/>'
     text = ssd("ender", parts, gluing=gluing, stop=stop,
                master=f'step="{step!r}" coupling="{coupling}"')
     return scene_folder(folder, text, {"ender.fmu": fmu})
@@ -230,6 +230,30 @@ def test_an_fmu_that_ends_the_simulation_ends_the_run_normally(ender, tmp_path, 
     assert any("component 'a' ended the simulation" in w for w in result.warnings)
     rows = out.read_text().strip().splitlines()
     assert len(rows) == len(time) + 1  # the header and every row
+
+
+SPRING = ('<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="flexible" '
+          'measure="displacement"><glue:Spring k0="400" k1="0"/></glue:Joint>')
+
+
+@pytest.mark.parametrize("t_end, last", [(0.35, 0.3), (0.4, 0.4)])
+@pytest.mark.parametrize("coupling", ["iterative", "strong"])
+def test_a_glued_fmu_that_ends_while_newton_iterates_ends_at_a_converged_step(
+        ender, tmp_path, t_end, last, coupling):
+    """Two enders on a spring: every step takes Newton iterations (restores), and the one
+    that ends is stepped again after its end; the rows are those of the run without the
+    end, to the last converged communication point."""
+    ended = dsim.simulate(_ender_scene(tmp_path / "ended", ender, t_end, True, coupling,
+                                       joint=SPRING))
+    whole = dsim.simulate(_ender_scene(tmp_path / "whole", ender, 1e300, True, coupling,
+                                       joint=SPRING))
+    assert ended.ok and whole.ok
+    assert whole.statistics["iterations"]["max_per_step"] > 1
+    assert ended["time"][-1] == pytest.approx(last, abs=1e-12)
+    n = len(ended["time"])
+    assert n == round(last / 0.1) + 1
+    np.testing.assert_array_equal(ended["a.P.u_x"], whole["a.P.u_x"][:n])
+    assert ended.statistics["ended_by"]["time"] == pytest.approx(t_end, abs=1e-12)
 
 
 def test_an_fmu_that_ends_the_simulation_in_a_worker_ends_the_run_the_same(

@@ -274,6 +274,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
 
     def restore_state(self):
         self._set_state(self._state)
+        self.ended_at = None  # back before the end: the step is taken again
 
     def set_forces(self, forces):
         self._forces.write(forces)

@@ -58,6 +58,7 @@ class CoSimulation3Subsystem(FmpyAdapter):
 
     def restore_state(self):
         self._checked(self.SET_STATE, self.fmu.setFMUState, self._state)
+        self.ended_at = None  # back before the end: the step is taken again
 
     def _free_saved(self):
         if self._state is not None:

@@ -283,6 +283,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
 
     def restore_state(self):
         time, x, start, next_event = self._saved
+        self.ended_at, self._stop_asked = None, False  # back before the end
         if self.can_save:
             setter = self.fmu.setFMUState if self.fmi3 else self.fmu.setFMUstate
             self._checked(self.SET_STATE, setter, self._fmu_state)
