@@ -641,6 +641,7 @@ def test_allow_outside_trusts_one_folder(ender, tmp_path, capsys):
     out = tmp_path / "out.csv"
     assert main(["run", str(folder), "--allow-outside", trusted, "--out", str(out),
                  "--quiet"]) == 0
+    assert main(["info", str(folder), "--allow-outside", trusted]) == 0
     result = dsim.simulate(folder, allow_outside=trusted)
     np.testing.assert_allclose(result["a.P.u_x"], result["time"] ** 2, atol=1e-12)
     np.testing.assert_allclose(result["b.P.u_x"], result["time"] ** 2, atol=1e-12)

@@ -88,7 +88,8 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_info(args) -> int:
-    print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all)))
+    print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all,
+                                allow_outside=args.allow_outside)))
     return 0
 
 
@@ -476,6 +477,8 @@ def _add_info(commands) -> None:
                                       "joints and master settings of a scene")
     info_parser.add_argument("scene")
     info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
+    info_parser.add_argument("--allow-outside", action="append", metavar="DIR",
+                             help="let the scene name files in DIR too (docs/security.md)")
     info_parser.add_argument("--all", action="store_true", help="list every input that "
                              "can be set (default: the first 12 of each component)")
     info_parser.set_defaults(handler=_cmd_info)

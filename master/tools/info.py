@@ -69,13 +69,15 @@ def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> li
     return lines
 
 
-def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[str]:
+def scene_info(scene_file, ssd: str | None = None, every: bool = False,
+               allow_outside=None) -> list[str]:
     """The lines ``dsim info`` prints for ``scene_file`` (an .ssp archive, a scene folder
     or an .ssd file; ``ssd``: which system structure of it; ``every``: list every input
-    a run may set).  Raises InputError as a run would."""
+    a run may set; ``allow_outside``: folders trusted besides the scene, as
+    :func:`dsim.prepare` takes them).  Raises InputError as a run would."""
     lines: list[str] = []
     say = lines.append
-    checked = prepare(scene_file, ssd=ssd)
+    checked = prepare(scene_file, ssd=ssd, allow_outside=allow_outside)
     scene = checked.scene
     structures = ssd_files(scene_file)
     if len(structures) > 1:
