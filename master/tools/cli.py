@@ -37,7 +37,10 @@ def _summary(result, plot: Path | None) -> str:
         f"scene       {data['scene']}  ({data['file']}), {data['coupling']} coupling, "
         f"{data['backend']} backend",
         f"time        {data['start_time']:g} .. {data['stop_time']:g} s, "
-        f"step {data['master']['step']:g} s, {data['steps']} steps",
+        f"step {data['master']['step']:g} s, {data['steps']} steps"
+        + (f" (ended by {data['ended_by']['component']} at t = "
+           f"{data['ended_by']['time']:g} s; the last row at {data['time_reached']:g} s)"
+           if data.get("ended_by") else ""),
         f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
         f"(max {data['iterations']['max_per_step']}), "
         f"Lambda refreshes {data['lambda_refreshes']}, "
