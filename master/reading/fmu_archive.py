@@ -57,11 +57,15 @@ def _archive_problem(path: Path) -> str | None:
     return None
 
 
+#: the start of the problem of a description fmpy cannot read or refuses
+UNREADABLE = "unreadable modelDescription.xml"
+
+
 def _description_problem(path: Path) -> str | None:
     try:
         description = describe(path)
     except Exception as error:  # fmpy raises several kinds for a broken description
-        return f"unreadable modelDescription.xml ({' '.join(str(error).split())})"
+        return f"{UNREADABLE} ({' '.join(str(error).split())})"
     if description.major not in (1, 2, 3):
         return (f"an FMI {description.fmiVersion} FMU: dsim runs FMI 1.0, 2.0 and 3.0 "
                 "FMUs")
@@ -199,6 +203,17 @@ def _library_bytes_problem(path: Path) -> str | None:
 _CHECKED: dict[tuple[str, bool], str | None] = {}
 
 
+def _first_blocker(path: Path) -> str | None:
+    """What keeps a readable archive from running here, the most fundamental first: a
+    kind of FMU dsim does not run (no binary would help), then no binary for this
+    platform (before any complaint about the description: one error for one cause),
+    then the description, then the library's bytes."""
+    described = _description_problem(path)
+    if described and not described.startswith(UNREADABLE):
+        return described
+    return _no_binary_here(path) or described or _library_bytes_problem(path)
+
+
 def fmu_problem(path: Path, load: bool = True) -> str | None:
     """What is wrong with the FMU file at ``path`` for dsim, or None (checked once per
     content: the same FMU extracted again from a scene archive is not probed again).
@@ -208,9 +223,7 @@ def fmu_problem(path: Path, load: bool = True) -> str | None:
     path = Path(path)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     if (digest, False) not in _CHECKED:  # what reading the files finds, nothing loaded
-        _CHECKED[digest, False] = (_archive_problem(path) or _no_binary_here(path)
-                                   or _description_problem(path)
-                                   or _library_bytes_problem(path))
+        _CHECKED[digest, False] = _archive_problem(path) or _first_blocker(path)
     if load and (digest, True) not in _CHECKED:
         _CHECKED[digest, True] = _CHECKED[digest, False] or _library_problem(path)
     return _CHECKED[digest, load]
