@@ -618,6 +618,13 @@ def _outside_scene(root: Path, fmu: Path, source: str = "../../fmi2/ender.fmu",
     parts = [a, b] + ([component("c", "resources/ender.fmu")] if glued else [])
     text = ssd("loader", parts, [("a", "P.a_x", "b", "P.f_x")], gluing=gluing, stop=0.3,
                master='step="0.1"')
+    # a value for a, bound at the root system: nothing more to say once a is refused
+    text = text.replace('<ssd:System name="root">', '<ssd:System name="root">'
+                        "<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>"
+                        '<ssv:ParameterSet version="1.0" name="root"><ssv:Parameters>'
+                        '<ssv:Parameter name="a.m"><ssv:Real value="1"/></ssv:Parameter>'
+                        "</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>"
+                        "</ssd:ParameterBinding></ssd:ParameterBindings>")
     return scene_folder(root / "scenes" / "loader", text, {"ender.fmu": fmu})
 
 

@@ -397,7 +397,8 @@ class _Reader:
         paths = {c["path"] for c in self.components}
         connectors = {c["path"]: c["connectors"] for c in self.components}
         values, origins, connector_values = resolve_bindings(
-            self.bindings, paths, self.system_connectors, self.problems, self.warnings)
+            self.bindings, paths, self.system_connectors, self.problems, self.warnings,
+            self.refused)
         connections, starts = resolve_connections(
             self.connections, paths, connectors, self.system_connectors, connector_values,
             self.problems, self.refused)
