@@ -258,13 +258,21 @@ def test_a_glued_fmu_that_ends_while_newton_iterates_ends_at_a_converged_step(
 
 def test_an_fmu_that_ends_the_simulation_in_a_worker_ends_the_run_the_same(
         ender, tmp_path, ray_local):
-    """The isolated and Ray backends end the run where the in-process one does."""
-    folder = _ender_scene(tmp_path / "scene", ender, 0.35, True, "iterative")
-    here = dsim.simulate(folder)
-    for backend in ("isolated", "ray"):
-        there = dsim.simulate(folder, backend=backend)
-        assert there.ok and there.statistics["ended_by"] == here.statistics["ended_by"]
-        np.testing.assert_array_equal(there["a.P.u_x"], here["a.P.u_x"])
+    """The isolated and Ray backends end the run where the in-process one does (the
+    step's start, and the step's end after a complete step), and run a scene without
+    components to its time column."""
+    empty = tmp_path / "setup"
+    empty.mkdir()
+    (empty / "SystemStructure.ssd").write_text(EMPTY_SSD)
+    for t_end in (0.35, 0.4):
+        folder = _ender_scene(tmp_path / f"scene{t_end}", ender, t_end, True, "iterative")
+        here = dsim.simulate(folder)
+        for backend in ("isolated", "ray"):
+            there = dsim.simulate(folder, backend=backend)
+            assert there.ok and there.statistics["ended_by"] == here.statistics["ended_by"]
+            np.testing.assert_array_equal(there["a.P.u_x"], here["a.P.u_x"])
+            nothing = dsim.simulate(empty, backend=backend, step=0.1)
+            assert nothing.ok and len(nothing["time"]) == 6
 
 
 
