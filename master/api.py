@@ -22,7 +22,8 @@ from dsim.master.settings import resolve
 
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
-            outputs=None, output_interval=None, solver=None, **settings):
+            outputs=None, output_interval=None, solver=None, allow_outside=None,
+            **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -42,13 +43,15 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     macro step (default: every step; docs/results.md).  ``solver``: the integrator
     settings of the Model Exchange components, over the SSD's annotations: a mapping
     of ``method``, ``rtol``, ``atol``, ``max_step`` (every component) or
-    ``COMPONENT.NAME`` (one) to values (docs/third_party.md).
+    ``COMPONENT.NAME`` (one) to values (docs/third_party.md).  ``allow_outside``: a
+    folder (or several) whose files the scene may name besides its own, for scenes
+    whose FMUs sit beside them and that the user trusts (docs/security.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     parameters = require_mapping(parameters)
     chosen = settings.get("parameter_set")
     if not isinstance(scene, Scene):  # the plan reports the reader's problems with its own
         scene = load_scene(scene, [chosen] if chosen else (), strict=False,
-                           ssd=settings.get("ssd"))
+                           ssd=settings.get("ssd"), allow_outside=allow_outside)
     elif chosen or settings.get("ssd"):
         raise InputError("settings parameter_set and ssd: give the scene's file, not a "
                          "loaded scene")

@@ -54,3 +54,23 @@ class StepFailure(SimulationError):
     def __init__(self, message: str, time=None, step=None, iterations: int = 0):
         super().__init__(message, time, step)
         self.iterations = iterations
+
+
+class Terminated(SimulationError):
+    """An FMU ended the simulation itself (FMI 2.0: a discarded step whose
+    fmi2GetBooleanStatus(fmi2Terminated) is true; FMI 3.0: fmi3DoStep's
+    terminateSimulation): not a failure.  The run ends normally (exit code 0) at the
+    last communication point every component reached together, every row kept;
+    ``component`` ended it, having reached ``time`` (s)."""
+
+    exit_code = 0
+
+    def __init__(self, message: str, time=None, step=None, component: str = ""):
+        super().__init__(message, time, step)
+        self.component = component
+
+    def __reduce__(self):
+        return type(self), (self.message, self.time, self.step, self.component)
+
+    def located(self, step: int, time: float) -> "Terminated":
+        return self

@@ -5,6 +5,7 @@ is :func:`load_scene`."""
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 from dsim.master.errors import InputError
 from dsim.master.reading.ssp import read_scene
@@ -29,13 +30,30 @@ def with_master_settings(scene):
                    problems=tuple(dict.fromkeys(problems)))
 
 
-def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None):
+def _folders(allow_outside) -> tuple:
+    """``allow_outside`` as a tuple of existing folders (one path or several)."""
+    if allow_outside is None:
+        return ()
+    if isinstance(allow_outside, (str, Path)):
+        allow_outside = [allow_outside]
+    folders = tuple(Path(folder) for folder in allow_outside)
+    missing = [str(folder) for folder in folders if not folder.is_dir()]
+    if missing:
+        raise InputError(f"--allow-outside {missing[0]}: no such folder")
+    return folders
+
+
+def load_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None,
+               allow_outside=()):
     """Read and check an SSP system (.ssp, folder or .ssd) with its master settings;
     raise InputError listing every problem (or, not ``strict``, keep them in
     ``Scene.problems`` when the system could be read, so that the plan adds its own).
     ``parameter_sets``: parameter sets applied on top of every binding (an .ssv file of
-    the scene, or a ParameterSet's name); ``ssd``: which .ssd of the archive or folder."""
-    scene = with_master_settings(read_scene(path, parameter_sets, strict=False, ssd=ssd))
+    the scene, or a ParameterSet's name); ``ssd``: which .ssd of the archive or folder;
+    ``allow_outside``: folders the scene may name files in besides its own
+    (docs/security.md)."""
+    scene = with_master_settings(read_scene(path, parameter_sets, strict=False, ssd=ssd,
+                                            allow_outside=_folders(allow_outside)))
     if scene.problems and strict:
         error = InputError(list(scene.problems))
         error.warnings = list(scene.warnings)

@@ -179,24 +179,41 @@ def _records(scene: Scene, usable: dict) -> tuple[dict, dict]:
 
 def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
     """Every declared connector of a component is a variable of its FMU, of the same
-    causality, type and (where both say one) unit dimension."""
+    causality, type and (where both say one) unit dimension.  Connectors that name no
+    variable and that no connection uses (Dymola declares ``_x_start``,
+    ``fmi_StartTime``, ... beside the model's) change nothing: dropped, with one warning
+    per component; a connection through one is refused where the connections are
+    checked (one error for one cause).  A connector declared Real for an Integer
+    variable, or Integer for a Real one, is read as the variable is, with a warning."""
+    connected = {end for c in scene.connections for end in (c.start, c.end)}
     for component in scene.components:
         variables = usable.get(component.path)
         if variables is None:
             continue
         units = None
+        dropped = [c.name for c in component.connectors if c.name not in variables
+                   and (component.path, c.name) not in connected]
+        if dropped:
+            warnings.append(f"{component.location}: {len(dropped)} connector(s) name no "
+                            f"variable of {component.source.name} and are connected to "
+                            f"nothing: dropped ({', '.join(dropped[:3])}"
+                            f"{', ...' if len(dropped) > 3 else ''})")
         for connector in component.connectors:
             where = f"{component.location}: connector '{connector.name}'"
             variable = variables.get(connector.name)
             if variable is None:
-                problems.append(f"{where} is not a variable of {component.source.name}")
-                continue
+                continue  # dropped above, or refused with its connection
             if connector.kind and connector.kind != variable.causality:
                 problems.append(f"{where} is declared {connector.kind}, but the FMU's "
                                 f"variable is {variable.causality}")
-            if connector.type and connector.type != TYPES.get(variable.type, variable.type):
-                problems.append(f"{where} is declared {connector.type}, but the FMU's "
-                                f"variable is {variable.type}")
+            kind = TYPES.get(variable.type, variable.type)
+            if connector.type and connector.type != kind:
+                mismatch = (f"{where} is declared {connector.type}, but the FMU's "
+                            f"variable is {variable.type}")
+                if {connector.type, kind} == {"Real", "Integer"}:
+                    warnings.append(f"{mismatch}: read as {variable.type}")
+                else:
+                    problems.append(mismatch)
             declared = variable_unit(variable)
             if connector.unit and declared and connector.unit != declared:
                 units = units or {**fmu_units(component.source), **scene.units}
@@ -213,12 +230,22 @@ def _check_connectors(scene: Scene, usable: dict, problems: list, warnings: list
 
 def _with_files(component, variables: dict) -> dict:
     """The component's parameter values with each scene file it names (a String
-    ``resources/...``) given as the file's absolute path; names that are no variable
-    of its FMU are left out (:func:`_check_parameters` warned about them)."""
-    return {name: value for name, value in {
+    ``resources/...``) given as the file's absolute path, and each enumeration item
+    name (SSP 1.0 .ssv) as its item's value; names that are no variable of its FMU are
+    left out (:func:`_check_parameters` warned about them)."""
+    return {name: _item_value(value, variables[name]) for name, value in {
         **component.parameters,
         **{name: ("String", str(file)) for name, file in component.files.items()}}.items()
         if name in variables}
+
+
+def _item_value(value: tuple, variable):
+    """An enumeration value given by its item's name, as ("Integer", the item's
+    value); any other value as it is (:func:`_check_parameters` refused unknown names)."""
+    kind, given = value
+    if kind != "Enumeration":
+        return value
+    return "Integer", dict(variable.items).get(given, 0)
 
 
 def _check_parameters(scene: Scene, usable: dict, problems: list, warnings: list) -> None:
@@ -237,6 +264,13 @@ def _check_parameters(scene: Scene, usable: dict, problems: list, warnings: list
             if variable is None:
                 warnings.append(f"{where}: parameter '{name}' is not a variable of component "
                                 f"'{component.path}' ({component.source.name}): not applied")
+                continue
+            kind, value = component.parameters[name]
+            if kind == "Enumeration" and value not in dict(variable.items):
+                items = ", ".join(item for item, _ in variable.items) or "none: " + (
+                    f"'{name}' is a {variable.type}, not an Enumeration")
+                problems.append(f"{where}: parameter '{name}' = '{value}' is no item of "
+                                f"'{component.path}.{name}' (its items: {items})")
             elif variable.variability == "constant" or not (
                     variable.causality in ("parameter", "input")
                     or variable.initial in ("exact", "approx")):
@@ -410,13 +444,17 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
         problems += [f"{component.location}: {problem}" for problem in
                      (solver_problem(name, value) for name, value in component.solver) if problem]
     records, text_records = _records(scene, usable)
-    links = check_connections(scene, usable, problems)
+    links = check_connections(scene, usable, problems, warnings)
     _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
     _check_joint_units(scene, sides, usable, problems)
     uneven = span_note(scene.start_time, scene.stop_time, scene.master.step)
     if uneven:  # the run's summary would say "step 20 s" of a run that took 10 s
         warnings.append(f"{scene.file}: {uneven}")
+    if not scene.components and not problems:
+        # (a parameter setup exported alone: connectors, .ssv and .ssm, nothing to run)
+        warnings.append(f"{scene.file}: the scene has no FMU component: a run records "
+                        "only its time column")
     if not scene.experiment:
         warnings.append(f"{scene.file}: no DefaultExperiment: the run goes from "
                         f"{scene.start_time:g} to {scene.stop_time:g} s (dsim's default; "

@@ -17,7 +17,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from fmpy import sharedLibraryExtension
+from fmpy import platform, platform_tuple, read_model_description, sharedLibraryExtension
 
 from dsim.master.errors import InputError
 from dsim.master.reading.fmi_description import chosen_interface, describe, library_folder
@@ -57,11 +57,15 @@ def _archive_problem(path: Path) -> str | None:
     return None
 
 
+#: the start of the problem of a description fmpy cannot read or refuses
+UNREADABLE = "unreadable modelDescription.xml"
+
+
 def _description_problem(path: Path) -> str | None:
     try:
         description = describe(path)
     except Exception as error:  # fmpy raises several kinds for a broken description
-        return f"unreadable modelDescription.xml ({' '.join(str(error).split())})"
+        return f"{UNREADABLE} ({' '.join(str(error).split())})"
     if description.major not in (1, 2, 3):
         return (f"an FMI {description.fmiVersion} FMU: dsim runs FMI 1.0, 2.0 and 3.0 "
                 "FMUs")
@@ -73,6 +77,30 @@ def _description_problem(path: Path) -> str | None:
     if clocks:
         return (f"variable '{clocks[0]}' is a Clock: dsim does not run clocked FMI 3.0 "
                 "FMUs (clocks and clocked partitions)")
+    return None
+
+
+def _no_binary_here(path: Path) -> str | None:
+    """Whether the FMU lacks a library for this platform, read from its description
+    without fmpy's checks: the most fundamental blocker, said before any complaint
+    about the description itself (one error for one cause; an unreadable description
+    is said by :func:`_description_problem`)."""
+    try:
+        md = read_model_description(str(path), validate=False)
+        folder = platform_tuple if int(md.fmiVersion.split(".")[0]) >= 3 else platform
+        identifiers = dict.fromkeys(i.modelIdentifier for i in (md.coSimulation,
+                                                                 md.modelExchange) if i)
+        with zipfile.ZipFile(path) as archive:
+            names = archive.namelist()
+    except Exception:  # fmpy raises several kinds for a broken description
+        return None
+    for identifier in identifiers:
+        member = f"binaries/{folder}/{identifier}{sharedLibraryExtension}"
+        if member not in names:
+            found = sorted({n.split("/")[1] for n in names
+                            if n.startswith("binaries/") and n.count("/") >= 2})
+            return (f"no binary for this platform ({member} missing; the FMU has "
+                    f"{', '.join(found) or 'no binaries'})")
     return None
 
 
@@ -175,6 +203,17 @@ def _library_bytes_problem(path: Path) -> str | None:
 _CHECKED: dict[tuple[str, bool], str | None] = {}
 
 
+def _first_blocker(path: Path) -> str | None:
+    """What keeps a readable archive from running here, the most fundamental first: a
+    kind of FMU dsim does not run (no binary would help), then no binary for this
+    platform (before any complaint about the description: one error for one cause),
+    then the description, then the library's bytes."""
+    described = _description_problem(path)
+    if described and not described.startswith(UNREADABLE):
+        return described
+    return _no_binary_here(path) or described or _library_bytes_problem(path)
+
+
 def fmu_problem(path: Path, load: bool = True) -> str | None:
     """What is wrong with the FMU file at ``path`` for dsim, or None (checked once per
     content: the same FMU extracted again from a scene archive is not probed again).
@@ -184,8 +223,7 @@ def fmu_problem(path: Path, load: bool = True) -> str | None:
     path = Path(path)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     if (digest, False) not in _CHECKED:  # what reading the files finds, nothing loaded
-        _CHECKED[digest, False] = (_archive_problem(path) or _description_problem(path)
-                                   or _library_bytes_problem(path))
+        _CHECKED[digest, False] = _archive_problem(path) or _first_blocker(path)
     if load and (digest, True) not in _CHECKED:
         _CHECKED[digest, True] = _CHECKED[digest, False] or _library_problem(path)
     return _CHECKED[digest, load]

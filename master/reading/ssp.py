@@ -131,6 +131,11 @@ def _check_schema(root, shown: str, schema_name: str, problems: list, warnings: 
         for element, version in zip(versioned, originals):
             element.set("version", version)
     errors = list(schema.error_log)
+    if errors and _only_out_of_order(root, schema):
+        # what the elements say is the same in either order (OMSimulator reads it too)
+        warnings.append(f"{shown} line {errors[0].line}: elements out of the order SSP 1.0 "
+                        f"gives ({errors[0].message}): read as if in order")
+        return
     if versioned:
         unknown = [e for e in errors if any(text in e.message for text in UNKNOWN_CONTENT)]
         warnings += [f"{shown} line {e.line}: SSP 2.0 content dsim does not use: {e.message}"
@@ -139,14 +144,45 @@ def _check_schema(root, shown: str, schema_name: str, problems: list, warnings: 
     problems += [f"{shown} line {e.line}: not valid SSP 1.0: {e.message}" for e in errors[:3]]
 
 
+#: the order SSP 1.0's sequences give the SSD elements that may stand side by side
+#: (elements of other namespaces, and those that form a choice, keep their places)
+SSD_ORDER = {name: rank for rank, name in enumerate((
+    "System", "Enumerations", "Units", "DefaultExperiment", "Connectors", "ElementGeometry",
+    "ParameterBindings", "Elements", "Connections", "SignalDictionaries", "SystemGeometry",
+    "GraphicalElements", "ParameterValues", "ParameterMapping", "ConnectorGeometry",
+    "ConnectionGeometry", "Annotations"), start=1)}
+
+
+def _only_out_of_order(root, schema: etree.XMLSchema) -> bool:
+    """Whether the document is valid once the SSD elements of every parent stand in the
+    order of SSP 1.0's sequences (an order error that changes nothing the reader reads:
+    it finds elements by name)."""
+    copy = etree.fromstring(etree.tostring(root))
+    for element in copy.iter():
+        if SSP2.fullmatch(element.get("version") or ""):
+            element.set("version", "1.0")
+        children = list(element)
+        ranked = sorted(children, key=lambda child: SSD_ORDER.get(
+            etree.QName(child).localname, 0) if isinstance(child.tag, str) and
+            etree.QName(child).namespace == NS["ssd"] else 0)
+        if ranked != children:
+            element[:] = ranked
+    return bool(schema.validate(copy))
+
+
 class _Reader:
     """Walks one SystemStructure.ssd, collecting problems instead of stopping."""
 
-    def __init__(self, ssd: Path, shown: str):
+    def __init__(self, ssd: Path, shown: str, allow_outside=()):
         self.ssd = ssd
         self.base = ssd.parent
         #: the scene's folder with links resolved: every file it names must be inside
         self.root = self.base.resolve()
+        #: folders the user trusts besides it (``--allow-outside``), links resolved
+        self.trusted = tuple(Path(folder).resolve() for folder in allow_outside)
+        #: components whose FMU was refused before it was read: what depends on them
+        #: (their connections, joints, placements) is not checked again
+        self.refused: set[str] = set()
         self.shown = shown
         self.problems: list[str] = []
         #: rules broken that do not change what the run computes (``strict`` refuses them)
@@ -181,7 +217,9 @@ class _Reader:
             return None
         file = self.base / source
         try:  # the name itself may be unusable (too long): one line, not a traceback
-            outside = not file.resolve().is_relative_to(self.root)
+            resolved = file.resolve()
+            outside = not resolved.is_relative_to(self.root) and not any(
+                resolved.is_relative_to(folder) for folder in self.trusted)
             file.is_file()
         except OSError as error:
             shown = source if len(source) <= 80 else source[:80] + "..."
@@ -189,7 +227,10 @@ class _Reader:
                                  f"cannot be a file name: {error.strerror}")
             return None
         if outside:
-            self.problems.append(f"{where}: {what} '{source}' is outside the scene")
+            self.problems.append(f"{where}: {what} '{source}' is outside the scene"
+                                 + (" and the folders --allow-outside trusts"
+                                    if self.trusted else
+                                    " (--allow-outside DIR trusts a folder: docs/security.md)"))
             return None
         return file
 
@@ -278,9 +319,11 @@ class _Reader:
                 self.problems.append(f"{self.where(child)}: element kind '{tag}' not supported")
         for connection in element.iterfind("ssd:Connections/ssd:Connection", NS):
             where = f"{self.shown} ({self.ssd.name} line {connection.sourceline}): Connection"
+            # startElement="" (or none) names the system itself (OMSimulator writes "")
             self.connections.append(RawConnection(
-                path, (connection.get("startElement"), connection.get("startConnector", "")),
-                (connection.get("endElement"), connection.get("endConnector", "")),
+                path, (connection.get("startElement") or None,
+                       connection.get("startConnector", "")),
+                (connection.get("endElement") or None, connection.get("endConnector", "")),
                 transformation(connection, where, self.problems), where,
                 connection.get("suppressUnitConversion", "false") not in ("true", "1")))
         for gluing in element.iterfind(
@@ -301,9 +344,11 @@ class _Reader:
         if kind != "application/x-fmu-sharedlibrary":
             self.problems.append(f"{where}: type '{kind}' is not an FMU (dsim runs FMU "
                                  "components; a referenced SSP or SSD is not supported)")
+            self.refused.add(prefix + element.get("name", ""))
             return
         file = self.inside(source, where, "FMU source")
         if file is None:
+            self.refused.add(prefix + element.get("name", ""))
             return
         if not source or not file.is_file():
             self.problems.append(f"{where}: FMU '{source}' not found")
@@ -352,10 +397,11 @@ class _Reader:
         paths = {c["path"] for c in self.components}
         connectors = {c["path"]: c["connectors"] for c in self.components}
         values, origins, connector_values = resolve_bindings(
-            self.bindings, paths, self.system_connectors, self.problems, self.warnings)
+            self.bindings, paths, self.system_connectors, self.problems, self.warnings,
+            self.refused)
         connections, starts = resolve_connections(
             self.connections, paths, connectors, self.system_connectors, connector_values,
-            self.problems)
+            self.problems, self.refused)
         components = []
         for c in self.components:
             parameters = {**starts[c["path"]], **values[c["path"]]}
@@ -408,7 +454,8 @@ def _master_annotation(root, shown: str, problems: list) -> tuple[float, float, 
     return start, stop, attributes, other
 
 
-def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None) -> Scene:
+def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = None,
+               allow_outside=()) -> Scene:
     """Read and check an SSP system; raise InputError listing every problem (or, not
     ``strict``, keep the problems in ``Scene.problems`` when the system could still be
     read, so that the plan's checks can add theirs).  The master settings are kept as
@@ -418,14 +465,16 @@ def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
     ``parameter_sets``: parameter sets applied on top of every binding of the scene,
     as if bound to the root system last: each an .ssv file of the scene (its path in
     the scene, like ``resources/heavy.ssv``) or the name of a ParameterSet in one.
-    ``ssd``: which .ssd of the archive or folder (default SystemStructure.ssd)."""
+    ``ssd``: which .ssd of the archive or folder (default SystemStructure.ssd).
+    ``allow_outside``: folders whose files the scene may name besides its own (the
+    user trusts them: docs/security.md)."""
     path = Path(path)
     ssd, shown = _open(path, ssd)
     root = _parse_xml(ssd, shown)
     if etree.QName(root).localname != "SystemStructureDescription":
         raise InputError(f"{shown}: SystemStructure.ssd: root element is "
                          f"'{etree.QName(root).localname}', not ssd:SystemStructureDescription")
-    reader = _Reader(ssd, shown)
+    reader = _Reader(ssd, shown, allow_outside)
     _check_schema(root, shown, "SystemStructureDescription.xsd", reader.problems,
                   reader.warnings)
     others = [name for name in ssd_files(path) if name != ssd.name]
@@ -466,7 +515,7 @@ def read_scene(path, parameter_sets=(), strict: bool = True, ssd: str | None = N
 
 def _check_references(reader: _Reader, components, connections) -> None:
     """Joints, port maps and connections must name components that exist."""
-    paths = {c.path for c in components}
+    paths = {c.path for c in components} | reader.refused  # (refused: said once already)
     # every check here is linear in the scene's size: a scene of a million components
     # is read in seconds, never hours
     uses = Counter(c.path for c in components)

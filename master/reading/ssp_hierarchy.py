@@ -43,7 +43,7 @@ def _join(path: str, name: str) -> str:
 
 def resolve_bindings(bindings: list[Binding], components: set[str],
                      system_connectors: dict[str, dict[str, Connector]], problems: list,
-                     warnings: list):
+                     warnings: list, refused=frozenset()):
     """(component path -> {variable: (type, value)}, component path -> {variable: where},
     system connector node (system path, connector) -> (type, value)).
 
@@ -52,7 +52,8 @@ def resolve_bindings(bindings: list[Binding], components: set[str],
     no component and no system connector is a warning (an error with ``strict``): SSP
     ignores it, and tools write sets with values for other tools (CAD geometry beside
     the model's parameters), but a value that silently does not apply may be a wrong
-    result."""
+    result.  Names of components in ``refused`` (their FMU refused already) are left
+    out without a warning of their own."""
     values: dict[str, dict] = {path: {} for path in components}
     origins: dict[str, dict] = {path: {} for path in components}
     connector_values: dict[tuple[str, str], tuple] = {}
@@ -62,7 +63,10 @@ def resolve_bindings(bindings: list[Binding], components: set[str],
             if binding.component:
                 target = (binding.owner, name)
             else:
-                target = _target(_join(binding.owner, name), components, system_connectors)
+                full = _join(binding.owner, name)
+                target = _target(full, components, system_connectors)
+                if target is None and any(full.startswith(path + ".") for path in refused):
+                    continue
                 if target is None:
                     warnings.append(f"{binding.where}: parameter '{name}' names no component "
                                     "variable and no system connector: not applied")
@@ -121,13 +125,16 @@ def _role(node, components: set[str], component_connectors, system_connectors) -
 def resolve_connections(raws: list[RawConnection], components: set[str],
                         component_connectors: dict[str, dict[str, Connector]],
                         system_connectors: dict[str, dict[str, Connector]],
-                        connector_values: dict, problems: list):
+                        connector_values: dict, problems: list, refused=frozenset()):
     """Connections between component variables (through any chain of system connectors),
     and start values that system connector parameters give to component variables
-    (component path -> {variable: (type, value)})."""
+    (component path -> {variable: (type, value)}).  A connection to a component in
+    ``refused`` (its FMU refused already) is left out without a problem of its own."""
     feeds = {}  # (owner, connector) -> (source (owner, connector), transformation, where, units)
     for raw in raws:
         start, end = _node(raw, raw.start), _node(raw, raw.end)
+        if start[0] in refused or end[0] in refused:
+            continue
         for node, side in ((start, "start"), (end, "end")):
             owner, connector, _ = node
             if owner not in components and connector not in system_connectors.get(owner, {}):

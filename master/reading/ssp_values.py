@@ -46,6 +46,14 @@ def typed_value(kind: str, text: str | None):
     return text or ""
 
 
+def _is_integer(text: str) -> bool:
+    try:
+        int(text)
+    except ValueError:
+        return False
+    return True
+
+
 def parameter_set(root, where: str, problems: list) -> dict:
     """name -> (type, value) of an ``ssv:ParameterSet`` element."""
     values = {}
@@ -56,6 +64,11 @@ def parameter_set(root, where: str, problems: list) -> dict:
             if kind not in TYPES:
                 continue
             text = child.get("value")
+            if kind == "Enumeration" and text and not _is_integer(text):
+                # SSP 1.0 gives an enumeration value as the item's name ("Option 2"):
+                # the plan maps it to the value of that item of the FMU variable's type
+                values[name] = ("Enumeration", text)
+                continue
             try:
                 values[name] = (TYPES[kind], typed_value(TYPES[kind], text))
             except (TypeError, ValueError):

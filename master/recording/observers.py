@@ -263,7 +263,8 @@ class MemoryRecorder(Observer):
 
     def signals(self) -> dict[str, np.ndarray]:
         """Column name -> values over time (``time`` first)."""
-        data = np.array(self.rows).reshape(-1, len(self.columns))
+        # (a scene that records no column still has its time column)
+        data = np.array(self.rows, dtype=float).reshape(len(self.rows), len(self.columns))
         signals = {"time": np.array(self.times)}
         signals.update({name: data[:, i] for i, name in enumerate(self.columns)})
         for i, name in enumerate(self.text_columns):

@@ -74,6 +74,8 @@ def run_statistics(execution, wall_seconds: float, components: dict | None = Non
         "start_time": scene.start_time,
         "stop_time": scene.stop_time,
         "time_reached": execution.time,
+        # an FMU that ended the simulation itself: which, and the time it reached
+        "ended_by": getattr(execution, "ended_by", None),
         "coupling": execution.plan.coupling,
         "backend": execution.plan.backend,
         "master": dict(settings.__dict__),

@@ -86,20 +86,22 @@ def _table(connection, kind: str, where: str, problems: list):
     return table
 
 
-def check_connections(scene, usable: dict, problems: list) -> list[Link]:
+def check_connections(scene, usable: dict, problems: list, warnings=None) -> list[Link]:
     """The scene's connections checked against the FMUs (the variables exist, the end
-    can be set at every step, both ends carry the same kind of value, units convert)."""
+    can be set at every step, both ends carry the same kind of value, units convert).
+    An Integer output into a Real input is carried exactly (as a Real), with a warning
+    in ``warnings``; a Real into an Integer is refused (rounding would change it)."""
     links, units_of = [], {}
     for connection in scene.connections:
         where = connection.location
-        ends = []
+        ends, missing = [], []
         for (path, name), role in ((connection.start, "start"), (connection.end, "end")):
             variables = usable.get(path)
             if variables is None:
                 break  # the component's FMU is unusable: said already
             variable = variables.get(name)
             if variable is None:
-                problems.append(f"{where}: '{path}' has no variable '{name}'")
+                missing.append(f"'{path}' has no variable '{name}'")
             elif role == "end" and variable.causality not in ("input", "parameter"):
                 problems.append(f"{where}: '{path}.{name}' is a {variable.causality}; a "
                                 "connection can feed only an input or a parameter")
@@ -108,9 +110,16 @@ def check_connections(scene, usable: dict, problems: list) -> list[Link]:
                                 "cannot connect")
             else:
                 ends.append(variable)
+        if missing:  # one line for the connection
+            problems.append(f"{where}: {', '.join(missing)}")
         if len(ends) != 2:
             continue
         kinds = [KINDS[v.type] for v in ends]
+        if kinds == ["Integer", "Real"] and warnings is not None:
+            warnings.append(f"{where}: connects an {ends[0].type} '{'.'.join(connection.start)}'"
+                            f" to a Real '{'.'.join(connection.end)}': carried as a Real "
+                            "(exact)")
+            kinds[0] = "Real"
         if kinds[0] != kinds[1]:
             problems.append(f"{where}: connects a {ends[0].type} "
                             f"'{'.'.join(connection.start)}' to a {ends[1].type} "

@@ -25,7 +25,7 @@ from contextlib import nullcontext
 
 import numpy as np
 
-from dsim.master.errors import InputError, SimulationError
+from dsim.master.errors import InputError, SimulationError, Terminated
 from dsim.master.recording.observers import CsvRecorder, MemoryRecorder, RunInfo, StepRecord
 from dsim.master.recording.output_files import OutputError
 from dsim.master.recording.results import RunResult
@@ -74,6 +74,9 @@ class Execution:
         self.error: Exception | None = None
         self.signal: int | None = None
         self._stop_requested: str | None = None
+        #: the component that ended the simulation itself and the time it reached
+        #: (:class:`~dsim.master.errors.Terminated`), or None
+        self.ended_by: dict | None = None
         self._iterations: list[int] = []
         self._refreshes = 0
         self._phases = {"setup": 0.0, "steps": 0.0, "observers": 0.0, "finish": 0.0}
@@ -326,6 +329,9 @@ class Execution:
                 self._held = None
                 for stepped in self._stepped:
                     stepped(record)
+        except Terminated as ended:
+            self._end_by(ended)
+            return False
         except SimulationError as error:
             self._fail(error.located(index + 1, end))
             return False
@@ -341,6 +347,15 @@ class Execution:
             self.status = "completed"
             return False
         return True
+
+    def _end_by(self, ended: Terminated) -> None:
+        """An FMU ended the simulation: the run ends normally at the last communication
+        point every component reached together (this one), every row kept."""
+        self.ended_by = {"component": ended.component, "time": ended.time}
+        self.status = "completed"
+        self.warn(f"{ended.message}: the run ends at t = {self.time:.9g} s, step "
+                  f"{self.index} of {self.planned_steps} (the last communication point "
+                  "every component reached)")
 
     def _warn_cut(self, index: int, end: float, smallest: float) -> None:
         """Say that a step was cut (the first few; the statistics count them all)."""

@@ -44,7 +44,10 @@ def _summary(result, plot: Path | None) -> str:
         f"{data['backend']} backend",
         f"time        {data['start_time']:g} .. {data['stop_time']:g} s, "
         f"step {data['master']['step']:g} s, {data['steps']} steps"
-        + (f" ({uneven.split(': ', 1)[1]})" if uneven else ""),
+        + (f" ({uneven.split(': ', 1)[1]})" if uneven else "")
+        + (f" (ended by {data['ended_by']['component']} at t = "
+           f"{data['ended_by']['time']:g} s; the last row at {data['time_reached']:g} s)"
+           if data.get("ended_by") else ""),
         f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
         f"(max {data['iterations']['max_per_step']}), "
         f"Lambda refreshes {data['lambda_refreshes']}, "
@@ -96,7 +99,8 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_info(args) -> int:
-    print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all)))
+    print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all,
+                                allow_outside=args.allow_outside)))
     return 0
 
 
@@ -320,7 +324,7 @@ def _run_choices(args) -> dict:
         solver[name.strip()] = value.strip()
     return {"parameters": given_parameters(args.set_file, args.set),
             "outputs": args.outputs, "output_interval": args.output_interval,
-            "solver": solver}
+            "solver": solver, "allow_outside": args.allow_outside}
 
 
 def _add_run_choices(run_parser) -> None:
@@ -332,6 +336,10 @@ def _add_run_choices(run_parser) -> None:
                             "(nested components by their dotted path) or JOINT.k0=VALUE "
                             f"({' '.join(JOINT_COEFFICIENTS)}: those of the joint's law); "
                             "again for more (`dsim info --all` lists what can be set)")
+    run_parser.add_argument("--allow-outside", action="append", metavar="DIR",
+                            help="let the scene name files (FMUs, parameter sets) in DIR "
+                            "too, outside its own folder: only for files you trust "
+                            "(docs/security.md); again for more")
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "
                             "name,value rows (.csv) or a JSON object (.json); --set wins "
@@ -489,6 +497,8 @@ def _add_info(commands) -> None:
                                       "can be set (counted), master settings")
     info_parser.add_argument("scene")
     info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
+    info_parser.add_argument("--allow-outside", action="append", metavar="DIR",
+                             help="let the scene name files in DIR too (docs/security.md)")
     info_parser.add_argument("--all", action="store_true", help="every component in full, "
                              "with the table of every variable a run may set (name, type, "
                              "unit, start, the scene's value, limits, description)")

@@ -34,6 +34,11 @@ class StepReport:
     lost: float = 0.0
 
 
+def _joined(parts) -> np.ndarray:
+    """The subsystems' outputs as one flat array (a scene without components: none)."""
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
 #: the report of a step that glued nothing
 _NOTHING = StepReport(0, 0, 0.0)
 
@@ -110,7 +115,7 @@ class Coupling(ABC):
         if not glued:  # causal: every subsystem free, in order
             inputs = self._free_inputs.inputs(self.outputs) if self._free_inputs.size else ()
             self._outputs_by_subsystem = self.free.step(time, step_size, inputs)
-            self.outputs = np.concatenate(self._outputs_by_subsystem)
+            self.outputs = _joined(self._outputs_by_subsystem)
             return _NOTHING
         if glued:
             if self._glued_inputs.size:
@@ -124,7 +129,7 @@ class Coupling(ABC):
             self._assemble(1, self.free.step(time, step_size, inputs))
         if glued:
             self._assemble(0, self.glued.read_outputs())
-        self.outputs = np.concatenate(self._outputs_by_subsystem)
+        self.outputs = _joined(self._outputs_by_subsystem)
         return report
 
     @abstractmethod

@@ -37,7 +37,7 @@ from scipy.linalg import lu_factor, lu_solve
 
 from dsim.master.errors import SimulationError
 from dsim.master.running.connections import Transfer
-from dsim.master.running.couplings.base import Coupling, StepReport
+from dsim.master.running.couplings.base import Coupling, StepReport, _joined
 from dsim.master.running.couplings.iterative import IterativeCoupling
 
 
@@ -172,7 +172,7 @@ class StrongCoupling(IterativeCoupling):
                                                                      inputs)):
                 self._outputs_by_subsystem[index] = outputs
         if not self._group:
-            self.outputs = np.concatenate(self._outputs_by_subsystem)
+            self.outputs = _joined(self._outputs_by_subsystem)
             return StepReport(0, 0, 0.0)
         start = self._fed(outputs_now)
         predictor = self.settings.predictor

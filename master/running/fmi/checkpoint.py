@@ -4,7 +4,7 @@ is being initialised with the scene's parameters it is bad input (InputError, ex
 and the instance is freed at once; after Fatal no call may follow."""
 from __future__ import annotations
 
-from dsim.master.errors import InputError, SimulationError, StepFailure
+from dsim.master.errors import InputError, SimulationError, StepFailure, Terminated
 from dsim.master.running.fmi.messages import logged_error
 
 
@@ -14,10 +14,35 @@ class Checkpoint:
 
     #: the counter's name of a step (a Discard from it may pass when the step is cut)
     DO_STEP = "fmi2DoStep"
+    #: the time (s) this FMU reached when it ended the simulation itself, its step
+    #: complete: the next step raises :class:`Terminated` (the run keeps this step)
+    ended_at = None
 
-    def _fail(self, label: str, detail: str, status: int = 3):
+    def _termination(self) -> float | None:
+        """After a discarded step: the time the FMU reached if it says it has ended the
+        simulation (FMI 2.0: fmi2GetBooleanStatus(fmi2Terminated)), else None."""
+        return None
+
+    def _ended(self, reached: float, end: float | None) -> None:
+        """The FMU ended the simulation at ``reached`` (s) in a step to ``end``: a
+        complete step (up to round-off) is kept and the next one raises; a partial one
+        raises now (the run ends at the step's start, the last point every component
+        reached together)."""
+        if end is not None and reached >= end - 1e-9 * max(1.0, abs(end)):
+            self.ended_at = reached
+            return
+        self._raise_ended(reached)
+
+    def _raise_ended(self, reached: float | None = None):
+        reached = self.ended_at if reached is None else reached
+        raise Terminated(f"component '{self.name}' ended the simulation at t = {reached:.9g} s",
+                         time=reached, component=self.name)
+
+    def _fail(self, label: str, detail: str, status: int = 3, end: float | None = None):
         """Raise the error of a call that returned ``status`` (Discard or worse):
-        InputError while initialising, when the instance is freed at once."""
+        InputError while initialising, when the instance is freed at once.  A step
+        (to ``end``, s) the FMU discarded because it ended the simulation is no error
+        (:meth:`_ended`)."""
         reason = logged_error(self.name)
         if status == 4:
             # FMI allows no further call after Fatal, not even a free (and pythonfmu 0.7
@@ -29,6 +54,13 @@ class Checkpoint:
             raise InputError(f"{self._location}: FMU {self.path.name} cannot be "
                              f"initialised with these parameters: "
                              f"{reason or f'{label} failed: {detail}'}")
+        if label == self.DO_STEP and status == 2:
+            try:  # an FMU that ends the run itself discards the step and says why
+                reached = self._termination()
+            except Exception:  # no answer: a discarded step like any other
+                reached = None
+            if reached is not None:
+                return self._ended(reached, end)
         # a discarded step may pass when it is smaller: the coupling restores the
         # step's start and cuts it where it can
         error = StepFailure if label == self.DO_STEP and status == 2 else SimulationError

@@ -82,7 +82,28 @@ class CoSimulation1Subsystem(FmpyAdapter):
         """Nothing to save: the explicit coupling never rolls an FMI 1.0 FMU back."""
         self._dirty = False
 
+    def _termination(self):
+        """FMI 1.0 names no "terminated" status; an FMU that answers
+        fmiGetBooleanStatus with FMI 2.0's kind (fmi2Terminated = 3) true ended the
+        simulation (one that does not answer: a discarded step like any other)."""
+        get = getattr(self.fmu.dll, self.description.coSimulation.modelIdentifier
+                      + "_fmiGetBooleanStatus")
+        get.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_char)]
+        get.restype = ctypes.c_int
+        value = ctypes.c_char(b"\x00")
+        if get(self.fmu.component, 3, ctypes.byref(value)) != 0 or value.value == b"\x00":
+            return None
+        reached = ctypes.c_double(self.time)
+        real = getattr(self.fmu.dll, self.description.coSimulation.modelIdentifier
+                       + "_fmiGetRealStatus")
+        real.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)]
+        real.restype = ctypes.c_int
+        return reached.value if real(self.fmu.component, 2, ctypes.byref(reached)) == 0 \
+            else self.time
+
     def do_step(self, time, step_size):
+        if self.ended_at is not None:
+            self._raise_ended()
         self.time = time
         self._stepped = True
         if self._do_step is None:
@@ -96,4 +117,5 @@ class CoSimulation1Subsystem(FmpyAdapter):
         status = self._timed(self.DO_STEP, self._do_step, self.fmu.component, time, step_size,
                              b"\x01")
         if status > 1:
-            self._fail(self.DO_STEP, f"fmiDoStep returned {STATUS.get(status, status)}", status)
+            self._fail(self.DO_STEP, f"fmiDoStep returned {STATUS.get(status, status)}", status,
+                       time + step_size)

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave, fmi2FMUstate, fmi2ValueReference
+from fmpy.fmi2 import (FMU2Slave, fmi2FMUstate, fmi2LastSuccessfulTime, fmi2Terminated,
+                       fmi2ValueReference)
 
 from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
@@ -63,7 +64,10 @@ class _Call:
         self.seconds += clock.perf_counter() - start
         self.calls += 1
         if status > 1:
-            self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}", status)
+            # a step's end, for an FMU that discards it because it ends the simulation
+            end = args[0].value + args[1].value if self.name == "fmi2DoStep" else None
+            self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}", status,
+                             end)
         # a pythonfmu FMU cannot return fmi2Error: it refuses its parameters by logging
         # one while the call returns fmi2OK (after initialization a log is only a log)
         if self.owner._initializing and errors_logged(self.owner.name):
@@ -270,16 +274,26 @@ class FmuSubsystem(Checkpoint, Subsystem):
 
     def restore_state(self):
         self._set_state(self._state)
+        self.ended_at = None  # back before the end: the step is taken again
 
     def set_forces(self, forces):
         self._forces.write(forces)
 
+    def _termination(self):
+        if not self.fmu.getBooleanStatus(fmi2Terminated):
+            return None
+        return self.fmu.getRealStatus(fmi2LastSuccessfulTime)
+
     def do_step(self, time, step_size):
+        if self.ended_at is not None:
+            self._raise_ended()
         self.time = time
         self._stepped = True
         self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
 
     def exchange(self, time, step_size):
+        if self.ended_at is not None:
+            self._raise_ended()
         self.time = time
         if step_size != self._step_size.value:
             self._step_size = ctypes.c_double(step_size)

@@ -6,14 +6,16 @@ elements (``name[i]`` columns).  The instance runs without event mode and withou
 early return (``eventModeUsed``, ``earlyReturnAllowed`` false): dsim steps from one
 communication point to the next.  Rollback is the FMU state (``fmi3GetFMUState``)
 where the FMU can get and set it.  An FMU that asks to end the run (``terminateSimulation``
-from ``fmi3DoStep``) ends it at that step, its rows kept.
+from ``fmi3DoStep``) ends it normally: at the step's end when the step is complete, at its
+start when the FMU returned early or discarded it (:class:`~dsim.master.errors.Terminated`).
 """
 from __future__ import annotations
 
-from fmpy.fmi3 import FMU3Slave
+import ctypes
 
-from dsim.master.errors import SimulationError
-from dsim.master.running.fmi.adapter import FmpyAdapter
+from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64
+
+from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
 from dsim.master.running.fmi.messages import logger3
 
 
@@ -25,6 +27,7 @@ class CoSimulation3Subsystem(FmpyAdapter):
 
     def __init__(self, spec):
         self._state = None
+        self._raw_step = None
         super().__init__(spec)
 
     def _open(self, folder):
@@ -55,6 +58,7 @@ class CoSimulation3Subsystem(FmpyAdapter):
 
     def restore_state(self):
         self._checked(self.SET_STATE, self.fmu.setFMUState, self._state)
+        self.ended_at = None  # back before the end: the step is taken again
 
     def _free_saved(self):
         if self._state is not None:
@@ -64,10 +68,29 @@ class CoSimulation3Subsystem(FmpyAdapter):
                 self._state = None
 
     def do_step(self, time, step_size):
+        if self.ended_at is not None:
+            self._raise_ended()
         self.time = time
         self._stepped = True
-        _, terminate, _, _ = self._checked(self.DO_STEP, self.fmu.doStep, time, step_size)
-        if terminate:
-            raise SimulationError(f"component '{self.name}': the FMU asked to end the "
-                                  f"simulation at t = {time + step_size:g} s",
-                                  time=time + step_size)
+        if self._raw_step is None:
+            # fmpy's doStep raises on fmi3Discard, and the out-arguments that say the
+            # FMU ended the simulation (terminateSimulation, lastSuccessfulTime) are lost
+            # with it: the library's function, called with them here
+            self._raw_step = self.fmu.dll["fmi3DoStep"]
+            self._raw_step.restype = ctypes.c_int
+            self._raw_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double,
+                                       ctypes.c_bool] + [ctypes.c_void_p] * 4
+        flags = [fmi3Boolean() for _ in range(3)]  # event, terminate, early return
+        reached = fmi3Float64(time)
+        status = self._timed(self.DO_STEP, self._raw_step, self.fmu.component, time,
+                             step_size, True, *map(ctypes.byref, flags),
+                             ctypes.byref(reached))
+        _, terminate, early = (bool(flag.value) for flag in flags)
+        if terminate and status <= 2:
+            # a complete step (fmi3OK) ends at its end; an early return or a discarded
+            # step where the FMU says it is
+            self._ended(reached.value if (early or status == 2) else time + step_size,
+                        time + step_size)
+        elif status > 1:
+            self._fail(self.DO_STEP, f"it returned fmi3{STATUS.get(status, status)}",
+                       status, time + step_size)

@@ -221,6 +221,11 @@ class ModelExchangeSubsystem(FmpyAdapter):
         then continuous-time mode."""
         for _ in range(1000):
             more, stop, _, next_event = self._update_discrete_states()
+            if stop and not self._initializing and self._stepped:
+                # the FMU ends the simulation at an event of a step: the step ends it
+                # (:meth:`_integrate`)
+                self._stop_asked = True
+                break
             if stop:
                 raise SimulationError(f"component '{self.name}': the FMU asked to end the "
                                       f"simulation at t = {self.time:g} s", time=self.time)
@@ -278,6 +283,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
 
     def restore_state(self):
         time, x, start, next_event = self._saved
+        self.ended_at, self._stop_asked = None, False  # back before the end
         if self.can_save:
             setter = self.fmu.setFMUState if self.fmi3 else self.fmu.setFMUstate
             self._checked(self.SET_STATE, setter, self._fmu_state)
@@ -304,7 +310,11 @@ class ModelExchangeSubsystem(FmpyAdapter):
             finally:
                 self._fmu_state = None
 
+    _stop_asked = False
+
     def do_step(self, time, step_size):
+        if self.ended_at is not None:
+            self._raise_ended()
         self._stepped = True
         self._checked(self.DO_STEP, self._integrate, time, step_size)
 
@@ -335,12 +345,14 @@ class ModelExchangeSubsystem(FmpyAdapter):
             self.set_time(t)
             self.time = t
             step_event, terminate = self.fmu.completedIntegratorStep()
-            if terminate:
-                raise SimulationError(f"component '{self.name}': the FMU asked to end the "
-                                      f"simulation at t = {t:g} s", time=t)
             time_event = self._next_event is not None and t >= self._next_event
-            if state_event or time_event or step_event:
+            if (state_event or time_event or step_event) and not terminate:
                 self._handle_event(t)
+            if terminate or self._stop_asked:
+                # ended by the FMU: at the step's end the step is kept, before it the
+                # run ends at the step's start (Checkpoint._ended raises then)
+                self._ended(t, stop)
+                break
             if t >= target and target == stop:
                 break
         self.time = stop
