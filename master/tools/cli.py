@@ -33,6 +33,7 @@ from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, r
 from dsim.master.sweeps.table import STATES, count_states, state
 from dsim.master.tools.info import scene_info
 from dsim.master.tools.plot import overlay_files
+from dsim.master.tools.process_exit import end_process
 
 
 def _summary(result, plot: Path | None) -> str:
@@ -601,8 +602,6 @@ def console() -> None:
     """The ``dsim`` console script and ``python -m dsim.master.tools.cli``: :func:`main`, then the
     process ends without the native libraries' exit handlers (:mod:`dsim.master.tools.process_exit`;
     main itself returns, for callers in this process such as the tests)."""
-    from dsim.master.tools.process_exit import end_process
-
     end_process(main())
 
 
