@@ -22,23 +22,35 @@ class GluingLayout:
     force entry r as ``joint.f_dof`` (the CSV column); ``joint_of[r]`` the joint.
     """
 
-    def __init__(self, incidence, weights, labels, joint_of, measures=None):
-        self.incidence = [sp.csr_matrix(c) for c in incidence]
+    def __init__(self, incidence, weights, labels, joint_of, measures=None, sizes=None):
+        """``incidence``: the C_i as a list of matrices, or (with ``sizes``, each
+        C_i's row count) all of them stacked in one matrix, as :func:`~dsim.master.
+        planning.assembly.assemble` builds it (one sparse matrix for 10,000
+        subsystems rather than 10,000 small ones)."""
         self.labels = list(labels)
         self.size = len(self.labels)
-        sizes = [c.shape[0] for c in self.incidence]
+        if sizes is None:
+            blocks = [sp.csr_matrix(c) for c in incidence]
+            sizes = [c.shape[0] for c in blocks]
+            # one stacked C (all glued dofs x n_F): an iteration costs a few sparse products
+            incidence = (sp.vstack(blocks).tocsr() if blocks
+                         else sp.csr_matrix((0, self.size)))
+        sizes = [int(n) for n in sizes]
         self.offsets = np.cumsum(sizes)[:-1] if sizes else np.zeros(0, dtype=int)
         self._bounds = list(zip(np.r_[0, self.offsets].astype(int),
                                 np.r_[self.offsets, sum(sizes)].astype(int)))
-        # one stacked C (all glued dofs x n_F): an iteration costs a few sparse products
-        self.stacked = (sp.vstack(self.incidence).tocsr() if self.incidence
-                        else sp.csr_matrix((0, self.size)))
+        self.stacked = sp.csr_matrix(incidence)
         self.stacked_t = self.stacked.T.tocsr()
         self.stacked_abs_t = abs(self.stacked_t)
         self.weights = np.asarray(weights, dtype=float).reshape(-1, 3)
         self.joint_of = list(joint_of)
         #: the measure's name per dof ("displacement", "velocity", ...)
         self.measures = list(measures or ["displacement"] * self.size)
+
+    @property
+    def incidence(self) -> list:
+        """C_i of each glued subsystem (rows of the stacked matrix)."""
+        return [self.stacked[start:stop] for start, stop in self._bounds]
 
     def differences(self, kinematics, magnitudes: bool = True):
         """Per kind (u, v, a): sum_i C_i^T x_i (= x_b - x_a per joint dof) and the

@@ -163,6 +163,11 @@ class _Reader:
         #: (component path, Ray resource, where) of each glue:Placement
         self.placements: list[tuple[str, str, str]] = []
         self.files: list[Path] = [ssd]
+        #: per document, made once: each system's solver annotation (element -> what it
+        #: says), each named file's place (source -> resolved path, or the OS error):
+        #: 10,000 components of one FMU file resolve it once
+        self._solvers: dict = {}
+        self._places: dict[str, tuple] = {}
 
     def where(self, element) -> str:
         tag = etree.QName(element).localname
@@ -180,10 +185,14 @@ class _Reader:
                                  "names only files inside itself")
             return None
         file = self.base / source
-        try:  # the name itself may be unusable (too long): one line, not a traceback
-            outside = not file.resolve().is_relative_to(self.root)
-            file.is_file()
-        except OSError as error:
+        if source not in self._places:
+            try:  # the name itself may be unusable (too long): one line, not a traceback
+                self._places[source] = (not file.resolve().is_relative_to(self.root), None)
+                file.is_file()
+            except OSError as error:
+                self._places[source] = (None, error)
+        outside, error = self._places[source]
+        if error is not None:
             shown = source if len(source) <= 80 else source[:80] + "..."
             self.problems.append(f"{where}: {what} '{shown}' ({len(source)} characters) "
                                  f"cannot be a file name: {error.strerror}")
@@ -312,7 +321,8 @@ class _Reader:
         self.components.append(dict(path=path, source=file, location=where,
                                     connectors=self.connectors_of(element),
                                     implementation=element.get("implementation", ""),
-                                    solver=solver_of(element, self.warnings, where)))
+                                    solver=solver_of(element, self.warnings, where,
+                                                    self._solvers)))
 
     def parameter_set_on_top(self, chosen: str) -> None:
         """Bind a parameter set of the scene above every other binding."""

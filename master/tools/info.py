@@ -90,6 +90,10 @@ def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[
         f"{m.max_iterations}, predictor {m.predictor}, refresh {m.refresh} (after "
         f"{m.refresh_after}), start {m.start}, perturbation {m.perturbation:g}")
     say(f"components ({len(scene.components)}):")
+    glued = set(checked.glued)  # looked up per component: a set, not the plan's tuple
+    records_of: dict[str, list[str]] = {}
+    for path, name in checked.recorded:
+        records_of.setdefault(path, []).append(name)
     for index, component in enumerate(scene.components):
         description = describe(component.source)
         spec = checked.specs[index]
@@ -103,11 +107,11 @@ def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[
             flags.append(f"integrated by dsim ({solver_summary(spec.solver)}); rollback "
                          + ("by FMU state" if found.canGetAndSetFMUstate
                             else "by its continuous states"))
-        role = ("glued: iterated with rollback" if index in checked.glued
+        role = ("glued: iterated with rollback" if index in glued
                 else "free: one doStep per macro step, never rolled back")
         if checked.coupling == "strong":
             role = ("iterated: its connections solved at each step, with rollback"
-                    if index in checked.glued else "free: one doStep per macro step, its "
+                    if index in glued else "free: one doStep per macro step, its "
                     "inputs from the step's start (it cannot roll back)")
         port_text = port_summary(checked.ports[component.path])
         say(f"  {component.path}: {component.source.name} "
@@ -121,7 +125,7 @@ def scene_info(scene_file, ssd: str | None = None, every: bool = False) -> list[
         for name, file in component.files.items():
             say(f"      scene file: {name} = {component.parameters[name][1]} "
                 f"({file.stat().st_size} bytes)")
-        records = [name for path, name in checked.recorded if path == component.path]
+        records = records_of.get(component.path, [])
         say(f"      records: {', '.join(records) or 'nothing'}")
         for line in settable_lines(checked, index, every):
             say(f"      {line}")
