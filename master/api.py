@@ -4,8 +4,6 @@ end call: :func:`prepare` checks a scene and its settings into a plan,
 """
 from __future__ import annotations
 
-import gc
-from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,6 +16,7 @@ from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter,
                                              StatisticsWriter)
 from dsim.master.recording.results import RunResult
 from dsim.master.running.backends.base import BACKEND_OPTIONS
+from dsim.master.running.collector import collector_paused
 from dsim.master.running.execution import Execution
 from dsim.master.scene import Scene
 from dsim.master.settings import resolve
@@ -46,24 +45,9 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     of ``method``, ``rtol``, ``atol``, ``max_step`` (every component) or
     ``COMPONENT.NAME`` (one) to values (docs/third_party.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
-    with _collector_paused():
+    with collector_paused():  # 10,000 components: millions of objects, few cycles
         return _prepare(scene, load_libraries, strict, parameters, outputs,
                         output_interval, solver, settings)
-
-
-@contextmanager
-def _collector_paused():
-    """Python's cyclic garbage collector off while a scene is read and planned: the
-    plan of 10,000 components makes millions of small objects, few of them in
-    cycles, and the collector's passes over them cost as much as the planning
-    itself (what is left in a cycle is collected once it is on again)."""
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if enabled:
-            gc.enable()
 
 
 def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval, solver,

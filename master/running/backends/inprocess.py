@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dsim.master.running.backends.base import Backend, terminate_all
+from dsim.master.running.collector import collector_paused
 from dsim.master.running.fmi import open_subsystem
 
 
@@ -17,8 +18,9 @@ class InProcessBackend(Backend):
     def from_specs(cls, specs, **options) -> "InProcessBackend":
         subsystems = []
         try:
-            for spec in specs:
-                subsystems.append(open_subsystem(spec))
+            with collector_paused():  # thousands of instances: see collector.py
+                for spec in specs:
+                    subsystems.append(open_subsystem(spec))
         except BaseException:
             cls(subsystems).close()
             raise

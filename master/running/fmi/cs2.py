@@ -28,6 +28,7 @@ from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
 from dsim.master.running.fmi.checkpoint import Checkpoint
+from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import CALLBACKS2, errors_logged, forget, logged_error
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
@@ -165,7 +166,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
         self.time = spec.start_time
         self._location = spec.location or spec.name
         try:
-            self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped(self.path),
+            self.fmu = sharing(FMU2Slave)(guid=description.guid, unzipDirectory=unzipped(self.path),
                                  modelIdentifier=description.coSimulation.modelIdentifier,
                                  instanceName=spec.name)
         except Exception as error:  # fmpy raises plain Exceptions for a missing library

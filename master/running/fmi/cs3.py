@@ -14,6 +14,7 @@ from fmpy.fmi3 import FMU3Slave
 
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import logger3
 
 
@@ -28,7 +29,7 @@ class CoSimulation3Subsystem(FmpyAdapter):
         super().__init__(spec)
 
     def _open(self, folder):
-        return FMU3Slave(guid=self.description.guid, unzipDirectory=folder,
+        return sharing(FMU3Slave)(guid=self.description.guid, unzipDirectory=folder,
                          modelIdentifier=self.description.coSimulation.modelIdentifier,
                          instanceName=self.name)
 
