@@ -19,7 +19,9 @@ row k + 1 the same; the largest difference is reported.
 from __future__ import annotations
 
 import argparse
+import cProfile
 import platform
+import pstats
 import statistics as stats
 import tempfile
 import time
@@ -48,23 +50,89 @@ def measure(ssp: Path, folder: Path, short: float, long: float, repetitions: int
     runners = {
         "fmpy": lambda stop: simulate_ssp(str(ssp), stop_time=stop, step_size=STEP),
         "dsim (CSV + statistics)": lambda stop: dsim.simulate(
-            ssp, out=folder / "run.csv", stop=stop, handle_signals=False),
+            ssp, out=folder / "run.csv", stop=stop, handle_signals=False, force=True),
         "dsim (in memory)": lambda stop: dsim.simulate(ssp, stop=stop, handle_signals=False),
     }
+    if libcosim_available():
+        runners["libcosim (CSV files)"] = lambda stop: libcosim(ssp, stop, folder / "cosim")
+        runners["libcosim (last values)"] = lambda stop: libcosim(ssp, stop)
     steps = round((long - short) / STEP)
     seconds = {name: {short: [], long: []} for name in runners}
-    ratios = {name: [] for name in runners}
+    slopes = {name: [] for name in runners}
     for _ in range(repetitions):
-        slopes = {}
         for name, run in runners.items():
             for stop in (short, long):
                 seconds[name][stop].append(_seconds(lambda: run(stop)))
-            slopes[name] = (seconds[name][long][-1] - seconds[name][short][-1]) / steps
-        for name in runners:
-            ratios[name].append(slopes[name] / slopes["fmpy"])
+            slopes[name].append((seconds[name][long][-1] - seconds[name][short][-1]) / steps)
     # the least time of each run length is the one least disturbed by other work
     return {name: {"us": (min(seconds[name][long]) - min(seconds[name][short])) / steps * 1e6,
-                   "ratios": ratios[name]} for name in runners}
+                   "ratios": [a / b for a, b in zip(slopes[name], slopes["fmpy"])],
+                   "slopes": slopes[name]} for name in runners}
+
+
+def libcosim_available() -> bool:
+    """Whether libcosim's Python binding (libcosimpy, from PyPI) is installed."""
+    try:
+        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    except ImportError:
+        return False
+    log_output_level(CosimLogLevel.ERROR)  # it logs every call at debug level otherwise
+    return True
+
+
+def libcosim(ssp: Path, stop: float, folder: Path | None = None) -> None:
+    """One libcosim run of ``ssp`` to ``stop`` (s) with its fixed-step algorithm:
+    every variable of every FMU written to CSV files in ``folder`` (its file observer,
+    6 significant digits), or only the last values kept (``folder`` None).  libcosimpy
+    is imported here: an optional library the benchmark runs without."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+
+    execution = CosimExecution.from_ssp_file(str(ssp), step_size=round(STEP * 1e9))
+    if folder is not None:
+        folder.mkdir(exist_ok=True)
+        observer = CosimObserver.create_to_dir(str(folder))
+    else:
+        observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    execution.simulate_until(round(stop * 1e9))
+    del execution, observer  # files closed, instances freed, now
+
+
+def _profiled(ssp: Path, folder: Path, stop: float) -> tuple[dict, dict]:
+    """cProfile's entries of one dsim run (CSV + statistics) to ``stop``, and its
+    statistics."""
+    profiler = cProfile.Profile()
+    profiler.enable()
+    result = dsim.simulate(ssp, out=folder / "profiled.csv", stop=stop, handle_signals=False,
+                           force=True)
+    profiler.disable()
+    return pstats.Stats(profiler).stats, result.statistics
+
+
+def profile(ssp: Path, folder: Path, short: float, long: float, shown: int = 12) -> list[str]:
+    """Where a dsim run (CSV + statistics) spends its time per step: the functions of
+    most own time under cProfile, the difference of a long and a short run over the
+    steps between them (start-up cancels, as in the timing), in microseconds per step
+    (cProfile's own cost included: the sum is above the plain run's), as table lines."""
+    before, _ = _profiled(ssp, folder, short)
+    after, statistics = _profiled(ssp, folder, long)
+    steps = round((long - short) / STEP)
+    # (file, line, function) -> (calls, own seconds) of the steps between the two runs
+    each = {key: (entry[1] - before.get(key, (0, 0, 0.0))[1],
+                  entry[2] - before.get(key, (0, 0, 0.0))[2]) for key, entry in after.items()}
+    total = sum(seconds for _, seconds in each.values())
+    lines = ["| function | calls per step | own us per step | share |", "|---|---|---|---|"]
+    for (file, line, name), (calls, seconds) in sorted(each.items(),
+                                                        key=lambda e: -e[1][1])[:shown]:
+        where = f"{Path(file).name}:{line} {name}" if line else name
+        lines.append(f"| `{where}` | {calls / steps:.1f} | {seconds / steps * 1e6:.2f} | "
+                     f"{seconds / total:.0%} |")
+    lines += ["", f"Total under the profiler: {total / steps * 1e6:.1f} us per step. In the "
+              f"long run, {statistics['seconds_in_fmus'] / statistics['steps'] * 1e6:.1f} us "
+              "per step went to the FMUs' functions (statistics `seconds_in_fmus`: the time "
+              "between entering and leaving each FMI call)."]
+    return lines
 
 
 def recurrence(count: int, steps: int, inputs_start_at_zero: bool) -> np.ndarray:
@@ -94,16 +162,26 @@ def agreement(ssp: Path, count: int, stop: float) -> tuple[float, float]:
             float(np.max(np.abs(theirs - recurrence(count, steps, True)))))
 
 
+def _ratio(ratios) -> str:
+    return f"{stats.median(ratios):.2f} ({min(ratios):.2f} .. {max(ratios):.2f})"
+
+
 def table(rows: list[tuple[int, dict, float]]) -> str:
-    lines = ["| blocks | fmpy simulate_ssp (us/step) | dsim, CSV + statistics (us/step) | "
-             "dsim / fmpy | dsim, in memory (us/step) | dsim / fmpy | error dsim | error fmpy |",
-             "|---|---|---|---|---|---|---|---|"]
+    """One row per ring: each master's time per step and its ratio to fmpy's, dsim's
+    (CSV) ratio to libcosim's (CSV files), and both masters' errors."""
+    others = [name for name in rows[0][1] if name != "fmpy"]
+    cosim = "libcosim (CSV files)" in rows[0][1]
+    lines = ["| blocks | fmpy simulate_ssp (us/step) | "
+             + " | ".join(f"{name} (us/step) | / fmpy" for name in others)
+             + (" | dsim CSV / libcosim CSV" if cosim else "") + " | error dsim | error fmpy |",
+             "|---|---|" + "---|---|" * len(others) + ("---|" if cosim else "") + "---|---|"]
     for count, result, (ours, theirs) in rows:
         cells = [str(count), f"{result['fmpy']['us']:.1f}"]
-        for name in ("dsim (CSV + statistics)", "dsim (in memory)"):
-            ratios = result[name]["ratios"]
-            cells += [f"{result[name]['us']:.1f}",
-                      f"{stats.median(ratios):.2f} ({min(ratios):.2f} .. {max(ratios):.2f})"]
+        for name in others:
+            cells += [f"{result[name]['us']:.1f}", _ratio(result[name]["ratios"])]
+        if cosim:
+            cells.append(_ratio([a / b for a, b in zip(result["dsim (CSV + statistics)"]["slopes"],
+                                                       result["libcosim (CSV files)"]["slopes"])]))
         cells += [f"{ours:.1e}", f"{theirs:.1e}"]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -111,13 +189,15 @@ def table(rows: list[tuple[int, dict, float]]) -> str:
 
 def main(argv=None) -> str:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--blocks", default="2,10,50")
+    parser.add_argument("--blocks", default="4,10,50")
+    parser.add_argument("--profile-blocks", type=int, default=4,
+                        help="the ring whose dsim run is profiled")
     parser.add_argument("--repetitions", type=int, default=7)
     parser.add_argument("--short", type=float, default=0.5, help="short run, s")
     parser.add_argument("--long", type=float, default=5.0, help="long run, s")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "causal_benchmark.md"))
     args = parser.parse_args(argv)
-    rows = []
+    rows, profiled = [], []
     with tempfile.TemporaryDirectory(prefix="dsim-causal-") as temp:
         folder = Path(temp)
         fmu = c_fmu(folder, "block")
@@ -127,15 +207,19 @@ def main(argv=None) -> str:
             result = measure(ssp, folder, args.short, args.long, args.repetitions)
             rows.append((count, result, agreement(ssp, count, args.short)))
             print(f"{count} blocks: " + ", ".join(
-                f"{name} {r['us']:.1f} us/step" for name, r in result.items()))
+                f"{name} {r['us']:.1f} us/step" for name, r in result.items()), flush=True)
+            if count == args.profile_blocks:
+                profiled = profile(ssp, folder, args.short, args.long)
     text = "\n".join([
-        "# Causal systems: dsim against fmpy's SSP runner",
+        "# Causal systems: dsim against fmpy's SSP runner and libcosim",
         "",
         f"Written by `python -m benchmarks.causal_benchmark` on {date.today()} "
         f"({platform.machine()}, Python {platform.python_version()}). A ring of n first-order "
         "lag blocks, each a plain-C FMI 2.0 co-simulation FMU compiled in the run "
         "(tests/third_party/block.c), connected causally (no joints), step 1 ms. Both masters "
-        "run the same .ssp archive. Per-step time is the slope between a "
+        "run the same .ssp archive; so does libcosim (the C++ co-simulation library of the "
+        "Open Simulation Platform, through libcosimpy from PyPI, its fixed-step algorithm) "
+        "where it is installed. Per-step time is the slope between a "
         f"{args.short:g} s and a {args.long:g} s run of the same master (start-up cancels); the "
         f"runs are interleaved and repeated {args.repetitions} times: the time per step comes "
         "from the least time of each run (the least disturbed by the other work of a shared "
@@ -153,7 +237,25 @@ def main(argv=None) -> str:
         "column does. The error columns: the largest difference of every block output from "
         "the blocks' exact update computed in numpy (benchmarks/causal_benchmark.py, "
         "`recurrence`): dsim feeds every input from the outputs at the step start, the first "
-        "step too; fmpy's runner starts every input at 0.",
+        "step too; fmpy's runner starts every input at 0. libcosim's CSV files hold every "
+        "variable of every FMU at 6 significant digits; its last-values column records "
+        "nothing.",
+        "",
+        f"## Where dsim's time goes ({args.profile_blocks} blocks)",
+        "",
+        f"dsim (CSV + statistics) on the {args.profile_blocks}-block ring under cProfile, "
+        f"the {args.long:g} s run less the {args.short:g} s one (start-up cancels): the "
+        "functions of most own time, per macro step. "
+        "`_Call.__call__` is dsim's checkpoint around every FMI call (one `fmi2SetReal`, "
+        "`fmi2DoStep` and `fmi2GetReal` per FMU per step: it counts and times each call "
+        "for the statistics and checks its status); its own time includes the FMU's "
+        "function, which runs in C and shows in no Python frame. What is left in Python "
+        "is the step loop (`execution.py` `step`), the in-process backend's loop over the "
+        "FMUs, the connections' transfer (one gather per step) and the CSV rows, "
+        "formatted in blocks on the recorder's flush (`_csv_block`: one `repr` of a block "
+        "of rows).",
+        "",
+        *profiled,
         ""])
     Path(args.docs).write_text(text)
     return text

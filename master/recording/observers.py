@@ -100,6 +100,19 @@ class Observer:
         an FMU call); ``result`` is the interrupted run as far as it got."""
 
 
+def _csv_block(rows) -> str:
+    """The CSV text of (time, values, texts) rows, each number as ``repr`` writes it
+    (the shortest text that reads back as the same double).  Rows of numbers only are
+    formatted by one ``repr`` of the block (Python's own loop over the floats, in C; a
+    float's repr has no ", " and no "], [" in it), twice as fast as one join per row."""
+    if any(texts for _, _, texts in rows):
+        return "".join(",".join([repr(time)] + list(map(repr, values.tolist()))
+                               + [_quoted(t) for t in texts]) + "\n"
+                       for time, values, texts in rows)
+    block = repr([[time] + values.tolist() for time, values, _ in rows])
+    return block[2:-2].replace("], [", "\n").replace(", ", ",") + "\n"
+
+
 class CsvRecorder(Observer):
     """``time``, recorded outputs, joint forces: one row per converged step, in full
     double precision, under a temporary name renamed to ``path`` when the run ends
@@ -167,11 +180,7 @@ class CsvRecorder(Observer):
         pending = self._pending
         rows = [pending.popleft() for _ in range(len(pending))]
         if rows:
-            # repr: the shortest text that reads back as the same double
-            text = "".join(",".join([repr(time)] + list(map(repr, values.tolist()))
-                                    + [_quoted(t) for t in texts]) + "\n"
-                           for time, values, texts in rows)
-            self.output.append(text.encode(), separator=b"\n")
+            self.output.append(_csv_block(rows).encode(), separator=b"\n")
         self._flushed_at = clock.monotonic()
 
     def _flush_late_rows(self) -> None:
