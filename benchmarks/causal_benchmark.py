@@ -1,18 +1,22 @@
-"""Causal systems: dsim's per-step time against fmpy's own SSP runner on the same .ssp.
+"""Causal systems: dsim's per-step time against fmpy's own SSP runner and libcosim on
+the same .ssp.
 
 A ring of n first-order lag blocks (tests/third_party/block.c, compiled here with
 gcc into a real FMI 2.0 co-simulation FMU) connected causally, b1.y -> b2.u ->
-... -> bn.y -> b1.u, no joints.  Both masters run the same archive:
-``fmpy.ssp.simulation.simulate_ssp`` and ``dsim.simulate`` (dsim with its CSV
-and statistics written, as ``dsim run`` does, and with the signals kept in
-memory as fmpy does).
+... -> bn.y -> b1.u, no joints (n = 4: the four-FMU causal scene).  Every master runs
+the same archive: ``fmpy.ssp.simulation.simulate_ssp``, ``dsim.simulate`` (with its
+CSV and statistics written, as ``dsim run`` does, and with the signals kept in
+memory as fmpy does) and, where libcosimpy is installed, libcosim (C++, the Open
+Simulation Platform's library) with its CSV file observer and with none.
 
 Per-step time is the slope between a short and a long run of the same master
-(start-up cancels); the runs of both masters are interleaved and repeated, and
-the table reports the median of the repetitions and the ratio dsim / fmpy of
-each repetition (a ratio of runs made side by side on a shared machine).  The
-two masters must agree: fmpy's row k holds the values after step k + 1, dsim's
-row k + 1 the same; the largest difference is reported.
+(start-up cancels), in CPU seconds of the process (a shared machine makes wall time
+mostly waiting); the runs of the masters are interleaved and repeated, and the table
+reports the median of the repetitions and the ratio to fmpy of each repetition (a
+ratio of runs made side by side).  dsim and fmpy must agree: fmpy's row k holds the
+values after step k + 1, dsim's row k + 1 the same; the largest difference is
+reported.  A profile of dsim's steps (the long run less the short one) says where its
+time goes.
 
     python -m benchmarks.causal_benchmark   # writes docs/causal_benchmark.md
 """
@@ -245,10 +249,13 @@ def main(argv=None) -> str:
         "dsim runs a system without joints with its causal coupling: no state is saved or "
         "restored and no Newton runs; each FMU takes one batched `fmi2SetReal` of its inputs, "
         "one `fmi2DoStep` and one batched `fmi2GetReal` of what is recorded or feeds a "
-        "connection, through value-reference arrays resolved once. The CSV column includes "
-        "formatting and writing every output of every step in full precision (about 0.3 us "
-        "per value) and the statistics; fmpy keeps its rows in memory, as dsim's in-memory "
-        "column does. The error columns: the largest difference of every block output from "
+        "connection, through value-reference arrays resolved once, in one call of the "
+        "subsystem per step (each FMI call still counted, timed and its status checked). "
+        "The CSV column includes formatting and writing every output of every step in full "
+        "precision (Python's `repr` of each double, the shortest text that reads back the "
+        "same: most of the difference between dsim's two columns; rows are formatted a "
+        "block at a time on the recorder's flush) and the statistics; fmpy keeps its rows "
+        "in memory, as dsim's in-memory column does. The error columns: the largest difference of every block output from "
         "the blocks' exact update computed in numpy (benchmarks/causal_benchmark.py, "
         "`recurrence`): dsim feeds every input from the outputs at the step start, the first "
         "step too; fmpy's runner starts every input at 0. libcosim's CSV files hold every "

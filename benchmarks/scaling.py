@@ -103,7 +103,9 @@ def command(*args) -> dict:
 def main(argv=None) -> str:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", default="10,100,1000,10000", help="subsystems per run")
-    parser.add_argument("--steps", default="200,50,10,5", help="macro steps of each run")
+    parser.add_argument("--steps", default="200,50,20,10",
+                        help="macro steps of each run (whole tens: one flexibility refresh "
+                        "in ten steps for every chain)")
     parser.add_argument("--checks", default="1000,10000,100000",
                         help="components of the validate and info scenes")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "scaling.md"))
