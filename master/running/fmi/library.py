@@ -50,6 +50,8 @@ def sharing(fmpy_class: type) -> type:
     """The subclass of an fmpy FMU class (``FMU2Slave``, ``FMU3Model``, ...) whose
     instances share one binding of their library's functions."""
     if fmpy_class not in _CLASSES:
+        # the same name: fmpy's _loadFunctions picks the functions' prefix (fmi1, fmi2,
+        # fmi3) from the class's name
         _CLASSES[fmpy_class] = type(fmpy_class.__name__, (_Shared, fmpy_class), {
             "__doc__": f"fmpy's {fmpy_class.__name__}, its functions bound once per library "
                        "(dsim.master.running.fmi.library)"})
