@@ -18,6 +18,7 @@ values after step k + 1, dsim's row k + 1 the same; the largest difference is
 reported.  A profile of dsim's steps (the long run less the short one) says where its
 time goes.
 
+    pip install -e '.[bench]'                # libcosimpy, for the libcosim columns
     python -m benchmarks.causal_benchmark   # writes docs/causal_benchmark.md
 """
 from __future__ import annotations
