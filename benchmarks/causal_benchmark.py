@@ -1,25 +1,32 @@
-"""Causal systems: dsim's per-step time against fmpy's own SSP runner on the same .ssp.
+"""Causal systems: dsim's per-step time against fmpy's own SSP runner and libcosim on
+the same .ssp.
 
 A ring of n first-order lag blocks (tests/third_party/block.c, compiled here with
 gcc into a real FMI 2.0 co-simulation FMU) connected causally, b1.y -> b2.u ->
-... -> bn.y -> b1.u, no joints.  Both masters run the same archive:
-``fmpy.ssp.simulation.simulate_ssp`` and ``dsim.simulate`` (dsim with its CSV
-and statistics written, as ``dsim run`` does, and with the signals kept in
-memory as fmpy does).
+... -> bn.y -> b1.u, no joints (n = 4: the four-FMU causal scene).  Every master runs
+the same archive: ``fmpy.ssp.simulation.simulate_ssp``, ``dsim.simulate`` (with its
+CSV and statistics written, as ``dsim run`` does, and with the signals kept in
+memory as fmpy does) and, where libcosimpy is installed, libcosim (C++, the Open
+Simulation Platform's library) with its CSV file observer and with none.
 
 Per-step time is the slope between a short and a long run of the same master
-(start-up cancels); the runs of both masters are interleaved and repeated, and
-the table reports the median of the repetitions and the ratio dsim / fmpy of
-each repetition (a ratio of runs made side by side on a shared machine).  The
-two masters must agree: fmpy's row k holds the values after step k + 1, dsim's
-row k + 1 the same; the largest difference is reported.
+(start-up cancels), in CPU seconds of the process (a shared machine makes wall time
+mostly waiting); the runs of the masters are interleaved and repeated, and the table
+reports the median of the repetitions and the ratio to fmpy of each repetition (a
+ratio of runs made side by side).  dsim and fmpy must agree: fmpy's row k holds the
+values after step k + 1, dsim's row k + 1 the same; the largest difference is
+reported.  A profile of dsim's steps (the long run less the short one) says where its
+time goes.
 
+    pip install -e '.[bench]'                # libcosimpy, for the libcosim columns
     python -m benchmarks.causal_benchmark   # writes docs/causal_benchmark.md
 """
 from __future__ import annotations
 
 import argparse
+import cProfile
 import platform
+import pstats
 import statistics as stats
 import tempfile
 import time
@@ -37,9 +44,11 @@ STEP = 1e-3
 
 
 def _seconds(function) -> float:
-    start = time.perf_counter()
+    """CPU seconds of this process (every thread) that ``function`` takes: on a machine
+    shared with other work, wall time is mostly waiting for a core."""
+    start = time.process_time()
     function()
-    return time.perf_counter() - start
+    return time.process_time() - start
 
 
 def measure(ssp: Path, folder: Path, short: float, long: float, repetitions: int) -> dict:
@@ -48,23 +57,98 @@ def measure(ssp: Path, folder: Path, short: float, long: float, repetitions: int
     runners = {
         "fmpy": lambda stop: simulate_ssp(str(ssp), stop_time=stop, step_size=STEP),
         "dsim (CSV + statistics)": lambda stop: dsim.simulate(
-            ssp, out=folder / "run.csv", stop=stop, handle_signals=False),
+            ssp, out=folder / "run.csv", stop=stop, handle_signals=False, force=True),
         "dsim (in memory)": lambda stop: dsim.simulate(ssp, stop=stop, handle_signals=False),
     }
+    if libcosim_available():
+        runners["libcosim (CSV files)"] = lambda stop: libcosim(ssp, stop, folder / "cosim")
+        runners["libcosim (last values)"] = lambda stop: libcosim(ssp, stop)
     steps = round((long - short) / STEP)
+    for run in runners.values():  # what a first run does once (imports, caches)
+        run(short)
     seconds = {name: {short: [], long: []} for name in runners}
-    ratios = {name: [] for name in runners}
+    slopes = {name: [] for name in runners}
     for _ in range(repetitions):
-        slopes = {}
         for name, run in runners.items():
             for stop in (short, long):
                 seconds[name][stop].append(_seconds(lambda: run(stop)))
-            slopes[name] = (seconds[name][long][-1] - seconds[name][short][-1]) / steps
-        for name in runners:
-            ratios[name].append(slopes[name] / slopes["fmpy"])
+            slopes[name].append((seconds[name][long][-1] - seconds[name][short][-1]) / steps)
     # the least time of each run length is the one least disturbed by other work
     return {name: {"us": (min(seconds[name][long]) - min(seconds[name][short])) / steps * 1e6,
-                   "ratios": ratios[name]} for name in runners}
+                   "ratios": [a / b for a, b in zip(slopes[name], slopes["fmpy"])],
+                   "slopes": slopes[name]} for name in runners}
+
+
+def libcosim_available() -> bool:
+    """Whether libcosim's Python binding (libcosimpy, from PyPI) is installed."""
+    try:
+        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    except ImportError:
+        return False
+    log_output_level(CosimLogLevel.ERROR)  # it logs every call at debug level otherwise
+    return True
+
+
+def libcosim(ssp: Path, stop: float, folder: Path | None = None) -> None:
+    """One libcosim run of ``ssp`` to ``stop`` (s) with its fixed-step algorithm:
+    every variable of every FMU written to CSV files in ``folder`` (its file observer,
+    6 significant digits), or only the last values kept (``folder`` None).  libcosimpy
+    is imported here: an optional library the benchmark runs without."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+
+    execution = CosimExecution.from_ssp_file(str(ssp), step_size=round(STEP * 1e9))
+    if folder is not None:
+        folder.mkdir(exist_ok=True)
+        observer = CosimObserver.create_to_dir(str(folder))
+    else:
+        observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    execution.simulate_until(round(stop * 1e9))
+    del execution, observer  # files closed, instances freed, now
+
+
+def _profiled(ssp: Path, folder: Path, stop: float) -> tuple[dict, dict]:
+    """cProfile's entries of one dsim run (CSV + statistics) to ``stop``, and its
+    statistics."""
+    profiler = cProfile.Profile(time.process_time)
+    profiler.enable()
+    result = dsim.simulate(ssp, out=folder / "profiled.csv", stop=stop, handle_signals=False,
+                           force=True)
+    profiler.disable()
+    return pstats.Stats(profiler).stats, result.statistics
+
+
+def profile(ssp: Path, folder: Path, short: float, long: float, shown: int = 12) -> list[str]:
+    """Where a dsim run (CSV + statistics) spends its time per step: the functions of
+    most own time under cProfile, the difference of a long and a short run over the
+    steps between them (start-up cancels, as in the timing), in microseconds per step
+    (cProfile's own cost included: the sum is above the plain run's; CPU time of the
+    main thread, the only one cProfile follows), as table lines."""
+    before, _ = _profiled(ssp, folder, short)
+    after, _ = _profiled(ssp, folder, long)
+    plain = [dsim.simulate(ssp, out=folder / "plain.csv", stop=stop, handle_signals=False,
+                           force=True).statistics for stop in (short, long)]
+    steps = round((long - short) / STEP)
+    # (file, line, function) -> (calls, own seconds) of the steps between the two runs
+    each = {key: (entry[1] - before.get(key, (0, 0, 0.0))[1],
+                  entry[2] - before.get(key, (0, 0, 0.0))[2]) for key, entry in after.items()}
+    # what the set-up calls as often in both runs only differs by the machine's noise
+    each = {key: found for key, found in each.items() if found[0] > 0}
+    total = sum(seconds for _, seconds in each.values())
+    lines = ["| function | calls per step | own us per step | share |", "|---|---|---|---|"]
+    for (file, line, name), (calls, seconds) in sorted(each.items(),
+                                                        key=lambda e: -e[1][1])[:shown]:
+        where = f"{Path(file).name}:{line} {name}" if line else name
+        lines.append(f"| `{where}` | {calls / steps:.1f} | {seconds / steps * 1e6:.2f} | "
+                     f"{seconds / total:.0%} |")
+    inside = (plain[1]["seconds_in_fmus"] - plain[0]["seconds_in_fmus"]) / steps
+    wall = (plain[1]["wall_seconds"] - plain[0]["wall_seconds"]) / steps
+    lines += ["", f"Total under the profiler: {total / steps * 1e6:.1f} us per step. Without "
+              f"it (the same two runs, wall time), {inside / wall:.0%} of a step is inside "
+              "the FMUs' functions (statistics `seconds_in_fmus`: from entering to leaving "
+              "each FMI call, the ctypes crossing included), the rest in the master."]
+    return lines
 
 
 def recurrence(count: int, steps: int, inputs_start_at_zero: bool) -> np.ndarray:
@@ -94,30 +178,56 @@ def agreement(ssp: Path, count: int, stop: float) -> tuple[float, float]:
             float(np.max(np.abs(theirs - recurrence(count, steps, True)))))
 
 
+def _ratio(ratios) -> str:
+    return f"{stats.median(ratios):.2f} ({min(ratios):.2f} .. {max(ratios):.2f})"
+
+
 def table(rows: list[tuple[int, dict, float]]) -> str:
-    lines = ["| blocks | fmpy simulate_ssp (us/step) | dsim, CSV + statistics (us/step) | "
-             "dsim / fmpy | dsim, in memory (us/step) | dsim / fmpy | error dsim | error fmpy |",
-             "|---|---|---|---|---|---|---|---|"]
+    """One row per ring: each master's time per step and its ratio to fmpy's, dsim's
+    (CSV) ratio to libcosim's (CSV files), and both masters' errors."""
+    others = [name for name in rows[0][1] if name != "fmpy"]
+    cosim = "libcosim (CSV files)" in rows[0][1]
+    lines = ["| blocks | fmpy simulate_ssp (us/step) | "
+             + " | ".join(f"{name} (us/step) | / fmpy" for name in others)
+             + (" | dsim CSV / libcosim CSV" if cosim else "") + " | error dsim | error fmpy |",
+             "|---|---|" + "---|---|" * len(others) + ("---|" if cosim else "") + "---|---|"]
     for count, result, (ours, theirs) in rows:
         cells = [str(count), f"{result['fmpy']['us']:.1f}"]
-        for name in ("dsim (CSV + statistics)", "dsim (in memory)"):
-            ratios = result[name]["ratios"]
-            cells += [f"{result[name]['us']:.1f}",
-                      f"{stats.median(ratios):.2f} ({min(ratios):.2f} .. {max(ratios):.2f})"]
+        for name in others:
+            cells += [f"{result[name]['us']:.1f}", _ratio(result[name]["ratios"])]
+        if cosim:
+            cells.append(_ratio([a / b for a, b in zip(result["dsim (CSV + statistics)"]["slopes"],
+                                                       result["libcosim (CSV files)"]["slopes"])]))
         cells += [f"{ours:.1e}", f"{theirs:.1e}"]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
+def _libcosim_summary(rows) -> list[str]:
+    """How far dsim is from libcosim on the smallest ring (from the times per step)."""
+    count, result, _ = rows[0]
+    if "libcosim (last values)" not in result:
+        return ["libcosimpy is not installed here: no libcosim columns.", ""]
+    us = {name: r["us"] for name, r in result.items()}
+    return [f"How far from libcosim ({count} blocks, times per step): dsim keeping its rows "
+            f"in memory takes {us['dsim (in memory)'] / us['libcosim (last values)']:.2f} "
+            "times libcosim recording nothing, and dsim writing its CSV "
+            f"{us['dsim (CSV + statistics)'] / us['libcosim (CSV files)']:.2f} times libcosim "
+            "writing its CSV files (which hold every variable, at 6 digits). libcosim steps "
+            "its FMUs from a pool of threads: its CPU time includes theirs.", ""]
+
+
 def main(argv=None) -> str:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--blocks", default="2,10,50")
+    parser.add_argument("--blocks", default="4,10,50")
+    parser.add_argument("--profile-blocks", type=int, default=4,
+                        help="the ring whose dsim run is profiled")
     parser.add_argument("--repetitions", type=int, default=7)
     parser.add_argument("--short", type=float, default=0.5, help="short run, s")
     parser.add_argument("--long", type=float, default=5.0, help="long run, s")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "causal_benchmark.md"))
     args = parser.parse_args(argv)
-    rows = []
+    rows, profiled = [], []
     with tempfile.TemporaryDirectory(prefix="dsim-causal-") as temp:
         folder = Path(temp)
         fmu = c_fmu(folder, "block")
@@ -127,15 +237,21 @@ def main(argv=None) -> str:
             result = measure(ssp, folder, args.short, args.long, args.repetitions)
             rows.append((count, result, agreement(ssp, count, args.short)))
             print(f"{count} blocks: " + ", ".join(
-                f"{name} {r['us']:.1f} us/step" for name, r in result.items()))
+                f"{name} {r['us']:.1f} us/step" for name, r in result.items()), flush=True)
+            if count == args.profile_blocks:
+                profiled = profile(ssp, folder, args.short, args.long)
     text = "\n".join([
-        "# Causal systems: dsim against fmpy's SSP runner",
+        "# Causal systems: dsim against fmpy's SSP runner and libcosim",
         "",
         f"Written by `python -m benchmarks.causal_benchmark` on {date.today()} "
         f"({platform.machine()}, Python {platform.python_version()}). A ring of n first-order "
         "lag blocks, each a plain-C FMI 2.0 co-simulation FMU compiled in the run "
         "(tests/third_party/block.c), connected causally (no joints), step 1 ms. Both masters "
-        "run the same .ssp archive. Per-step time is the slope between a "
+        "run the same .ssp archive; so does libcosim (the C++ co-simulation library of the "
+        "Open Simulation Platform, through libcosimpy from PyPI, its fixed-step algorithm) "
+        "where it is installed. Times are CPU seconds of the process (every thread of it: "
+        "dsim's CSV flush thread too), which a machine shared with other work disturbs far "
+        "less than wall time. Per-step time is the slope between a "
         f"{args.short:g} s and a {args.long:g} s run of the same master (start-up cancels); the "
         f"runs are interleaved and repeated {args.repetitions} times: the time per step comes "
         "from the least time of each run (the least disturbed by the other work of a shared "
@@ -144,16 +260,38 @@ def main(argv=None) -> str:
         "",
         table(rows),
         "",
+        *_libcosim_summary(rows),
         "dsim runs a system without joints with its causal coupling: no state is saved or "
         "restored and no Newton runs; each FMU takes one batched `fmi2SetReal` of its inputs, "
         "one `fmi2DoStep` and one batched `fmi2GetReal` of what is recorded or feeds a "
-        "connection, through value-reference arrays resolved once. The CSV column includes "
-        "formatting and writing every output of every step in full precision (about 0.3 us "
-        "per value) and the statistics; fmpy keeps its rows in memory, as dsim's in-memory "
-        "column does. The error columns: the largest difference of every block output from "
+        "connection, through value-reference arrays resolved once, in one call of the "
+        "subsystem per step (each FMI call still counted, timed and its status checked). "
+        "The CSV column includes formatting and writing every output of every step in full "
+        "precision (Python's `repr` of each double, the shortest text that reads back the "
+        "same: most of the difference between dsim's two columns; rows are formatted a "
+        "block at a time on the recorder's flush) and the statistics; fmpy keeps its rows "
+        "in memory, as dsim's in-memory column does. The error columns: the largest difference of every block output from "
         "the blocks' exact update computed in numpy (benchmarks/causal_benchmark.py, "
         "`recurrence`): dsim feeds every input from the outputs at the step start, the first "
-        "step too; fmpy's runner starts every input at 0.",
+        "step too; fmpy's runner starts every input at 0. libcosim's CSV files hold every "
+        "variable of every FMU at 6 significant digits; its last-values column records "
+        "nothing.",
+        "",
+        f"## Where dsim's time goes ({args.profile_blocks} blocks)",
+        "",
+        f"dsim (CSV + statistics) on the {args.profile_blocks}-block ring under cProfile, "
+        f"the {args.long:g} s run less the {args.short:g} s one (start-up cancels): the "
+        "functions of most own time, per macro step. "
+        "`_Call.__call__` is dsim's checkpoint around every FMI call (one `fmi2SetReal`, "
+        "`fmi2DoStep` and `fmi2GetReal` per FMU per step: it counts and times each call "
+        "for the statistics and checks its status); its own time includes the FMU's "
+        "function, which runs in C and shows in no Python frame. What is left in Python "
+        "is the step loop (`execution.py` `step`), the in-process backend's loop over the "
+        "FMUs, the connections' transfer (one gather per step) and the CSV rows, "
+        "formatted in blocks on the recorder's flush (`_csv_block`: one `repr` of a block "
+        "of rows).",
+        "",
+        *profiled,
         ""])
     Path(args.docs).write_text(text)
     return text

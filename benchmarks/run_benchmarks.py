@@ -132,7 +132,9 @@ def main(argv=None) -> None:
         "includes instantiating 1000 FMU instances, reported as start-up above. The count of "
         "every call grows linearly with the subsystems (`FMI calls per step`); what grows "
         "faster from 100 to 1000 is the time of each call (`us per fmi2DoStep`): a thousand "
-        "Python FMU instances no longer fit the processor's caches.",
+        "Python FMU instances no longer fit the processor's caches. Chains of 10 to 10,000 "
+        "subsystems (set-up, time per step, memory) and `dsim validate` and `dsim info` of "
+        "up to 100,000 components: docs/scaling.md (`python -m benchmarks.scaling`).",
         "",
         "Where the time goes: the monolithic references are numpy loops over one small "
         "model (a step of the whole chain costs a few microseconds), so the ratio mostly "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 DOFS = ("x", "y", "z", "rx", "ry", "rz")
@@ -193,5 +194,14 @@ class Scene:
     descriptions: dict = field(default_factory=dict)
 
     def component(self, path: str) -> Component:
-        """The component at a dotted path."""
-        return next(c for c in self.components if c.path == path)
+        """The component at a dotted path (KeyError: none is there)."""
+        return self._by_path[path]
+
+    @cached_property
+    def _by_path(self) -> dict:
+        """dotted path -> component, made once (a scan per look-up made validating
+        10,000 components quadratic); the first of two with the same path wins."""
+        index: dict = {}
+        for component in self.components:
+            index.setdefault(component.path, component)
+        return index

@@ -100,13 +100,18 @@ def assemble(components: list[str], joints: list[Joint], sides: dict, positions=
                 enter(port_dof, r, coefficient)
     n = len(labels)
     # only the glued components have a C_i: the others are stepped without the algorithm
-    per_component = {c: ([], [], []) for c in components if interfaces[c]}
-    for owner, local, r, coefficient in entries:
-        rows, cols, data = per_component[owner]
-        rows.append(local), cols.append(r), data.append(coefficient)
-    incidence = [sp.csr_matrix((data, (rows, cols)), shape=(len(interfaces[c]), n))
-                 for c, (rows, cols, data) in per_component.items()]
-    layout = GluingLayout(incidence, weights, labels, joint_of, measures)
+    glued = [c for c in components if interfaces[c]]
+    sizes = [len(interfaces[c]) for c in glued]
+    offset = dict(zip(glued, np.r_[0, np.cumsum(sizes)[:-1]].astype(int).tolist()))
+    # all the C_i stacked, built as one matrix (one small matrix per component cost
+    # more than the rest of planning 10,000 of them); entries in the order each C_i's
+    # own would have, so that every sum comes out the same
+    order = sorted(range(len(entries)), key=lambda k: offset[entries[k][0]])
+    rows = [offset[entries[k][0]] + entries[k][1] for k in order]
+    cols = [entries[k][2] for k in order]
+    data = [entries[k][3] for k in order]
+    stacked = sp.csr_matrix((data, (rows, cols)), shape=(sum(sizes), n))
+    layout = GluingLayout(stacked, weights, labels, joint_of, measures, sizes=sizes)
     states = JointStates(flexible, k0, k1, c0, c1)
     return layout, states, interfaces
 

@@ -22,23 +22,35 @@ class GluingLayout:
     force entry r as ``joint.f_dof`` (the CSV column); ``joint_of[r]`` the joint.
     """
 
-    def __init__(self, incidence, weights, labels, joint_of, measures=None):
-        self.incidence = [sp.csr_matrix(c) for c in incidence]
+    def __init__(self, incidence, weights, labels, joint_of, measures=None, sizes=None):
+        """``incidence``: the C_i as a list of matrices, or (with ``sizes``, each
+        C_i's row count) all of them stacked in one matrix, as :func:`~dsim.master.
+        planning.assembly.assemble` builds it (one sparse matrix for 10,000
+        subsystems rather than 10,000 small ones)."""
         self.labels = list(labels)
         self.size = len(self.labels)
-        sizes = [c.shape[0] for c in self.incidence]
+        if sizes is None:
+            blocks = [sp.csr_matrix(c) for c in incidence]
+            sizes = [c.shape[0] for c in blocks]
+            # one stacked C (all glued dofs x n_F): an iteration costs a few sparse products
+            incidence = (sp.vstack(blocks).tocsr() if blocks
+                         else sp.csr_matrix((0, self.size)))
+        sizes = [int(n) for n in sizes]
         self.offsets = np.cumsum(sizes)[:-1] if sizes else np.zeros(0, dtype=int)
         self._bounds = list(zip(np.r_[0, self.offsets].astype(int),
                                 np.r_[self.offsets, sum(sizes)].astype(int)))
-        # one stacked C (all glued dofs x n_F): an iteration costs a few sparse products
-        self.stacked = (sp.vstack(self.incidence).tocsr() if self.incidence
-                        else sp.csr_matrix((0, self.size)))
+        self.stacked = sp.csr_matrix(incidence)
         self.stacked_t = self.stacked.T.tocsr()
         self.stacked_abs_t = abs(self.stacked_t)
         self.weights = np.asarray(weights, dtype=float).reshape(-1, 3)
         self.joint_of = list(joint_of)
         #: the measure's name per dof ("displacement", "velocity", ...)
         self.measures = list(measures or ["displacement"] * self.size)
+
+    @property
+    def incidence(self) -> list:
+        """C_i of each glued subsystem (rows of the stacked matrix)."""
+        return [self.stacked[start:stop] for start, stop in self._bounds]
 
     def differences(self, kinematics, magnitudes: bool = True):
         """Per kind (u, v, a): sum_i C_i^T x_i (= x_b - x_a per joint dof) and the
@@ -67,6 +79,22 @@ class GluingLayout:
     def project(self, matrices) -> sp.csr_matrix:
         """sum_i C_i^T M_i C_i (n_F x n_F) of one dense n_i x n_i matrix per glued
         subsystem: a flexibility G_i, or a start sensitivity d a_i / d f_i."""
-        blocks = sp.block_diag([sp.csr_matrix(m) for m in matrices], format="csr") \
-            if len(matrices) else sp.csr_matrix((0, 0))
-        return (self.stacked_t @ blocks @ self.stacked).tocsr()
+        return (self.stacked_t @ _block_diagonal(matrices) @ self.stacked).tocsr()
+
+
+def _block_diagonal(matrices) -> sp.csr_matrix:
+    """The block-diagonal sparse matrix of dense square blocks, their non-zero entries
+    only (as ``scipy.sparse.block_diag`` of each block's csr_matrix, which builds one
+    sparse matrix per block: a thousand subsystems took a second per refresh)."""
+    if not len(matrices):
+        return sp.csr_matrix((0, 0))
+    rows, cols, data, start = [], [], [], 0
+    for matrix in matrices:
+        block = np.atleast_2d(np.asarray(matrix, dtype=float))
+        r, c = np.nonzero(block)
+        rows.append(r + start)
+        cols.append(c + start)
+        data.append(block[r, c])
+        start += block.shape[0]
+    return sp.csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(start, start))

@@ -575,8 +575,11 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     specs = _specs(scene, interfaces, checked, moves)
     text_reads, text_records = moves["text_reads"], checked["text_records"]
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
-    text_index = [sum(len(text_reads[q]) for q in paths[:paths.index(p)]) +
-                  text_reads[p].index(n) for p, n in text_recorded]
+    text_offsets, offset = {}, 0
+    for path in paths:
+        text_offsets[path] = offset
+        offset += len(text_reads[path])
+    text_index = [text_offsets[p] + text_reads[p].index(n) for p, n in text_recorded]
     columns = [f"{path}.{name}" for path, name in recorded] + list(layout.labels)
     selected, text_selected, problems = select_columns(
         outputs, columns, [f"{path}.{name}" for path, name in text_recorded])

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 from dsim.master.reading.fmi_description import describe, variables_by_name
@@ -38,14 +39,31 @@ class PortDof:
 
 
 def conventional_ports(path: Path) -> dict[str, dict[str, dict[str, int]]]:
-    """port -> dof -> kind (f, u, v, a) -> value reference, from variable names."""
+    """port -> dof -> kind (f, u, v, a) -> value reference, from variable names (the
+    names matched once per FMU file; each call gets its own port and dof dicts)."""
+    return {port: dict(dofs) for port, dofs in _file_ports(describe(path)).items()}
+
+
+@lru_cache(maxsize=64)
+def _file_ports(description) -> dict:
+    """:func:`conventional_ports` of one description (kept with it: a scene of 10,000
+    instances of one FMU matches its variable names once)."""
     ports: dict = {}
-    for variable in describe(path).modelVariables:
+    for variable in description.modelVariables:
         match = PORT_VARIABLE.match(variable.name)
         if match:
             ports.setdefault(match["port"], {}).setdefault(match["dof"], {})[
                 match["kind"]] = variable.valueReference
     return ports
+
+
+@lru_cache(maxsize=64)
+def _node_counts(description) -> tuple:
+    """(node set S, its Integer parameter ``S.nodes``) of one description."""
+    return tuple((name[:-len(".nodes")], variable)
+                 for name, variable in description.by_name.items()
+                 if name.endswith(".nodes") and variable.type == "Integer"
+                 and variable.causality == "parameter")
 
 
 def _mapped_ports(path: Path, maps: list[PortMap], problems: list) -> dict:
@@ -103,11 +121,8 @@ def joint_port_dofs(joint: Joint, side: str, ports: dict, problems: list) -> lis
 
 def _limit_node_sets(ports: dict, component) -> None:
     """Drop the members ``S[k]``, k > n, of every node set with a parameter ``S.nodes`` = n."""
-    for name, variable in variables_by_name(component.source).items():
-        if not (name.endswith(".nodes") and variable.type == "Integer"
-                and variable.causality == "parameter"):
-            continue
-        port = name[:-len(".nodes")]
+    for port, variable in _node_counts(describe(component.source)):
+        name = variable.name
         count = int(component.parameters.get(name, (None, variable.start or 0))[1])
         member = re.compile(re.escape(port) + r"\[(\d+)\]")
         for key in list(ports):
@@ -120,14 +135,18 @@ def component_ports(scene: Scene, problems: list, usable=None) -> dict[str, dict
     """component path -> its ports (conventional names, then annotation maps), for
     the components in ``usable`` (default: every component whose FMU file exists)."""
     result = {}
+    maps_of: dict[str, list] = {}
+    for port_map in scene.port_maps:
+        maps_of.setdefault(port_map.component, []).append(port_map)
     for component in scene.components:
         if (component.path not in usable) if usable is not None \
                 else not component.source.is_file():
             continue
         ports = conventional_ports(component.source)
         _limit_node_sets(ports, component)
-        maps = [m for m in scene.port_maps if m.component == component.path]
-        for name, dofs in _mapped_ports(component.source, maps, problems).items():
+        maps = maps_of.get(component.path, [])
+        for name, dofs in (_mapped_ports(component.source, maps, problems).items()
+                           if maps else ()):
             ports.setdefault(name, {}).update(dofs)
         result[component.path] = ports
     return result

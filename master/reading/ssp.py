@@ -199,6 +199,11 @@ class _Reader:
         #: (component path, Ray resource, where) of each glue:Placement
         self.placements: list[tuple[str, str, str]] = []
         self.files: list[Path] = [ssd]
+        #: per document, made once: each system's solver annotation (element -> what it
+        #: says), each named file's place (source -> resolved path, or the OS error):
+        #: 10,000 components of one FMU file resolve it once
+        self._solvers: dict = {}
+        self._places: dict[str, tuple] = {}
 
     def where(self, element) -> str:
         tag = etree.QName(element).localname
@@ -216,12 +221,17 @@ class _Reader:
                                  "names only files inside itself")
             return None
         file = self.base / source
-        try:  # the name itself may be unusable (too long): one line, not a traceback
-            resolved = file.resolve()
-            outside = not resolved.is_relative_to(self.root) and not any(
-                resolved.is_relative_to(folder) for folder in self.trusted)
-            file.is_file()
-        except OSError as error:
+        if source not in self._places:
+            try:  # the name itself may be unusable (too long): one line, not a traceback
+                resolved = file.resolve()
+                outside = not resolved.is_relative_to(self.root) and not any(
+                    resolved.is_relative_to(folder) for folder in self.trusted)
+                file.is_file()
+                self._places[source] = (outside, None)
+            except OSError as error:
+                self._places[source] = (None, error)
+        outside, error = self._places[source]
+        if error is not None:
             shown = source if len(source) <= 80 else source[:80] + "..."
             self.problems.append(f"{where}: {what} '{shown}' ({len(source)} characters) "
                                  f"cannot be a file name: {error.strerror}")
@@ -357,7 +367,8 @@ class _Reader:
         self.components.append(dict(path=path, source=file, location=where,
                                     connectors=self.connectors_of(element),
                                     implementation=element.get("implementation", ""),
-                                    solver=solver_of(element, self.warnings, where)))
+                                    solver=solver_of(element, self.warnings, where,
+                                                    self._solvers)))
 
     def parameter_set_on_top(self, chosen: str) -> None:
         """Bind a parameter set of the scene above every other binding."""

@@ -23,8 +23,9 @@ def _local(tag) -> str:
     return tag.split("}")[-1] if isinstance(tag, str) else ""
 
 
-def _own_solver(element, warnings: list, where: str) -> tuple | None:
-    """The solver settings annotated on ``element`` itself (not its children)."""
+def _own_solver(element) -> tuple[tuple | None, str | None]:
+    """The solver settings annotated on ``element`` itself (not its children), and the
+    OMSimulator solver name that is not dsim's (None: no such name)."""
     annotations = [child for child in element if _local(child.tag) == "Annotations"]
     for annotations_element in annotations:
         for found in annotations_element.iter():
@@ -32,27 +33,33 @@ def _own_solver(element, warnings: list, where: str) -> tuple | None:
             if name == "VariableStepSolver":
                 pairs = [(OMS_NAMES[k], v) for k, v in found.attrib.items() if k in OMS_NAMES]
                 method = found.get("description", "cvode")
-                if method not in OMS_METHODS:
-                    warnings.append(f"{where}: solver '{method}' of the OMSimulator "
-                                    "annotation is not dsim's: cvode integrates instead")
-                return (("method", OMS_METHODS.get(method, "cvode")),) + tuple(pairs)
+                return ((("method", OMS_METHODS.get(method, "cvode")),) + tuple(pairs),
+                        None if method in OMS_METHODS else method)
             if name == "Solver" and found.getparent() is not None and \
                     found.getparent().get("type") == "org.dsim.solver":
                 return tuple((DSIM_NAMES[k], v) for k, v in found.attrib.items()
-                             if k in DSIM_NAMES)
-    return None
+                             if k in DSIM_NAMES), None
+    return None, None
 
 
-def solver_of(element, warnings: list, where: str) -> tuple:
+def solver_of(element, warnings: list, where: str, cache: dict | None = None) -> tuple:
     """The settings for the component ``element``: its own annotation, else that of
-    the nearest system around it; () when none says any."""
+    the nearest system around it; () when none says any.  ``cache`` (element -> what
+    it annotates), kept by the caller for one document: a system's annotations (its
+    joints among them) are read once, not once per component inside it."""
+    cache = {} if cache is None else cache
     current = element
     while current is not None:
         # only a component or a system carries one (an Elements list is not looked
         # into: it may hold tens of thousands of components)
         if _local(current.tag) in ("Component", "System"):
-            found = _own_solver(current, warnings, where)
+            if current not in cache:
+                cache[current] = _own_solver(current)
+            found, unknown = cache[current]
             if found is not None:
+                if unknown is not None:
+                    warnings.append(f"{where}: solver '{unknown}' of the OMSimulator "
+                                    "annotation is not dsim's: cvode integrates instead")
                 return found
         current = current.getparent()
     return ()

@@ -321,7 +321,8 @@ class Execution:
             self._phases["steps"] += clock.perf_counter() - started
             self._iterations.append(report.iterations)
             record = StepRecord(self.index, end, self._chosen(row), report.iterations,
-                                report.refreshed, report.residual, self._recorded_texts())
+                                report.refreshed, report.residual,
+                                self._recorded_texts() if self._text_reads else ())
             # off the output grid a step is held, and recorded only if the run ends there
             if self.index % self._record_every and self.index < self.planned_steps:
                 self._held = record

@@ -124,6 +124,13 @@ class Subsystem(ABC):
         self.do_step(time, step_size)
         return self.read_outputs()
 
+    def exchange_with(self, values, time: float, step_size: float) -> np.ndarray:
+        """:meth:`write_inputs` of ``values`` (None: no input is connected), then
+        :meth:`exchange`: a free subsystem's whole macro step in one call."""
+        if values is not None:
+            self.write_inputs(values)
+        return self.exchange(time, step_size)
+
     def write_input_ramp(self, start: np.ndarray, end: np.ndarray, step_size: float) -> None:
         """Connected inputs that move from ``start`` (at the step's start) to ``end``
         (at its end) over the next step of ``step_size`` s: a subsystem that cannot

@@ -120,9 +120,11 @@ def _flags(spec, description) -> str:
             f"{INTERFACE_WORDS[spec.interface]}; {', '.join(flags)}")
 
 
-def _role(plan, index: int, brief: bool = False) -> str:
-    """How the master moves component ``index``: glued (iterated with rollback) or free."""
-    glued = index in plan.glued
+def _role(plan, index: int, brief: bool = False, glued_set=None) -> str:
+    """How the master moves component ``index``: glued (iterated with rollback) or free
+    (``glued_set``: the plan's glued indices as a set, for a caller asking of every
+    component)."""
+    glued = index in (plan.glued if glued_set is None else glued_set)
     if brief:
         return "glued" if glued else "free"
     if plan.coupling == "strong":
@@ -252,11 +254,15 @@ def _details(checked) -> list[str]:
     lines: list[str] = []
     say = lines.append
     say(f"components ({len(scene.components)}):")
+    glued = set(checked.glued)  # looked up per component: a set, not the plan's tuple
+    records_of: dict[str, list[str]] = {}
+    for path, name in checked.recorded:
+        records_of.setdefault(path, []).append(name)
     for index, component in enumerate(scene.components):
         spec = checked.specs[index]
         say(f"  {component.path}: {component.source.name} "
             f"[{_flags(spec, describe(component.source))}]")
-        say(f"      {_role(checked, index)}")
+        say(f"      {_role(checked, index, glued_set=glued)}")
         if component.path in scene.placements:
             say(f"      placed on Ray resource {scene.placements[component.path]} "
                 "(--backend ray)")
@@ -264,7 +270,7 @@ def _details(checked) -> list[str]:
         for name, file in component.files.items():
             say(f"      scene file: {name} = {component.parameters[name][1]} "
                 f"({file.stat().st_size} bytes)")
-        records = [name for path, name in checked.recorded if path == component.path]
+        records = records_of.get(component.path, [])
         say(f"      records: {', '.join(records) or 'nothing'}")
         sizes = array_size(describe(component.source), component.parameters)
         if sizes is not None:

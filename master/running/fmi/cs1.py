@@ -16,6 +16,7 @@ from fmpy.fmi1 import FMU1Slave
 
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import CALLBACKS1
 
 
@@ -27,7 +28,7 @@ class CoSimulation1Subsystem(FmpyAdapter):
     _do_step = None
 
     def _open(self, folder):
-        return FMU1Slave(guid=self.description.guid, unzipDirectory=folder,
+        return sharing(FMU1Slave)(guid=self.description.guid, unzipDirectory=folder,
                          modelIdentifier=self.description.coSimulation.modelIdentifier,
                          instanceName=self.name)
 

@@ -16,6 +16,7 @@ import ctypes
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64
 
 from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import logger3
 
 
@@ -31,7 +32,7 @@ class CoSimulation3Subsystem(FmpyAdapter):
         super().__init__(spec)
 
     def _open(self, folder):
-        return FMU3Slave(guid=self.description.guid, unzipDirectory=folder,
+        return sharing(FMU3Slave)(guid=self.description.guid, unzipDirectory=folder,
                          modelIdentifier=self.description.coSimulation.modelIdentifier,
                          instanceName=self.name)
 

@@ -33,6 +33,7 @@ from fmpy.fmi3 import FMU3Model
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
 from dsim.master.running.fmi.integrator import SolverSettings, make_integrator
+from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import CALLBACKS2, logger3
 
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -88,7 +89,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
     # --- FMI version specifics --------------------------------------------------------
     def _open(self, folder):
         kind = FMU3Model if self.fmi3 else FMU2Model
-        return kind(guid=self.description.guid, unzipDirectory=folder,
+        return sharing(kind)(guid=self.description.guid, unzipDirectory=folder,
                     modelIdentifier=self.description.modelExchange.modelIdentifier,
                     instanceName=self.name)
 
