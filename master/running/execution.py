@@ -154,6 +154,8 @@ class Execution:
         self.status = "running"
         for message in self.plan.warnings:
             self.warn(message)
+        for message in getattr(self.backend, "notes", list)():  # what a lost worker ends
+            self.warn(message)
         self._phases["setup"] = clock.perf_counter() - self._wall_start
         try:
             self._read_texts()

@@ -14,14 +14,27 @@ that, subsystems share workers, dealt round-robin); a component placed with
 ``glue:Placement`` runs on a node that has the named Ray resource.
 ``isolated``: one worker process per FMU instance on a local Ray instance, so an FMU
 that crashes its process ends the run with a message, never dsim itself.
+
+A lost worker (killed, or gone with its node) does not end the run
+(docs/distributed.md, "What survives what"): after every ``begin_step`` each worker
+sends the saved state of its subsystems, serialized, and the driver keeps it with the
+calls made since; a fresh worker (on a node that is still there) instantiates the
+same FMUs, goes on from that state, takes the same calls again and answers the call
+that was lost: the numbers are those of an undisturbed run, bit for bit.  At most
+``restarts`` workers are started again in a run; an FMU that cannot serialize its
+state, an FMU that crashed (it left a crash report) and a worker lost again on the
+same call end the run as before, with a line that says which it was.
 """
 from __future__ import annotations
 
+import copy
 import threading
+import time as clock
 
 from dsim.master.errors import InputError, SimulationError
+from dsim.master.reading.fmi_description import describe
 from dsim.master.running.backends.base import Backend
-from dsim.master.running.backends.ray_worker import Host, deal
+from dsim.master.running.backends.ray_worker import CHECKPOINT, RESUME, Host, crash_report, deal
 from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
 
 #: seconds to wait for the workers to start and instantiate their FMUs
@@ -29,6 +42,10 @@ START_SECONDS = 300.0
 #: what a placed worker takes of its node's resource: little, so that any number of
 #: components can share a node (the resource says where, not how many)
 PLACEMENT_SHARE = 0.001
+#: workers started again in one run, at most, when no ``restarts`` setting says
+RESTARTS = 3
+#: seconds a worker started again may take to start (no node left: the run ends)
+RESTART_SECONDS = 60.0
 
 
 class _Cluster:
@@ -55,6 +72,21 @@ class _Cluster:
         #: (worker, slot) -> the outputs read right after its last step, while no other
         #: call has reached it: what read_outputs returns without a round trip
         self.outputs: dict[tuple[int, int], object] = {}
+        # --- what it takes to start a lost worker again --------------------------
+        #: per worker: its specs, shipped files and Ray options (to start it again)
+        self.specs: list[list] = []
+        self.files: list[list] = []
+        self.options: list[dict] = []
+        #: per worker: why it cannot be started again (None: it can)
+        self.unrestartable: list[str | None] = []
+        #: workers that may still be started again in this run
+        self.restarts_left = 0
+        #: (worker, slot) -> the last checkpoint (None: from instantiation on)
+        self.checkpoints: dict[tuple[int, int], dict | None] = {}
+        #: (worker, slot) -> the calls answered since that checkpoint
+        self.journal: dict[tuple[int, int], list] = {}
+        #: every worker lost: time, node, address, pid, components, what, recovery seconds
+        self.losses: list[dict] = []
 
 
 class RayBackend(Backend):
@@ -75,7 +107,7 @@ class RayBackend(Backend):
     @classmethod
     def problems(cls, **options) -> list[str]:
         found = super().problems(**{k: v for k, v in options.items()
-                                    if k not in ("address", "call_timeout")})
+                                    if k not in ("address", "call_timeout", "restarts")})
         if not available():
             found.append(f"backend '{cls.name}' needs the ray package: {INSTALL}")
         address = options.get("address")
@@ -84,12 +116,13 @@ class RayBackend(Backend):
         return found
 
     @classmethod
-    def from_specs(cls, specs, address=None, call_timeout=None,
+    def from_specs(cls, specs, address=None, call_timeout=None, restarts=None,
                    **options) -> "RayBackend":
         connection = connect(address)
         try:
             backend = cls._start(connection, list(specs))
             backend._cluster.call_timeout = call_timeout
+            backend._cluster.restarts_left = RESTARTS if restarts is None else restarts
             return backend
         except BaseException:
             connection.close()
@@ -100,7 +133,7 @@ class RayBackend(Backend):
         ray = connection.ray
         shipment = Shipment(ray)
         remote = ray.remote(Host)
-        hosts, assigned, members = [], [], [None] * len(specs)
+        hosts, assigned, members, worker_options = [], [], [None] * len(specs), []
         for placement, indices in cls._groups(connection, specs):
             options = {"num_cpus": 0, "max_restarts": 0}
             if placement:
@@ -113,11 +146,21 @@ class RayBackend(Backend):
                     members[index] = (len(hosts), slot)
                 hosts.append(remote.options(**options).remote())
                 assigned.append(chosen)
-        opened = [host.open.remote([specs[i] for i in chosen],
-                                   [_shipped_files(shipment, specs[i]) for i in chosen])
-                  for host, chosen in zip(hosts, assigned)]
+                worker_options.append(options)
+        shipped = [[_shipped_files(shipment, specs[i]) for i in chosen] for chosen in assigned]
+        opened = [host.open.remote([specs[i] for i in chosen], files)
+                  for host, chosen, files in zip(hosts, assigned, shipped)]
         owners = [[specs[i].name for i in chosen] for chosen in assigned]
-        backend = cls(_Cluster(connection, hosts, owners), members, [s.name for s in specs])
+        cluster = _Cluster(connection, hosts, owners)
+        cluster.specs = [[specs[i] for i in chosen] for chosen in assigned]
+        cluster.files = shipped
+        cluster.options = worker_options
+        cluster.unrestartable = [_unrestartable(cluster.specs[h]) for h in range(len(hosts))]
+        for h, chosen in enumerate(assigned):
+            for slot in range(len(chosen)):
+                cluster.checkpoints[(h, slot)] = None
+                cluster.journal[(h, slot)] = []
+        backend = cls(cluster, members, [s.name for s in specs])
         try:
             backend._cluster.places = backend._open(opened)
         except BaseException:
@@ -193,17 +236,23 @@ class RayBackend(Backend):
             for host, batch in batches.items():
                 cluster.deferred.setdefault(host, []).extend(batch)
             return [[] for _ in steps]
-        pending, skipped = {}, {}
+        pending, skipped, payloads = {}, {}, {}
         for host, batch in batches.items():
             ahead = cluster.deferred.pop(host, [])
             skipped[host] = len(ahead)
-            pending[host] = cluster.hosts[host].run.remote(ahead + batch)
-        answers = {host: iter(self._answer(host, ref)[skipped[host]:])
-                   for host, ref in pending.items()}
+            payloads[host] = ahead + batch
+            if self._restartable(host):  # the journal must hold the values as sent
+                payloads[host] = copy.deepcopy(payloads[host])
+            pending[host] = cluster.hosts[host].run.remote(payloads[host])
+        answers = {}
+        for host, ref in pending.items():
+            results = self._answer(host, ref, payloads[host])
+            self._journal(host, payloads[host], results)
+            answers[host] = iter(results[skipped[host]:])
         return [next(answers[host]) if calls else []
                 for (host, _), calls in zip(self.members, steps)]
 
-    def _answer(self, host: int, ref):
+    def _answer(self, host: int, ref, payload=None):
         ray = self._cluster.connection.ray
         who = _who(self._cluster.owners[host])
         try:
@@ -217,16 +266,186 @@ class RayBackend(Backend):
                                   time=self._cluster.time) from None
         except ray.exceptions.RayTaskError as error:
             raise _cause(error) from None
-        except ray.exceptions.RayActorError:
-            self._cluster.dead.add(host)
-            place = self._cluster.places[host] or {}
-            raise SimulationError(f"{who}: the worker process (pid {place.get('pid', '?')}) "
-                                  "died: the FMU crashed or was killed",
-                                  time=self._cluster.time) from None
-        except ray.exceptions.RayError as error:  # its node, or the cluster, is gone
-            self._cluster.dead.add(host)
-            raise SimulationError(f"{who}: Ray lost the worker: {_first_line(error)}",
-                                  time=self._cluster.time) from None
+        except ray.exceptions.RayError as error:  # the worker, its node, or the cluster
+            if payload is None:
+                self._cluster.dead.add(host)
+                raise SimulationError(f"{who}: {self._lost(host, error)['said']}",
+                                      time=self._cluster.time) from None
+            return self._recover(host, payload, error)
+
+    # --- a lost worker ---------------------------------------------------------
+    def _restartable(self, host: int) -> bool:
+        cluster = self._cluster
+        return cluster.restarts_left > 0 and cluster.unrestartable[host] is None
+
+    def _journal(self, host: int, payload, results) -> None:
+        """Keep what a fresh worker needs to take over ``host``: each subsystem's
+        last checkpoint and the calls answered since."""
+        cluster = self._cluster
+        if not self._restartable(host):
+            return
+        for (slot, calls), answered in zip(payload, results):
+            journal = cluster.journal[(host, slot)]
+            for call, result in zip(calls, answered):
+                if call[0] != CHECKPOINT:
+                    journal.append(call)
+                elif "error" in result:  # the FMU said it could, and cannot
+                    cluster.unrestartable[host] = (
+                        f"component '{cluster.owners[host][slot]}' could not serialize "
+                        f"its state ({result['error']})")
+                    return
+                else:
+                    cluster.checkpoints[(host, slot)] = result
+                    journal.clear()
+
+    def _lost(self, host: int, error) -> dict:
+        """What was lost with worker ``host`` (a record for the statistics; "said":
+        the words for it)."""
+        cluster = self._cluster
+        ray = cluster.connection.ray
+        place = cluster.places[host] or {}
+        pid, node_id = place.get("pid", "?"), place.get("node")
+        text = str(error)
+        try:
+            node = next((n for n in ray.nodes() if n.get("NodeID") == node_id), {})
+        except Exception:  # the head itself is gone: Ray cannot say
+            node = {}
+        address = node.get("NodeManagerAddress") or _field(text, "ip") or "?"
+        node_lost = bool(node and not node.get("Alive", True)) or \
+            any(words in text.lower() for words in ("node has died", "node died",
+                                                    "node is dead", "raylet died",
+                                                    "node was terminated"))
+        report = None
+        if not node_lost:
+            try:
+                here = ray.get_runtime_context().get_node_id() == node_id
+            except Exception:
+                here = False
+            report = crash_report(pid) if here and isinstance(pid, int) else None
+        if report:
+            what, said = "crashed FMU", (f"the FMU crashed its worker process (pid {pid}): "
+                                         f"{report}")
+        elif node_lost:
+            what, said = "lost node", (f"lost node {address} (and the worker process, pid "
+                                       f"{pid}, on it)")
+        elif isinstance(error, ray.exceptions.RayActorError):
+            what, said = "killed worker", (f"the worker process (pid {pid}) on node "
+                                           f"{address} was killed (it left no crash report)")
+        else:
+            what, said = "lost worker", f"Ray lost the worker: {_first_line(error)}"
+        return {"time": cluster.time, "node": node_id, "address": address, "pid": pid,
+                "components": list(cluster.owners[host]), "what": what, "said": said}
+
+    def _recover(self, host: int, payload, error):
+        """Start worker ``host`` again from its subsystems' checkpoints, take their
+        calls since, and answer ``payload`` (the call that was lost); SimulationError
+        when it cannot be, saying what was lost and why it was not started again."""
+        cluster = self._cluster
+        ray = cluster.connection.ray
+        who = _who(cluster.owners[host])
+        started = clock.perf_counter()
+        lost = self._lost(host, error)
+        cluster.dead.add(host)
+        cluster.losses.append(lost)
+        try:
+            ray.kill(cluster.hosts[host])  # unreachable (its node cut off) is not dead
+        except Exception:
+            pass
+        again = False
+        while True:
+            why = None
+            if lost["what"] == "crashed FMU":
+                why = ""
+            elif again and lost["what"] != "lost node":
+                why = ("it was lost again when the call was taken again: the FMU ends its "
+                       "worker process")
+            elif cluster.unrestartable[host] is not None:
+                why = f"not started again: {cluster.unrestartable[host]}"
+            elif cluster.restarts_left <= 0:
+                why = ("not started again: as many workers as --restarts allows were "
+                       "started again already")
+            if why is not None:
+                lost["recovered"] = False
+                raise SimulationError(f"{who}: {lost['said']}" + (f"; {why}" if why else ""),
+                                      time=cluster.time) from None
+            cluster.restarts_left -= 1
+            try:
+                results = self._restart(host, payload)
+            except _Lost as again_lost:
+                lost["recovered"] = False
+                lost = self._lost(host, again_lost.error)
+                cluster.losses.append(lost)
+                again = True
+                continue
+            except SimulationError as failed:
+                lost["recovered"] = False
+                raise SimulationError(f"{who}: {lost['said']}; starting it again failed: "
+                                      f"{failed}", time=cluster.time) from None
+            lost["recovered"] = True
+            lost["recovery_seconds"] = clock.perf_counter() - started
+            lost["new_worker"] = dict(cluster.places[host])
+            cluster.dead.discard(host)
+            return results
+
+    def _restart(self, host: int, payload):
+        """A fresh worker for ``host`` brought to where the lost one was, then
+        ``payload`` answered by it; _Lost when it is lost too."""
+        cluster = self._cluster
+        ray = cluster.connection.ray
+        placement = next(iter(cluster.options[host].get("resources", {})), "")
+        if not any(n.get("Alive") and (not placement or n.get("Resources", {}).get(placement))
+                   for n in ray.nodes()):
+            raise SimulationError("no node of the cluster is left" + (
+                f" with resource '{placement}'" if placement else ""))
+        worker = ray.remote(Host).options(**cluster.options[host]).remote()
+        opened = worker.open.remote(cluster.specs[host], cluster.files[host])
+        ready, _ = ray.wait([opened], timeout=RESTART_SECONDS)
+        if not ready:
+            ray.kill(worker)
+            raise SimulationError(f"no worker started in {RESTART_SECONDS:g} s (no node "
+                                  "left with room for it?)")
+        try:
+            place = ray.get(opened)
+        except ray.exceptions.RayTaskError as failed:
+            raise SimulationError(str(_cause(failed))) from None
+        except ray.exceptions.RayError as failed:
+            raise _Lost(failed) from None
+        cluster.hosts[host], cluster.places[host] = worker, place
+        replay = []
+        for slot in range(len(cluster.owners[host])):
+            checkpoint = cluster.checkpoints[(host, slot)]
+            calls = ([(RESUME, (checkpoint,))] if checkpoint else []) + \
+                cluster.journal[(host, slot)]
+            if calls:
+                replay.append((slot, calls))
+        try:
+            results = ray.get(worker.run.remote(replay + list(payload)),
+                              timeout=cluster.call_timeout)
+        except ray.exceptions.RayTaskError as failed:
+            raise _cause(failed) from None
+        except ray.exceptions.GetTimeoutError:
+            ray.kill(worker)
+            raise SimulationError(f"no answer in {cluster.call_timeout:g} s "
+                                  "(--call-timeout)") from None
+        except ray.exceptions.RayError as failed:
+            raise _Lost(failed) from None
+        return results[len(replay):]
+
+    def losses(self) -> list[dict]:
+        """Every worker lost in the run: time (s, simulated), node (Ray id and
+        address), pid, components, what (lost node, killed worker, crashed FMU),
+        whether it was started again and how long that took (s), message."""
+        return [{k: v for k, v in loss.items() if k != "said"} | {"message": loss["said"]}
+                for loss in self._cluster.losses]
+
+    def notes(self) -> list[str]:
+        """What a user should know before the run: the components whose worker
+        cannot be started again if it is lost."""
+        cluster = self._cluster
+        if cluster.restarts_left <= 0:
+            return []
+        reasons = sorted({why for why in cluster.unrestartable if why})
+        return [f"a lost worker ends the run: {why}" for why in reasons]
 
     def _each(self, method, *columns, time=None, answer: bool = True) -> list:
         """``method`` on every subsystem, with the i-th entry of each column: the
@@ -265,7 +484,10 @@ class RayBackend(Backend):
         return list(self._names)
 
     def begin_step(self) -> None:
-        self._each("begin_step", answer=False)
+        # a worker that may be started again sends each subsystem's saved state too
+        self._run([[("begin_step", ())] + ([(CHECKPOINT, ())] if self._restartable(host)
+                                           else [])
+                   for host, _ in self.members], answer=False)
 
     def trial_step(self, forces, time, step_size):
         n = len(self.members)
@@ -423,6 +645,38 @@ def _shipped_files(shipment, spec) -> tuple:
     its String parameters name (parameter -> shipped file)."""
     return (shipment.add(spec.path),
             {name: shipment.add(spec.parameters[name][1]) for name in spec.files})
+
+
+class _Lost(Exception):
+    """A worker started again was lost too (``error``: Ray's)."""
+
+    def __init__(self, error):
+        super().__init__(str(error))
+        self.error = error
+
+
+def _unrestartable(specs) -> str | None:
+    """Why a worker with these subsystems cannot be started again from a saved state
+    (the first of them that cannot serialize it), or None."""
+    for spec in specs:
+        if spec.interface != "CoSimulation" or not spec.fmi_version.startswith("2"):
+            return (f"component '{spec.name}' runs FMI {spec.fmi_version} "
+                    f"{spec.interface}, whose state dsim does not move between processes "
+                    "yet")
+        found = describe(spec.path).coSimulation
+        if not (found and found.canGetAndSetFMUstate and found.canSerializeFMUstate):
+            return (f"component '{spec.name}': its FMU cannot serialize its state "
+                    "(canSerializeFMUstate is false)")
+    return None
+
+
+def _field(text: str, name: str) -> str | None:
+    """The value of a ``name: value`` line of a Ray error."""
+    for line in text.splitlines():
+        key, _, value = line.strip().partition(": ")
+        if key == name:
+            return value.strip()
+    return None
 
 
 def _who(names) -> str:
