@@ -343,6 +343,12 @@ class SlotBody(InterfaceCore):
     def get_state(self) -> dict:
         return {"body": self.body.get_state(), "forces": self._forces.copy()}
 
+    def history(self):
+        return self.body.history()
+
+    def set_history(self, history) -> None:
+        self.body.set_history(history)
+
     def set_state(self, state: dict) -> None:
         self.body.set_state(state["body"])
         self._forces = state["forces"].copy()
