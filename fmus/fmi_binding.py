@@ -189,16 +189,16 @@ class CoreBinding:
         return {"core": self.core.get_state() if self.core else None,
                 "forces": self.forces.copy(),
                 # what a fresh instance needs besides (a state moved to another process)
-                "history": self.core.history() if self.core else None}
+                "caches": self.core.caches() if self.core else None}
 
     def set_state(self, state: dict) -> None:
         self.forces = np.array(state["forces"], dtype=float)
         self._values[:len(self.interface)] = self.forces
         if self.core is not None and state["core"] is not None:
             self.core.set_state(state["core"])
-            # a state deserialized here comes from another instance: its history once
-            if state.pop("moved", False) and state.get("history") is not None:
-                self.core.set_history(state["history"])
+            # a state deserialized here comes from another instance: its caches once
+            if state.pop("moved", False) and state.get("caches") is not None:
+                self.core.set_caches(state["caches"])
             self.core.set_interface_forces(self.forces)
             self._stale = [True] * 4
 

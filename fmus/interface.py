@@ -64,7 +64,7 @@ class InterfaceCore(ABC):
     def set_state(self, state: dict) -> None:
         """Restore a state returned by :meth:`get_state`."""
 
-    def history(self):
+    def caches(self):
         """What the core keeps from its past besides its state (caches that decide
         how, not what, it computes), as references; None when it keeps nothing.  A
         state moved to a fresh instance in another process carries it, so that the
@@ -72,8 +72,8 @@ class InterfaceCore(ABC):
         same instance does not restore it."""
         return None
 
-    def set_history(self, history) -> None:
-        """Take over a :meth:`history` of another instance of the same core."""
+    def set_caches(self, caches) -> None:
+        """Take over the :meth:`caches` of another instance of the same core."""
 
     def outputs(self) -> dict[str, float]:
         """Named scalar outputs beyond the ports (for example ``x[1]``)."""

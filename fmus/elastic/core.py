@@ -286,11 +286,11 @@ class ElasticBody(InterfaceCore):
         values = self._interface_map.apply((self._q, self._v, self._a)[kind])
         return self._reference + values if kind == 0 else values
 
-    def history(self):
+    def caches(self):
         return self._repeat.snapshot()
 
-    def set_history(self, history) -> None:
-        self._repeat.resume(history)
+    def set_caches(self, caches) -> None:
+        self._repeat.resume(caches)
 
     def get_state(self) -> dict:
         return {"time": self.time, "q": self._q.copy(), "v": self._v.copy(),

@@ -135,6 +135,33 @@ def end_at_once(execution, number: int) -> None:
     os._exit(code)
 
 
+def end_lost(execution, what: str) -> None:
+    """End the process now as a failed run (exit 1), keeping what can be kept, when
+    ``what`` is lost and the run cannot go on (the Ray head: no call to a worker
+    would ever come back), from the watchdog's thread."""
+    deadline = threading.Timer(DEADLINE, _last_resort, (1,))
+    deadline.daemon = True
+    deadline.start()
+    try:
+        result = execution.abandon(None, lost=what)
+    except Exception as error:  # the rows matter more than complete statistics
+        result = _bare_result(execution, signal.SIGTERM, error)
+        result.status = result.statistics["status"] = "failed"
+    for observer in execution.observers:
+        try:
+            observer.abandoned(result)
+        except Exception as error:  # one observer must not stop the others
+            _say(f"dsim: {type(observer).__name__}: {error}")
+        result.files.update(getattr(observer, "files", {}))
+    kill_descendants()
+    where, stats = result.files.get("csv"), result.files.get("statistics")
+    _say(f"dsim: simulation failed: {result.message}")
+    if where:
+        _say(f"dsim: the {result.steps} converged steps are in {where}, statistics in "
+             f"{stats or 'nowhere'}")
+    os._exit(1)
+
+
 def _last_resort(code: int) -> None:
     """The deadline: something below hung (an observer, Ray); end anyway."""
     kill_descendants()

@@ -28,6 +28,7 @@ same call end the run as before, with a line that says which it was.
 from __future__ import annotations
 
 import copy
+import socket
 import threading
 import time as clock
 
@@ -46,6 +47,9 @@ PLACEMENT_SHARE = 0.001
 RESTARTS = 3
 #: seconds a worker started again may take to start (no node left: the run ends)
 RESTART_SECONDS = 60.0
+#: the head watch: seconds between two looks at the head's GCS port, and the looks in a
+#: row that find nothing listening before the head is called lost
+HEAD_EVERY, HEAD_MISSES = 1.0, 3
 
 
 class _Cluster:
@@ -431,6 +435,32 @@ class RayBackend(Backend):
             raise _Lost(failed) from None
         return results[len(replay):]
 
+    def watch_head(self, on_lost) -> None:
+        """Call ``on_lost(what)`` from a thread of its own when the cluster's head (its
+        GCS) stops answering: :data:`HEAD_MISSES` looks in a row, :data:`HEAD_EVERY`
+        s apart, find nothing listening at its address.  Ray itself would wait a
+        minute, then end this process without a word of its own."""
+        cluster = self._cluster
+        try:
+            address = cluster.connection.ray.get_runtime_context().gcs_address
+        except Exception:  # Ray Client, or a Ray that does not say: nothing to watch
+            return
+        host, _, port = str(address).rpartition(":")
+        if not host or not port.isdigit():
+            return
+
+        def watch():
+            misses = 0
+            while not cluster.closed:
+                clock.sleep(HEAD_EVERY)
+                misses = 0 if _listening(host, int(port)) else misses + 1
+                if misses >= HEAD_MISSES and not cluster.closed:
+                    on_lost(f"lost the Ray head (its GCS at {address} stopped answering): "
+                            "no worker can be reached")
+                    return
+
+        threading.Thread(target=watch, name="dsim-ray-head", daemon=True).start()
+
     def losses(self) -> list[dict]:
         """Every worker lost in the run: time (s, simulated), node (Ray id and
         address), pid, components, what (lost node, killed worker, crashed FMU),
@@ -668,6 +698,15 @@ def _unrestartable(specs) -> str | None:
             return (f"component '{spec.name}': its FMU cannot serialize its state "
                     "(canSerializeFMUstate is false)")
     return None
+
+
+def _listening(host: str, port: int) -> bool:
+    """Whether something accepts a TCP connection at host:port (within a second)."""
+    try:
+        with socket.create_connection((host, port), timeout=1.0):
+            return True
+    except OSError:
+        return False
 
 
 def _field(text: str, name: str) -> str | None:
