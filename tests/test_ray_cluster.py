@@ -129,3 +129,73 @@ def test_a_sweep_on_the_cluster_gives_the_points_of_a_serial_sweep(built, cluste
             (tmp_path / "serial" / name).read_bytes()
     columns = (tmp_path / "spread" / "sweep.csv").read_text().splitlines()
     assert len(columns) == 3 and all(",completed,true," in row for row in columns[1:])
+
+
+# --- what survives what (docs/distributed.md) ---------------------------------------
+def processes_of(process: subprocess.Popen, name: str) -> list[int]:
+    """The processes named ``name`` (in their command line) among those a node started."""
+    from dsim.master.running.interrupts import descendants
+
+    found = []
+    for pid in descendants(process.pid):
+        try:
+            command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
+        except OSError:
+            continue
+        if name.encode() in command:
+            found.append(pid)
+    return found
+
+
+def wait_for_rows(target: Path, process: subprocess.Popen, size: int = 2000) -> None:
+    """Until the run's CSV (under its temporary name) holds ``size`` bytes of rows."""
+    partial = target.parent / f".{target.name}.partial"
+    deadline = time.monotonic() + 120
+    while not (partial.exists() and partial.stat().st_size > size):
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+
+
+def test_a_lost_node_does_not_end_the_run_its_component_goes_on_elsewhere(built, cluster,
+                                                                        tmp_path):
+    """A third node joins with a resource of its own; the component placed there is
+    started again on a node that is left when the node's raylet is killed mid-run, from
+    the last converged step: the CSV is the undisturbed run's, byte for byte."""
+    spare = start_node([f"--address={cluster['address']}", "--num-cpus=1",
+                        '--resources={"spare_node": 1}', "--object-store-memory=80000000"],
+                       cluster["env"], tmp_path / "spare.log")
+    try:
+        folder = placed_scene(built, tmp_path / "scene",
+                              '<glue:Placement component="right" resource="spare_node"/>')
+        run = DSIM + ["run", str(folder), "--stop", "4", "--quiet", "--backend", "ray",
+                      "--address", cluster["address"]]
+        here = subprocess.run(DSIM + ["run", str(folder), "--stop", "4", "--quiet", "--out",
+                                      str(tmp_path / "here.csv")],
+                              cwd=ROOT, capture_output=True, text=True, timeout=300)
+        assert here.returncode == 0, here.stderr
+        target = tmp_path / "there.csv"
+        process = subprocess.Popen(run + ["--out", str(target)], cwd=ROOT, env=cluster["env"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        wait_for_rows(target, process)
+        raylet = processes_of(spare, "raylet")
+        assert len(raylet) == 1
+        os.kill(raylet[0], signal.SIGKILL)
+        out, err = process.communicate(timeout=300)
+    finally:
+        stop_node(spare)
+    assert process.returncode == 0, err
+    assert out == ""  # nothing of Ray's on stdout
+    assert target.read_bytes() == (tmp_path / "here.csv").read_bytes()
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    losses = stats["lost_workers"]
+    # one loss per worker that was on the node ("left" may have been spread there too)
+    assert "right" in [c for loss in losses for c in loss["components"]], losses
+    for loss in losses:
+        assert loss["what"] == "lost node" and loss["recovered"], losses
+        assert loss["message"].startswith("lost node ") and 0 < loss["time"] < 4
+        assert 0 < loss["recovery_seconds"] < 60  # a node that is left, at once
+        for name in loss["components"]:
+            assert stats["components"][name]["worker"]["node"] != loss["node"]
+    assert [loss.get("moved_from") for loss in losses if "right" in loss["components"]] \
+        == ["spare_node"]

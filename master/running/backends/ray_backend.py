@@ -36,7 +36,8 @@ from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.running.backends.base import Backend
 from dsim.master.running.backends.ray_worker import CHECKPOINT, RESUME, Host, crash_report, deal
-from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
+from dsim.master.running.ray_cluster import (INSTALL, Shipment, address_problem, available,
+                                             connect, ray_log)
 
 #: seconds to wait for the workers to start and instantiate their FMUs
 START_SECONDS = 300.0
@@ -315,7 +316,11 @@ class RayBackend(Backend):
         except Exception:  # the head itself is gone: Ray cannot say
             node = {}
         address = node.get("NodeManagerAddress") or _field(text, "ip") or "?"
+        # the cluster learns of a lost node only after its health checks (many
+        # seconds): a raylet that no longer listens is a lost node now
+        port = node.get("NodeManagerPort")
         node_lost = bool(node and not node.get("Alive", True)) or \
+            bool(port and address != "?" and not _listening(address, int(port))) or \
             any(words in text.lower() for words in ("node has died", "node died",
                                                     "node is dead", "raylet died",
                                                     "node was terminated"))
@@ -330,8 +335,9 @@ class RayBackend(Backend):
             what, said = "crashed FMU", (f"the FMU crashed its worker process (pid {pid}): "
                                          f"{report}")
         elif node_lost:
-            what, said = "lost node", (f"lost node {address} (and the worker process, pid "
-                                       f"{pid}, on it)")
+            what, said = "lost node", (f"lost node {address}" + (f":{port}" if port else "")
+                                       + f" (its raylet; the worker process, pid {pid}, with "
+                                       "it)")
         elif isinstance(error, ray.exceptions.RayActorError):
             what, said = "killed worker", (f"the worker process (pid {pid}) on node "
                                            f"{address} was killed (it left no crash report)")
@@ -396,12 +402,30 @@ class RayBackend(Backend):
         ``payload`` answered by it; _Lost when it is lost too."""
         cluster = self._cluster
         ray = cluster.connection.ray
-        placement = next(iter(cluster.options[host].get("resources", {})), "")
-        if not any(n.get("Alive") and (not placement or n.get("Resources", {}).get(placement))
-                   for n in ray.nodes()):
-            raise SimulationError("no node of the cluster is left" + (
-                f" with resource '{placement}'" if placement else ""))
-        worker = ray.remote(Host).options(**cluster.options[host]).remote()
+        options = cluster.options[host]
+        placement = next(iter(options.get("resources", {})), "")
+        # the cluster learns of a lost node late: a node lost in this run is no choice
+        gone = {loss["node"] for loss in cluster.losses if loss["what"] == "lost node"}
+        alive = [n for n in ray.nodes() if n.get("Alive") and n.get("NodeID") not in gone]
+        if not alive:
+            raise SimulationError("no node of the cluster is left")
+        if placement and not any(n.get("Resources", {}).get(placement) for n in alive):
+            # the placed node is gone: the run goes on wherever there is room
+            options = {k: v for k, v in options.items() if k != "resources"}
+            options["scheduling_strategy"] = "SPREAD"
+            cluster.options[host] = options
+            cluster.losses[-1]["moved_from"] = placement
+        if gone:  # on a node that is left, the one with the fewest of this run's workers
+            from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+            fitting = [n for n in alive if not placement or "resources" not in options
+                       or n.get("Resources", {}).get(placement)]
+            load = [sum(1 for p in cluster.places if p and p.get("node") == n["NodeID"])
+                    for n in fitting]
+            chosen = fitting[load.index(min(load))]["NodeID"]
+            options = {**options, "scheduling_strategy":
+                       NodeAffinitySchedulingStrategy(node_id=chosen, soft=False)}
+        worker = ray.remote(Host).options(**options).remote()
         opened = worker.open.remote(cluster.specs[host], cluster.files[host])
         ready, _ = ray.wait([opened], timeout=RESTART_SECONDS)
         if not ready:
@@ -465,8 +489,10 @@ class RayBackend(Backend):
         """Every worker lost in the run: time (s, simulated), node (Ray id and
         address), pid, components, what (lost node, killed worker, crashed FMU),
         whether it was started again and how long that took (s), message."""
+        log = ray_log()
+        said = {"ray_log": str(log)} if log.exists() else {}  # what Ray said meanwhile
         return [{k: v for k, v in loss.items() if k != "said"} | {"message": loss["said"]}
-                for loss in self._cluster.losses]
+                | said for loss in self._cluster.losses]
 
     def notes(self) -> list[str]:
         """What a user should know before the run: the components whose worker
