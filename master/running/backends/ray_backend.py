@@ -84,8 +84,8 @@ class _Cluster:
         self.options: list[dict] = []
         #: per worker: why it cannot be started again (None: it can)
         self.unrestartable: list[str | None] = []
-        #: workers that may still be started again in this run
-        self.restarts_left = 0
+        #: workers that may be started again in this run, at most, and still may be
+        self.restarts = self.restarts_left = 0
         #: (worker, slot) -> the last checkpoint (None: from instantiation on)
         self.checkpoints: dict[tuple[int, int], dict | None] = {}
         #: (worker, slot) -> the calls answered since that checkpoint
@@ -127,7 +127,8 @@ class RayBackend(Backend):
         try:
             backend = cls._start(connection, list(specs))
             backend._cluster.call_timeout = call_timeout
-            backend._cluster.restarts_left = RESTARTS if restarts is None else restarts
+            backend._cluster.restarts = RESTARTS if restarts is None else restarts
+            backend._cluster.restarts_left = backend._cluster.restarts
             return backend
         except BaseException:
             connection.close()
@@ -339,12 +340,18 @@ class RayBackend(Backend):
                                        + f" (its raylet; the worker process, pid {pid}, with "
                                        "it)")
         elif isinstance(error, ray.exceptions.RayActorError):
-            what, said = "killed worker", (f"the worker process (pid {pid}) on node "
-                                           f"{address} was killed (it left no crash report)")
+            # Ray does not say how a process ended: no crash report, and it is started
+            # again, was a kill; one that cannot be started again may be its FMU's exit
+            what, said = "killed worker", (
+                f"the worker process (pid {pid}) on node {address} was killed (no crash "
+                "report from its FMU)" if self._restartable(host) else
+                f"the worker process (pid {pid}) on node {address} ended without a crash "
+                "report (killed, or its FMU ended the process)")
         else:
             what, said = "lost worker", f"Ray lost the worker: {_first_line(error)}"
         return {"time": cluster.time, "node": node_id, "address": address, "pid": pid,
-                "components": list(cluster.owners[host]), "what": what, "said": said}
+                "components": list(cluster.owners[host]), "what": what, "said": said,
+                "ray_error": " ".join(text.split())[:600]}
 
     def _recover(self, host: int, payload, error):
         """Start worker ``host`` again from its subsystems' checkpoints, take their
@@ -372,8 +379,8 @@ class RayBackend(Backend):
             elif cluster.unrestartable[host] is not None:
                 why = f"not started again: {cluster.unrestartable[host]}"
             elif cluster.restarts_left <= 0:
-                why = ("not started again: as many workers as --restarts allows were "
-                       "started again already")
+                why = (f"not started again: a run starts {cluster.restarts} lost workers "
+                       "again at most (--restarts)")
             if why is not None:
                 lost["recovered"] = False
                 raise SimulationError(f"{who}: {lost['said']}" + (f"; {why}" if why else ""),
