@@ -4,6 +4,7 @@ by the tests, with token authentication as a real cluster would have; dsim runs 
 scene on it with a component placed on the second node, and a sweep."""
 import json
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -199,3 +200,45 @@ def test_a_lost_node_does_not_end_the_run_its_component_goes_on_elsewhere(built,
             assert stats["components"][name]["worker"]["node"] != loss["node"]
     assert [loss.get("moved_from") for loss in losses if "right" in loss["components"]] \
         == ["spare_node"]
+
+
+def test_a_lost_head_ends_the_run_within_seconds_with_everything_kept(built, tmp_path):
+    """A head of its own (this test kills it): its GCS killed mid-run, dsim's own
+    watchdog ends the run in seconds (Ray would wait a minute, then end the process
+    without results): exit 1, the CSV and the statistics under their names, one line
+    naming what was lost, nothing on stdout."""
+    folder = Path(tempfile.mkdtemp(prefix="dsimhead", dir="/tmp"))  # short: socket paths
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
+           "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
+    port = free_port()
+    head = start_node(["--head", f"--port={port}", "--num-cpus=1", "--include-dashboard=false",
+                       f"--temp-dir={folder}", "--object-store-memory=80000000"],
+                      env, folder / "head.log")
+    target = tmp_path / "run.csv"
+    try:
+        process = subprocess.Popen(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
+                                           "--stop", "1000", "--backend", "ray", "--address",
+                                           f"127.0.0.1:{port}", "--out", str(target), "--quiet"],
+                                   cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+        wait_for_rows(target, process)
+        [gcs] = processes_of(head, "gcs_server")
+        os.kill(gcs, signal.SIGKILL)
+        killed = time.monotonic()
+        out, err = process.communicate(timeout=120)
+        ended = time.monotonic() - killed
+    finally:
+        stop_node(head)
+        shutil.rmtree(folder, ignore_errors=True)
+    assert process.returncode == 1 and ended < 10 and out == "", err
+    lines = err.strip().splitlines()
+    assert len(lines) == 2, lines
+    assert re.fullmatch(r"dsim: simulation failed: lost the Ray head \(its GCS at \S+ stopped "
+                        r"answering\): no worker can be reached \(stopped at t = [\d.]+ s, step "
+                        r"(\d+) of 100000\)", lines[0])
+    steps = int(re.search(r"step (\d+) of", lines[0]).group(1))
+    assert lines[1] == (f"dsim: the {steps} converged steps are in {target}, statistics in "
+                        f"{target.with_suffix('.stats.json')}")
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert stats["status"] == "failed" and stats["steps"] == steps > 5
+    assert len(target.read_text().splitlines()) == steps + 2  # header, start, the steps
