@@ -156,6 +156,10 @@ class Execution:
             self.warn(message)
         for message in getattr(self.backend, "notes", list)():  # what a lost worker ends
             self.warn(message)
+        waiting = getattr(self.backend, "waiting", None)  # for a progress line
+        for observer in self.observers:
+            if waiting is not None and hasattr(observer, "waiting"):
+                observer.waiting = waiting
         head = getattr(self.backend, "watch_head", None)
         if head is not None and getattr(self, "_end_when_lost", False):
             head(lambda what: end_lost(self, what))  # never left to Ray's own timeouts

@@ -48,6 +48,10 @@ PLACEMENT_SHARE = 0.001
 RESTARTS = 3
 #: seconds a worker started again may take to start (no node left: the run ends)
 RESTART_SECONDS = 60.0
+#: seconds without an answer from a worker before the progress line names it
+LATE_SECONDS = 3.0
+#: seconds a worker may take to end its FMUs when the run is over (a frozen one: never)
+CLOSE_SECONDS = 10.0
 #: the head watch: seconds between two looks at the head's GCS port, and the looks in a
 #: row that find nothing listening before the head is called lost
 HEAD_EVERY, HEAD_MISSES = 1.0, 3
@@ -92,6 +96,8 @@ class _Cluster:
         self.journal: dict[tuple[int, int], list] = {}
         #: every worker lost: time, node, address, pid, components, what, recovery seconds
         self.losses: list[dict] = []
+        #: (worker, since when, time.monotonic) while the driver waits for its answer
+        self.waiting: tuple[int, float] | None = None
 
 
 class RayBackend(Backend):
@@ -252,7 +258,11 @@ class RayBackend(Backend):
             pending[host] = cluster.hosts[host].run.remote(payloads[host])
         answers = {}
         for host, ref in pending.items():
-            results = self._answer(host, ref, payloads[host])
+            cluster.waiting = (host, clock.monotonic())  # for the progress line
+            try:
+                results = self._answer(host, ref, payloads[host])
+            finally:
+                cluster.waiting = None
             self._journal(host, payloads[host], results)
             answers[host] = iter(results[skipped[host]:])
         return [next(answers[host]) if calls else []
@@ -466,6 +476,19 @@ class RayBackend(Backend):
             raise _Lost(failed) from None
         return results[len(replay):]
 
+    def waiting(self) -> str | None:
+        """Which components have not answered for how long, once that is more than
+        :data:`LATE_SECONDS` (a frozen worker, a node cut off, a slow FMU); else None.
+        Safe from any thread (the progress line asks it)."""
+        waiting = self._cluster.waiting
+        if waiting is None:
+            return None
+        host, since = waiting
+        seconds = clock.monotonic() - since
+        if seconds < LATE_SECONDS:
+            return None
+        return f"{_who(self._cluster.owners[host])}: no answer for {seconds:.0f} s"
+
     def watch_head(self, on_lost) -> None:
         """Call ``on_lost(what)`` from a thread of its own when the cluster's head (its
         GCS) stops answering: :data:`HEAD_MISSES` looks in a row, :data:`HEAD_EVERY`
@@ -636,9 +659,9 @@ class RayBackend(Backend):
             closing = {h: cluster.hosts[h].close.remote() for h in live}
             for h, ref in closing.items():
                 try:
-                    errors += ray.get(ref)
+                    errors += ray.get(ref, timeout=CLOSE_SECONDS)
                 except ray.exceptions.RayError:
-                    pass  # a worker gone while closing has nothing left to release
+                    pass  # a worker gone (or frozen) while closing: it is killed below
             for host in cluster.hosts:
                 ray.kill(host)
         finally:
@@ -675,8 +698,9 @@ class RayBackend(Backend):
             slots = [(slot, [("statistics", ())]) for slot in
                      range(len(self._cluster.owners[h]))]
             try:
-                values = ray.get(self._cluster.hosts[h].run.remote(ahead + slots))
-            except ray.exceptions.RayError:
+                values = ray.get(self._cluster.hosts[h].run.remote(ahead + slots),
+                                 timeout=CLOSE_SECONDS)
+            except ray.exceptions.RayError:  # gone, or frozen: its counters are not known
                 continue
             counters.update(zip(self._cluster.owners[h],
                                 (v[0] for v in values[len(ahead):])))
