@@ -341,6 +341,32 @@ def test_with_no_restarts_a_killed_worker_ends_the_run_saying_so(built, ray_loca
     assert [loss["recovered"] for loss in result.statistics["lost_workers"]] == [False]
 
 
+def test_a_frozen_worker_is_named_with_how_long_it_has_not_answered(built, ray_local):
+    """SIGSTOP (a hung node, a worker cut off): what the progress line shows names the
+    worker's components and the seconds waited; SIGCONT and the step goes on."""
+    from dsim.master.running.backends.ray_backend import LATE_SECONDS
+
+    execution = Execution(dsim.prepare(built["ssp"] / "spring_mass_linear.ssp", stop=0.5,
+                                       backend="ray"))
+    execution.start()
+    backend = execution.backend
+    place = backend.places()[0]
+    assert backend.waiting() is None
+    os.kill(place["pid"], signal.SIGSTOP)
+    try:
+        stepping = threading.Thread(target=execution.step)
+        stepping.start()
+        time.sleep(LATE_SECONDS + 1.5)
+        said = backend.waiting()
+    finally:
+        os.kill(place["pid"], signal.SIGCONT)
+    stepping.join(timeout=60)
+    assert not stepping.is_alive() and execution.index == 1
+    assert re.fullmatch(rf"component '{backend.names[0]}': no answer for (\d+) s", said)
+    assert int(said.split()[-2]) >= LATE_SECONDS
+    assert backend.waiting() is None and execution.finish().status == "interrupted"
+
+
 # --- placement ----------------------------------------------------------------------
 def placed_scene(built, folder: Path, placements: str) -> Path:
     """spring_mass_linear unpacked, with ``placements`` added to its glue:Gluing."""
