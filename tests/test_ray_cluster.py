@@ -2,6 +2,7 @@
 --head`, then `ray start --address` with a resource of its own), started and stopped
 by the tests, with token authentication as a real cluster would have; dsim runs a
 scene on it with a component placed on the second node, and a sweep."""
+import csv
 import json
 import os
 import re
@@ -242,3 +243,45 @@ def test_a_lost_head_ends_the_run_within_seconds_with_everything_kept(built, tmp
     stats = json.loads(target.with_suffix(".stats.json").read_text())
     assert stats["status"] == "failed" and stats["steps"] == steps > 5
     assert len(target.read_text().splitlines()) == steps + 2  # header, start, the steps
+
+
+def test_a_point_lost_with_its_node_is_lost_not_failed_and_a_rerun_runs_it(built, cluster,
+                                                                           tmp_path):
+    """Three points on three nodes of one CPU each; the third node is lost while they
+    run.  With --restarts 0 its point is `lost` (not retried, not failed); the same
+    command again runs it, and only it, on the nodes that are left."""
+    spare = start_node([f"--address={cluster['address']}", "--num-cpus=1",
+                        "--object-store-memory=80000000"], cluster["env"],
+                       tmp_path / "spare.log")
+    out = tmp_path / "sweep"
+    command = DSIM + ["sweep", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "60",
+                      "--step", "0.01,0.011,0.012", "--backend", "ray", "--address",
+                      cluster["address"], "--restarts", "0", "--out", str(out)]
+    try:
+        process = subprocess.Popen(command, cwd=ROOT, env=cluster["env"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 180
+        while not processes_of(spare, "_run_remote"):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline
+            time.sleep(0.1)
+        time.sleep(1.0)  # the point under way on it
+        [raylet] = processes_of(spare, "raylet")
+        os.kill(raylet, signal.SIGKILL)
+        out_text, err = process.communicate(timeout=300)
+    finally:
+        stop_node(spare)
+    assert "raylet" not in out_text and "Raylet" not in out_text  # nothing of Ray's
+    with open(out / "sweep.csv") as table:
+        found = {row["point"]: row for row in csv.DictReader(table)}
+    lost = [k for k, row in found.items() if row["status"] == "lost"]
+    assert len(lost) == 1, found
+    assert found[lost[0]]["message"].startswith("lost with a node of the cluster 1 times")
+    assert all(row["status"] == "completed" for k, row in found.items() if k not in lost)
+    again = subprocess.run(command, cwd=ROOT, env=cluster["env"], capture_output=True,
+                           text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert "2 of 3 points already finished" in again.stdout + again.stderr
+    with open(out / "sweep.csv") as table:
+        final = list(csv.DictReader(table))
+        assert [row["status"] for row in final] == ["completed"] * 3, final
