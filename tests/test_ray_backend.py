@@ -344,7 +344,7 @@ def test_with_no_restarts_a_killed_worker_ends_the_run_saying_so(built, ray_loca
 def test_a_frozen_worker_is_named_with_how_long_it_has_not_answered(built, ray_local):
     """SIGSTOP (a hung node, a worker cut off): what the progress line shows names the
     worker's components and the seconds waited; SIGCONT and the step goes on."""
-    from dsim.master.running.backends.ray_backend import LATE_SECONDS
+    from dsim.master.running.backends.ray_recovery import LATE_SECONDS
 
     execution = Execution(dsim.prepare(built["ssp"] / "spring_mass_linear.ssp", stop=0.5,
                                        backend="ray"))

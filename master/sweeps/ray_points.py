@@ -28,7 +28,7 @@ from dsim.master.errors import InputError
 from dsim.master.recording.observers import CsvRecorder, Observer, StatisticsWriter
 from dsim.master.recording.output_files import write_whole
 from dsim.master.recording.results import RunResult
-from dsim.master.running.backends.ray_backend import RESTARTS
+from dsim.master.running.backends.ray_recovery import RESTARTS
 from dsim.master.running.execution import Execution
 from dsim.master.running.ray_cluster import Shipment, connect, landed
 from dsim.master.sweeps.point import PointRun, keywords
