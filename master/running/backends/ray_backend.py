@@ -272,7 +272,10 @@ class RayBackend(Recovery, Backend):
                                   "FMU hangs or is too slow; the worker was stopped",
                                   time=self._cluster.time) from None
         except ray.exceptions.RayTaskError as error:
-            raise _cause(error) from None
+            cause = _cause(error)
+            if payload is not None:  # the calls made up to the error changed the worker
+                self._journal_failed(host, payload, getattr(cause, "dsim_at", None))
+            raise cause from None
         except ray.exceptions.RayError as error:  # the worker, its node, or the cluster
             if payload is None:
                 self._cluster.dead.add(host)

@@ -19,7 +19,8 @@ import time as clock
 
 from dsim.master.errors import SimulationError
 from dsim.master.reading.fmi_description import describe
-from dsim.master.running.backends.ray_worker import CHECKPOINT, RESUME, Host, crash_report
+from dsim.master.running.backends.ray_worker import (CHECKPOINT, FAILED, RESUME, Host,
+                                                     crash_report)
 from dsim.master.running.ray_cluster import ray_log
 
 #: workers started again in one run, at most, when no ``restarts`` setting says
@@ -61,6 +62,25 @@ class Recovery:
                 else:
                     cluster.checkpoints[(host, slot)] = result
                     journal.clear()
+
+    def _journal_failed(self, host: int, payload, at) -> None:
+        """Keep the calls of ``payload`` that worker ``host`` made before one raised
+        an error (at (entry, call)), and that one, to be taken again as it was (a
+        discarded step the coupling then cuts); without ``at`` the worker cannot be
+        rebuilt until its next checkpoint."""
+        cluster = self._cluster
+        if not self._restartable(host):
+            return
+        if at is None:
+            cluster.unrestartable[host] = ("a call failed on its worker in this step and "
+                                           "the calls made before it are not known")
+            return
+        entry, failed = at
+        for n, (slot, calls) in enumerate(payload[:entry + 1]):
+            made = calls if n < entry else calls[:failed]
+            cluster.journal[(host, slot)].extend(made)  # checkpoints too: harmless again
+            if n == entry:
+                cluster.journal[(host, slot)].append((FAILED, calls[failed]))
 
     def _lost(self, host: int, error) -> dict:
         """What was lost with worker ``host`` (a record for the statistics; "said":
@@ -152,15 +172,22 @@ class Recovery:
                 cluster.losses.append(lost)
                 again = True
                 continue
+            except _Answered as answered:  # started again; the call raised its error
+                self._recovered(lost, host, started)
+                self._journal_failed(host, payload, answered.at)
+                raise answered.cause from None
             except SimulationError as failed:
                 lost["recovered"] = False
                 raise SimulationError(f"{who}: {lost['said']}; starting it again failed: "
                                       f"{failed}", time=cluster.time) from None
-            lost["recovered"] = True
-            lost["recovery_seconds"] = clock.perf_counter() - started
-            lost["new_worker"] = dict(cluster.places[host])
-            cluster.dead.discard(host)
+            self._recovered(lost, host, started)
             return results
+
+    def _recovered(self, lost: dict, host: int, started: float) -> None:
+        lost["recovered"] = True
+        lost["recovery_seconds"] = clock.perf_counter() - started
+        lost["new_worker"] = dict(self._cluster.places[host])
+        self._cluster.dead.discard(host)
 
     def _restart(self, host: int, payload):
         """A fresh worker for ``host`` brought to where the lost one was, then
@@ -215,7 +242,12 @@ class Recovery:
             results = ray.get(worker.run.remote(replay + list(payload)),
                               timeout=cluster.call_timeout)
         except ray.exceptions.RayTaskError as failed:
-            raise _cause(failed) from None
+            cause = _cause(failed)
+            at = getattr(cause, "dsim_at", None)
+            if at is None or at[0] < len(replay):  # the calls taken again went otherwise
+                raise SimulationError(f"taking its calls again failed: {cause}") from None
+            # the lost call itself raised, as it would have on the lost worker
+            raise _Answered(cause, (at[0] - len(replay), at[1])) from None
         except ray.exceptions.GetTimeoutError:
             ray.kill(worker)
             raise SimulationError(f"no answer in {cluster.call_timeout:g} s "
@@ -280,6 +312,14 @@ class Recovery:
             return []
         reasons = sorted({why for why in cluster.unrestartable if why})
         return [f"a lost worker ends the run: {why}" for why in reasons]
+
+
+class _Answered(Exception):
+    """The call taken again on a worker started again raised ``cause`` (at ``at``)."""
+
+    def __init__(self, cause, at):
+        super().__init__(str(cause))
+        self.cause, self.at = cause, at
 
 
 class _Lost(Exception):

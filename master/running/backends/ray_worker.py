@@ -19,8 +19,9 @@ from dsim.master.running.backends.base import terminate_all
 from dsim.master.running.fmi import open_subsystem
 from dsim.master.running.ray_cluster import landed
 
-#: the pseudo-methods of :meth:`Host.run` that take or restore a checkpoint
-CHECKPOINT, RESUME = "@checkpoint", "@resume"
+#: the pseudo-methods of :meth:`Host.run` that take or restore a checkpoint, and that
+#: take a call again that raised an error the first time (a step an FMU discarded)
+CHECKPOINT, RESUME, FAILED = "@checkpoint", "@resume", "@failed"
 #: the calls whose last arguments a checkpoint keeps: inputs an FMU state need not hold
 #: (a restored state brings back its own, others keep what was written last)
 REMEMBERED = ("write_start_inputs", "write_inputs", "write_texts", "set_forces",
@@ -79,11 +80,26 @@ class Host:
 
     def run(self, calls) -> list:
         """Each (slot, [(method, arguments), ...]) in order; the results of each
-        subsystem's calls (a list per subsystem)."""
-        return [[self._call(slot, method, arguments) for method, arguments in steps]
-                for slot, steps in calls]
+        subsystem's calls (a list per subsystem).  An error raised by a call carries
+        ``dsim_at``: (entry, call) where the calls stopped (those before it were made)."""
+        results = []
+        for entry, (slot, steps) in enumerate(calls):
+            done = []
+            for call, (method, arguments) in enumerate(steps):
+                try:
+                    done.append(self._call(slot, method, arguments))
+                except Exception as error:
+                    error.dsim_at = (entry, call)  # pickled with it (BaseException.__reduce__)
+                    raise
+            results.append(done)
+        return results
 
     def _call(self, slot: int, method: str, arguments):
+        if method == FAILED:  # taken again: it failed the first time, and may again
+            try:
+                return self._call(slot, *arguments)
+            except Exception:
+                return None
         if method == CHECKPOINT:
             return self._checkpoint(slot)
         if method == RESUME:
