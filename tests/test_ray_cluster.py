@@ -245,18 +245,16 @@ def test_a_lost_head_ends_the_run_within_seconds_with_everything_kept(built, tmp
     assert len(target.read_text().splitlines()) == steps + 2  # header, start, the steps
 
 
-def test_a_point_lost_with_its_node_is_lost_not_failed_and_a_rerun_runs_it(built, cluster,
-                                                                           tmp_path):
-    """Three points on three nodes of one CPU each; the third node is lost while they
-    run.  With --restarts 0 its point is `lost` (not retried, not failed); the same
-    command again runs it, and only it, on the nodes that are left."""
+def sweep_losing_a_node(built, cluster, folder: Path, *options) -> tuple[list, dict]:
+    """Three points on three nodes of one CPU each (the module's two and a third that
+    joins for this sweep); the third node is lost while they run.  The command and the
+    rows of sweep.csv by point number."""
     spare = start_node([f"--address={cluster['address']}", "--num-cpus=1",
-                        "--object-store-memory=80000000"], cluster["env"],
-                       tmp_path / "spare.log")
-    out = tmp_path / "sweep"
+                        "--object-store-memory=80000000"], cluster["env"], folder / "spare.log")
+    out = folder / "sweep"
     command = DSIM + ["sweep", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "60",
                       "--step", "0.01,0.011,0.012", "--backend", "ray", "--address",
-                      cluster["address"], "--restarts", "0", "--out", str(out)]
+                      cluster["address"], *options, "--out", str(out)]
     try:
         process = subprocess.Popen(command, cwd=ROOT, env=cluster["env"],
                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -271,9 +269,23 @@ def test_a_point_lost_with_its_node_is_lost_not_failed_and_a_rerun_runs_it(built
         out_text, err = process.communicate(timeout=300)
     finally:
         stop_node(spare)
+    assert process.returncode == 0, err
     assert "raylet" not in out_text and "Raylet" not in out_text  # nothing of Ray's
     with open(out / "sweep.csv") as table:
-        found = {row["point"]: row for row in csv.DictReader(table)}
+        return command, {row["point"]: row for row in csv.DictReader(table)}
+
+
+def test_a_point_lost_with_its_node_runs_again_on_the_nodes_left(built, cluster, tmp_path):
+    _, found = sweep_losing_a_node(built, cluster, tmp_path)
+    assert [(row["status"], row["steps"]) for row in found.values()] == \
+        [("completed", str(round(60 / float(row["step"])))) for row in found.values()], found
+
+
+def test_a_point_lost_with_its_node_is_lost_not_failed_and_a_rerun_runs_it(built, cluster,
+                                                                           tmp_path):
+    """With --restarts 0 the point lost with its node is `lost` (not run again, not
+    failed); the same command again runs it, and only it, on the nodes that are left."""
+    command, found = sweep_losing_a_node(built, cluster, tmp_path, "--restarts", "0")
     lost = [k for k, row in found.items() if row["status"] == "lost"]
     assert len(lost) == 1, found
     assert found[lost[0]]["message"].startswith("lost with a node of the cluster 1 times")
@@ -282,7 +294,7 @@ def test_a_point_lost_with_its_node_is_lost_not_failed_and_a_rerun_runs_it(built
                            text=True, timeout=300)
     assert again.returncode == 0, again.stderr
     assert "2 of 3 points already finished" in again.stdout + again.stderr
-    with open(out / "sweep.csv") as table:
+    with open(command[-1] + "/sweep.csv") as table:
         final = list(csv.DictReader(table))
         assert [row["status"] for row in final] == ["completed"] * 3, [
             (row["status"], row["message"]) for row in final]
