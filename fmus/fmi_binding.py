@@ -187,13 +187,18 @@ class CoreBinding:
         """The complete FMU state: core state, inputs (a restore must bring back
         the inputs too, as fmi2SetFMUstate does) and nothing derived."""
         return {"core": self.core.get_state() if self.core else None,
-                "forces": self.forces.copy()}
+                "forces": self.forces.copy(),
+                # what a fresh instance needs besides (a state moved to another process)
+                "caches": self.core.caches() if self.core else None}
 
     def set_state(self, state: dict) -> None:
         self.forces = np.array(state["forces"], dtype=float)
         self._values[:len(self.interface)] = self.forces
         if self.core is not None and state["core"] is not None:
             self.core.set_state(state["core"])
+            # a state deserialized here comes from another instance: its caches once
+            if state.pop("moved", False) and state.get("caches") is not None:
+                self.core.set_caches(state["caches"])
             self.core.set_interface_forces(self.forces)
             self._stale = [True] * 4
 
@@ -204,8 +209,11 @@ def state_to_bytes(state) -> bytes:
 
 
 def state_from_bytes(data: bytes):
-    """Inverse of :func:`state_to_bytes`."""
-    return pickle.loads(data)
+    """Inverse of :func:`state_to_bytes`, marked as moved (from another instance)."""
+    state = pickle.loads(data)
+    if isinstance(state, dict):
+        state["moved"] = True
+    return state
 
 
 def glued_slave(cls):

@@ -64,6 +64,17 @@ class InterfaceCore(ABC):
     def set_state(self, state: dict) -> None:
         """Restore a state returned by :meth:`get_state`."""
 
+    def caches(self):
+        """What the core keeps from its past besides its state (caches that decide
+        how, not what, it computes), as references; None when it keeps nothing.  A
+        state moved to a fresh instance in another process carries it, so that the
+        fresh instance computes what this one would, bit for bit; a rollback in the
+        same instance does not restore it."""
+        return None
+
+    def set_caches(self, caches) -> None:
+        """Take over the :meth:`caches` of another instance of the same core."""
+
     def outputs(self) -> dict[str, float]:
         """Named scalar outputs beyond the ports (for example ``x[1]``)."""
         return {}

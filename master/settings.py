@@ -93,6 +93,11 @@ SETTINGS = {s.keyword: s for s in (
             "seconds a worker of the ray or isolated backend may take to answer one call "
             "(a step of its FMUs); past it the worker is stopped and the run ends (exit 1) "
             "naming its components; default: no limit"),
+    Setting("restarts", None, int, "non-negative",
+            "workers of the ray or isolated backend started again, at most, when one is "
+            "lost (killed, or gone with its node): its FMUs go on from the last converged "
+            "step on a node that is left; 0: a lost worker ends the run (exit 1); "
+            "default: 3"),
     Setting("parameter_set", None, str, "text",
             "a parameter set of the scene applied on top of its bindings: an .ssv file's "
             "path in the scene or a ParameterSet's name"),

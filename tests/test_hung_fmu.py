@@ -133,6 +133,32 @@ def test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row(
         assert worker != process.pid and not alive(worker)
 
 
+def test_the_first_signal_ends_a_run_stuck_in_an_fmu_after_the_grace_period(hung_scene,
+                                                                           tmp_path):
+    """One Ctrl-C is enough: the step under way has GRACE seconds to finish; it never
+    does, so the run ends as on a second signal, with every converged row."""
+    from dsim.master.running.interrupts import GRACE
+
+    target = tmp_path / "out" / "run.csv"
+    process = start(hung_scene, target)
+    try:
+        wait_for_the_hang(process, target)
+        process.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        _, err = process.communicate(timeout=60)
+        took = time.monotonic() - sent
+    finally:
+        process.kill()
+        process.wait()
+    assert process.returncode == 130, err
+    assert GRACE <= took < GRACE + 5.0, took
+    assert read_csv(target)[1].shape[0] == ROWS
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert (stats["status"], stats["steps"]) == ("interrupted", CONVERGED)
+    assert stats["message"].startswith(f"interrupted by SIGINT; the step under way did not "
+                                       f"finish within {GRACE:g} s, then ended at once")
+
+
 def test_rows_are_on_disk_when_the_process_is_killed_outright(hung_scene, tmp_path):
     """The 50 steps take a few milliseconds, less than the 50 ms between two writes:
     the rows still reach the file while the step hangs, so SIGKILL keeps them (under

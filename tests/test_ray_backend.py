@@ -8,6 +8,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -16,6 +17,7 @@ import pytest
 
 import dsim
 from dsim.master.recording.results import read_csv
+from dsim.master.running.execution import Execution
 from dsim.master.tools.cli import main
 from tests.scene_files import component, scene_folder, ssd
 from tests.test_nothing_lost import DSIM, ROOT, block_scene, run_cli
@@ -141,7 +143,15 @@ def test_ctrl_c_ends_a_ray_run_after_its_step_with_everything_written(built, tmp
 
 
 # --- a worker that dies ------------------------------------------------------------
-WORKER_DIED = r"the worker process \(pid \d+\) died: the FMU crashed or was killed"
+#: the words for an FMU that aborts its process, and for one that _exit()s it (as a
+#: kill would end it; the C FMUs cannot serialize their state: not started again)
+CRASHED = r"the FMU crashed its worker process \(pid \d+\): Fatal Python error: Aborted"
+WORKER_ENDED = (r"the worker process \(pid \d+\) on node \S+ ended without a crash report "
+                r"\(killed, or its FMU ended the process\); not started again: component "
+                r"'(\w+)': its FMU cannot serialize its state \(canSerializeFMUstate is false\)")
+#: said before such a run starts
+UP_FRONT = ("dsim: warning: a lost worker ends the run: component '{}': its FMU cannot "
+            "serialize its state (canSerializeFMUstate is false)")
 
 
 def test_a_crashing_fmu_ends_an_isolated_run_with_one_line_and_the_converged_steps(
@@ -150,9 +160,9 @@ def test_a_crashing_fmu_ends_an_isolated_run_with_one_line_and_the_converged_ste
     folder = block_scene(tmp_path / "scene", block_fmus["state"], failure=4, fail_time=0.0505)
     target = tmp_path / "run.csv"
     code, lines = run_cli(capsys, folder, "--isolate", "--out", target)
-    assert code == 1
+    assert code == 1 and lines.pop(0) == UP_FRONT.format("b1")
     assert re.fullmatch(r"dsim: simulation failed: step 51 \(t = 0\.051 s\): component 'b1': "
-                        + WORKER_DIED, lines[0])
+                        + CRASHED, lines[0])
     assert lines[1:] == [f"dsim: the 50 converged steps are in {target}, statistics in "
                          f"{target.with_suffix('.stats.json')}"]
     header, data = read_csv(target)
@@ -170,7 +180,8 @@ def test_the_same_crash_takes_dsim_down_in_process_and_is_two_lines_isolated(blo
                              text=True, timeout=300)
     assert process.returncode == 1 and process.stdout == ""  # Ray's own notice is not shown
     lines = process.stderr.strip().splitlines()
-    assert len(lines) == 2 and re.search(WORKER_DIED, lines[0])
+    assert len(lines) == 3 and lines[0] == UP_FRONT.format("b1")
+    assert re.search(CRASHED, lines[1])
 
 
 def test_a_glued_fmu_that_kills_its_worker_mid_newton_names_itself_and_the_time(
@@ -178,9 +189,9 @@ def test_a_glued_fmu_that_kills_its_worker_mid_newton_names_itself_and_the_time(
     folder = oscillator_scene(tmp_path / "scene", built, crashing)
     target = tmp_path / "run.csv"
     code, lines = run_cli(capsys, folder, "--backend", "ray", "--out", target)
-    assert code == 1
+    assert code == 1 and lines.pop(0) == UP_FRONT.format("third")
     assert re.fullmatch(r"dsim: simulation failed: step 100 \(t = 0\.5 s\): component "
-                        "'third': " + WORKER_DIED, lines[0])
+                        "'third': " + WORKER_ENDED, lines[0])
     header, data = read_csv(target)
     assert data.shape[0] == 100 and abs(data[-1, 0] - 0.495) < 1e-12
     columns = dsim.read_columns(target)
@@ -232,6 +243,7 @@ def test_a_hung_fmu_is_stopped_after_the_call_timeout_with_the_converged_steps(
     started = time.monotonic()
     code, lines = run_cli(capsys, folder, "--isolate", "--call-timeout", "2", "--out", target)
     assert code == 1 and time.monotonic() - started < 60
+    assert lines.pop(0) == UP_FRONT.format("third")
     assert re.fullmatch(r"dsim: simulation failed: step 50 \(t = 0\.25 s\): component "
                         r"'third': no answer from the worker in 2 s \(--call-timeout\): the "
                         "FMU hangs or is too slow; the worker was stopped", lines[0]), lines
@@ -272,10 +284,87 @@ def test_a_dead_worker_that_held_several_components_names_them_all(block_fmus, r
                                                   master='step="0.001"'),
                           {"block.fmu": block_fmus["state"]})
     code, lines = run_cli(capsys, folder, "--backend", "ray", "--out", tmp_path / "run.csv")
-    assert code == 1
+    assert code == 1 and lines[:2] == [UP_FRONT.format("b1"), UP_FRONT.format("b2")]
     assert re.fullmatch(r"dsim: simulation failed: step 11 \(t = 0\.011 s\): components "
-                        r"'b1', 'b3' \(one worker process\): " + WORKER_DIED, lines[0])
+                        r"'b1', 'b3' \(one worker process\): " + CRASHED, lines[2])
     assert read_csv(tmp_path / "run.csv")[1].shape[0] == 11
+
+
+# --- a lost worker: started again, or the run ends saying so ---------------------------
+def run_killing(plan, at: int, delay: float):
+    """``plan`` run to its end while the first worker is killed (SIGKILL) ``delay`` s
+    after step ``at`` (within the next step, or between two); the result and the
+    killed worker's pid and components."""
+    execution = Execution(plan)
+    execution.start()
+    victim = execution.backend.places()[0]["pid"]
+    names = [n for n, p in zip(execution.backend.names, execution.backend.places())
+             if p["pid"] == victim]
+    while execution.step():
+        if execution.index == at:
+            threading.Timer(delay, os.kill, (victim, signal.SIGKILL)).start()
+    return execution.finish(), victim, names
+
+
+def test_a_killed_worker_is_started_again_and_the_run_gives_the_undisturbed_numbers(
+        built, ray_local):
+    """frame_split: five elastic bodies on two workers; the one holding three of them
+    is killed mid-run.  A fresh worker goes on from their states at the last converged
+    step: every column equals the undisturbed run's to the last bit."""
+    scene = built["ssp"] / "frame_split.ssp"
+    here = dsim.simulate(scene, stop=0.005, backend="ray")
+    there, victim, names = run_killing(dsim.prepare(scene, stop=0.005, backend="ray"),
+                                       at=10, delay=0.02)
+    assert there.status == "completed" and there.steps == here.steps == 50
+    assert list(there.signals) == list(here.signals)
+    for column, values in here.signals.items():
+        assert np.array_equal(there[column], values), column
+    [loss] = there.statistics["lost_workers"]
+    assert loss["what"] == "killed worker" and loss["pid"] == victim and loss["recovered"]
+    assert loss["components"] == names and len(names) >= 2
+    assert 0.001 <= loss["time"] <= 0.005 and 0 < loss["recovery_seconds"] < 60
+    assert loss["message"].startswith(f"the worker process (pid {victim}) on node ")
+    assert loss["message"].endswith(" was killed (no crash report from its FMU)")
+    assert {there.statistics["components"][n]["worker"]["pid"] for n in names} == \
+        {loss["new_worker"]["pid"]} != {victim}
+
+
+def test_with_no_restarts_a_killed_worker_ends_the_run_saying_so(built, ray_local):
+    scene = built["ssp"] / "spring_mass_linear.ssp"
+    result, victim, names = run_killing(
+        dsim.prepare(scene, stop=0.5, backend="ray", restarts=0), at=20, delay=0.0)
+    assert result.status == "failed" and 20 <= result.steps < 50
+    assert re.fullmatch(rf"step \d+ \(t = [\d.]+ s\): component '{names[0]}': the worker "
+                        rf"process \(pid {victim}\) on node \S+ ended without a crash report "
+                        r"\(killed, or its FMU ended the process\); not started again: a run "
+                        r"starts 0 lost workers again at most \(--restarts\)", result.message)
+    assert [loss["recovered"] for loss in result.statistics["lost_workers"]] == [False]
+
+
+def test_a_frozen_worker_is_named_with_how_long_it_has_not_answered(built, ray_local):
+    """SIGSTOP (a hung node, a worker cut off): what the progress line shows names the
+    worker's components and the seconds waited; SIGCONT and the step goes on."""
+    from dsim.master.running.backends.ray_recovery import LATE_SECONDS
+
+    execution = Execution(dsim.prepare(built["ssp"] / "spring_mass_linear.ssp", stop=0.5,
+                                       backend="ray"))
+    execution.start()
+    backend = execution.backend
+    place = backend.places()[0]
+    assert backend.waiting() is None
+    os.kill(place["pid"], signal.SIGSTOP)
+    try:
+        stepping = threading.Thread(target=execution.step)
+        stepping.start()
+        time.sleep(LATE_SECONDS + 1.5)
+        said = backend.waiting()
+    finally:
+        os.kill(place["pid"], signal.SIGCONT)
+    stepping.join(timeout=60)
+    assert not stepping.is_alive() and execution.index == 1
+    assert re.fullmatch(rf"component '{backend.names[0]}': no answer for (\d+) s", said)
+    assert int(said.split()[-2]) >= LATE_SECONDS
+    assert backend.waiting() is None and execution.finish().status == "interrupted"
 
 
 # --- placement ----------------------------------------------------------------------

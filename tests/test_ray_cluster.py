@@ -2,8 +2,10 @@
 --head`, then `ray start --address` with a resource of its own), started and stopped
 by the tests, with token authentication as a real cluster would have; dsim runs a
 scene on it with a component placed on the second node, and a sweep."""
+import csv
 import json
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -129,3 +131,170 @@ def test_a_sweep_on_the_cluster_gives_the_points_of_a_serial_sweep(built, cluste
             (tmp_path / "serial" / name).read_bytes()
     columns = (tmp_path / "spread" / "sweep.csv").read_text().splitlines()
     assert len(columns) == 3 and all(",completed,true," in row for row in columns[1:])
+
+
+# --- what survives what (docs/distributed.md) ---------------------------------------
+def processes_of(process: subprocess.Popen, name: str) -> list[int]:
+    """The processes named ``name`` (in their command line) among those a node started."""
+    from dsim.master.running.interrupts import descendants
+
+    found = []
+    for pid in descendants(process.pid):
+        try:
+            command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
+        except OSError:
+            continue
+        if name.encode() in command:
+            found.append(pid)
+    return found
+
+
+def wait_for_rows(target: Path, process: subprocess.Popen, size: int = 2000) -> None:
+    """Until the run's CSV (under its temporary name) holds ``size`` bytes of rows."""
+    partial = target.parent / f".{target.name}.partial"
+    deadline = time.monotonic() + 120
+    while not (partial.exists() and partial.stat().st_size > size):
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+
+
+def test_a_lost_node_does_not_end_the_run_its_component_goes_on_elsewhere(built, cluster,
+                                                                        tmp_path):
+    """A third node joins with a resource of its own; the component placed there is
+    started again on a node that is left when the node's raylet is killed mid-run, from
+    the last converged step: the CSV is the undisturbed run's, byte for byte."""
+    spare = start_node([f"--address={cluster['address']}", "--num-cpus=1",
+                        '--resources={"spare_node": 1}', "--object-store-memory=80000000"],
+                       cluster["env"], tmp_path / "spare.log")
+    try:
+        folder = placed_scene(built, tmp_path / "scene",
+                              '<glue:Placement component="right" resource="spare_node"/>')
+        run = DSIM + ["run", str(folder), "--stop", "4", "--quiet", "--backend", "ray",
+                      "--address", cluster["address"]]
+        here = subprocess.run(DSIM + ["run", str(folder), "--stop", "4", "--quiet", "--out",
+                                      str(tmp_path / "here.csv")],
+                              cwd=ROOT, capture_output=True, text=True, timeout=300)
+        assert here.returncode == 0, here.stderr
+        target = tmp_path / "there.csv"
+        process = subprocess.Popen(run + ["--out", str(target)], cwd=ROOT, env=cluster["env"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        wait_for_rows(target, process)
+        raylet = processes_of(spare, "raylet")
+        assert len(raylet) == 1
+        os.kill(raylet[0], signal.SIGKILL)
+        out, err = process.communicate(timeout=300)
+    finally:
+        stop_node(spare)
+    assert process.returncode == 0, err
+    assert out == ""  # nothing of Ray's on stdout
+    assert target.read_bytes() == (tmp_path / "here.csv").read_bytes()
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    losses = stats["lost_workers"]
+    # one loss per worker that was on the node ("left" may have been spread there too)
+    assert "right" in [c for loss in losses for c in loss["components"]], losses
+    for loss in losses:
+        assert loss["what"] == "lost node" and loss["recovered"], losses
+        assert loss["message"].startswith("lost node ") and 0 < loss["time"] < 4
+        assert 0 < loss["recovery_seconds"] < 60  # a node that is left, at once
+        for name in loss["components"]:
+            assert stats["components"][name]["worker"]["node"] != loss["node"]
+    assert [loss.get("moved_from") for loss in losses if "right" in loss["components"]] \
+        == ["spare_node"]
+
+
+def test_a_lost_head_ends_the_run_within_seconds_with_everything_kept(built, tmp_path):
+    """A head of its own (this test kills it): its GCS killed mid-run, dsim's own
+    watchdog ends the run in seconds (Ray would wait a minute, then end the process
+    without results): exit 1, the CSV and the statistics under their names, one line
+    naming what was lost, nothing on stdout."""
+    folder = Path(tempfile.mkdtemp(prefix="dsimhead", dir="/tmp"))  # short: socket paths
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
+           "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
+    port = free_port()
+    head = start_node(["--head", f"--port={port}", "--num-cpus=1", "--include-dashboard=false",
+                       f"--temp-dir={folder}", "--object-store-memory=80000000"],
+                      env, folder / "head.log")
+    target = tmp_path / "run.csv"
+    try:
+        process = subprocess.Popen(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
+                                           "--stop", "1000", "--backend", "ray", "--address",
+                                           f"127.0.0.1:{port}", "--out", str(target), "--quiet"],
+                                   cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+        wait_for_rows(target, process)
+        [gcs] = processes_of(head, "gcs_server")
+        os.kill(gcs, signal.SIGKILL)
+        killed = time.monotonic()
+        out, err = process.communicate(timeout=120)
+        ended = time.monotonic() - killed
+    finally:
+        stop_node(head)
+        shutil.rmtree(folder, ignore_errors=True)
+    assert process.returncode == 1 and ended < 10 and out == "", err
+    lines = err.strip().splitlines()
+    assert len(lines) == 2, lines
+    assert re.fullmatch(r"dsim: simulation failed: lost the Ray head \(its GCS at \S+ stopped "
+                        r"answering\): no worker can be reached \(stopped at t = [\d.]+ s, step "
+                        r"(\d+) of 100000\)", lines[0])
+    steps = int(re.search(r"step (\d+) of", lines[0]).group(1))
+    assert lines[1] == (f"dsim: the {steps} converged steps are in {target}, statistics in "
+                        f"{target.with_suffix('.stats.json')}")
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert stats["status"] == "failed" and stats["steps"] == steps > 5
+    assert len(target.read_text().splitlines()) == steps + 2  # header, start, the steps
+
+
+def sweep_losing_a_node(built, cluster, folder: Path, *options) -> tuple[list, dict]:
+    """Three points on three nodes of one CPU each (the module's two and a third that
+    joins for this sweep); the third node is lost while they run.  The command and the
+    rows of sweep.csv by point number."""
+    spare = start_node([f"--address={cluster['address']}", "--num-cpus=1",
+                        "--object-store-memory=80000000"], cluster["env"], folder / "spare.log")
+    out = folder / "sweep"
+    command = DSIM + ["sweep", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "60",
+                      "--step", "0.01,0.011,0.012", "--backend", "ray", "--address",
+                      cluster["address"], *options, "--out", str(out)]
+    try:
+        process = subprocess.Popen(command, cwd=ROOT, env=cluster["env"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 180
+        while not processes_of(spare, "_run_remote"):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline
+            time.sleep(0.1)
+        time.sleep(1.0)  # the point under way on it
+        [raylet] = processes_of(spare, "raylet")
+        os.kill(raylet, signal.SIGKILL)
+        out_text, err = process.communicate(timeout=300)
+    finally:
+        stop_node(spare)
+    assert process.returncode == 0, err
+    assert "raylet" not in out_text and "Raylet" not in out_text  # nothing of Ray's
+    with open(out / "sweep.csv") as table:
+        return command, {row["point"]: row for row in csv.DictReader(table)}
+
+
+def test_a_point_lost_with_its_node_runs_again_on_the_nodes_left(built, cluster, tmp_path):
+    _, found = sweep_losing_a_node(built, cluster, tmp_path)
+    assert [(row["status"], row["steps"]) for row in found.values()] == \
+        [("completed", str(round(60 / float(row["step"])))) for row in found.values()], found
+
+
+def test_a_point_lost_with_its_node_is_lost_not_failed_and_a_rerun_runs_it(built, cluster,
+                                                                           tmp_path):
+    """With --restarts 0 the point lost with its node is `lost` (not run again, not
+    failed); the same command again runs it, and only it, on the nodes that are left."""
+    command, found = sweep_losing_a_node(built, cluster, tmp_path, "--restarts", "0")
+    lost = [k for k, row in found.items() if row["status"] == "lost"]
+    assert len(lost) == 1, found
+    assert found[lost[0]]["message"].startswith("lost with a node of the cluster 1 times")
+    assert all(row["status"] == "completed" for k, row in found.items() if k not in lost)
+    again = subprocess.run(command, cwd=ROOT, env=cluster["env"], capture_output=True,
+                           text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert "2 of 3 points already finished" in again.stdout + again.stderr
+    with open(command[-1] + "/sweep.csv") as table:
+        final = list(csv.DictReader(table))
+        assert [row["status"] for row in final] == ["completed"] * 3, [
+            (row["status"], row["message"]) for row in final]

@@ -343,6 +343,12 @@ class SlotBody(InterfaceCore):
     def get_state(self) -> dict:
         return {"body": self.body.get_state(), "forces": self._forces.copy()}
 
+    def caches(self):
+        return self.body.caches()
+
+    def set_caches(self, caches) -> None:
+        self.body.set_caches(caches)
+
     def set_state(self, state: dict) -> None:
         self.body.set_state(state["body"])
         self._forces = state["forces"].copy()

@@ -286,6 +286,12 @@ class ElasticBody(InterfaceCore):
         values = self._interface_map.apply((self._q, self._v, self._a)[kind])
         return self._reference + values if kind == 0 else values
 
+    def caches(self):
+        return self._repeat.snapshot()
+
+    def set_caches(self, caches) -> None:
+        self._repeat.resume(caches)
+
     def get_state(self) -> dict:
         return {"time": self.time, "q": self._q.copy(), "v": self._v.copy(),
                 "a": self._a.copy(), "forces": self._forces.copy()}

@@ -56,6 +56,21 @@ class RepeatedStep:
             self._last = (time, self.integrator.step_size, start, forces.copy(), end)
         return end
 
+    def snapshot(self) -> dict:
+        """What decides this object's next answers (references, no copies): the
+        remembered step, the repeats counted and the step size of Z (Z itself is
+        built again from it, to the same bits)."""
+        return {"last": self._last, "counted": self._counted, "repeats": self._repeats,
+                "response": None if self._response is None else self._response[0]}
+
+    def resume(self, snapshot: dict) -> None:
+        """Take over a :meth:`snapshot` of the same body's object in another process."""
+        self._last, self._counted = snapshot["last"], snapshot["counted"]
+        self._repeats = snapshot["repeats"]
+        self._response = None
+        if snapshot["response"] is not None:
+            self._build(snapshot["response"])
+
     def _same_start(self, time: float, step_size: float, start: tuple) -> bool:
         last_time, h, last_start, _, _ = self._last
         return (time == last_time and self.integrator.same_step(step_size, h)
@@ -74,6 +89,10 @@ class RepeatedStep:
         self._repeats += 1
         if self._repeats < m:
             return None
+        return self._build(h)
+
+    def _build(self, h: float):
+        """Z^T for step size ``h``, kept."""
         self.integrator.factor(h)
         columns = self.interface_map.transpose.toarray().T  # one per interface dof
         z = np.array([self.integrator.solve(column) for column in columns])  # Z^T, m x n

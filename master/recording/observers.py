@@ -400,6 +400,9 @@ class ProgressBar(Observer):
     files: dict = field(default_factory=dict)
     #: the warnings printed so far
     shown: list = field(default_factory=list)
+    #: what the run waits for, once it is late (a callable the run sets: the components
+    #: of a worker that has not answered for a while), shown at the end of the line
+    waiting: object = None
 
     def started(self, info: RunInfo) -> None:
         self.progress = None
@@ -410,11 +413,24 @@ class ProgressBar(Observer):
         from rich.console import Console
         from rich.progress import (BarColumn, Progress, TextColumn, TimeElapsedColumn,
                                    TimeRemainingColumn)
+        from rich.progress import ProgressColumn
+        from rich.text import Text
+
+        bar = self
+
+        class Late(ProgressColumn):
+            """What the run has waited for too long (asked at every refresh, also
+            while the main thread waits for it)."""
+
+            def render(self, task):
+                said = bar.waiting() if bar.waiting else None
+                return Text(f"waiting: {said}" if said else "", style="bold yellow")
+
         self.progress = Progress(TextColumn("{task.description}"), BarColumn(),
                                  TextColumn("t = {task.fields[t]:.4g} s"),
                                  TextColumn("it/step {task.fields[it]:.2f}"),
-                                 TimeElapsedColumn(), TimeRemainingColumn(), transient=True,
-                                 console=Console(file=stream))
+                                 TimeElapsedColumn(), TimeRemainingColumn(), Late(),
+                                 transient=True, console=Console(file=stream))
         self.progress.start()
         self.iterations = 0
         self.task = self.progress.add_task(self.label or info.scene, total=info.planned_steps,

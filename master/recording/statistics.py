@@ -100,6 +100,8 @@ def run_statistics(execution, wall_seconds: float, components: dict | None = Non
         "roundoff_steps": getattr(coupling, "roundoff_steps", 0),
         "do_steps_per_step": do_steps / steps if steps else 0.0,
         "components": components,
+        # every worker lost (killed, or gone with its node) and how the run went on
+        "lost_workers": getattr(execution.backend, "losses", list)(),
         "warnings": list(execution.warnings),
         # what repeats the run besides the scene and "master": the parameter sets
         # chosen, the values given on top (docs/parameters.md) and what was recorded

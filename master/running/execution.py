@@ -33,7 +33,7 @@ from dsim.master.recording.statistics import run_statistics
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.couplings import COUPLINGS
 from dsim.master.running.loops import LoopSolver
-from dsim.master.running.interrupts import SignalWatch
+from dsim.master.running.interrupts import SignalWatch, end_lost
 from dsim.master.running.start import check_start, start_forces
 from dsim.master.running.timeline import size_to, step_count
 
@@ -158,6 +158,15 @@ class Execution:
         self.status = "running"
         for message in self.plan.warnings:
             self.warn(message)
+        for message in getattr(self.backend, "notes", list)():  # what a lost worker ends
+            self.warn(message)
+        waiting = getattr(self.backend, "waiting", None)  # for a progress line
+        for observer in self.observers:
+            if waiting is not None and hasattr(observer, "waiting"):
+                observer.waiting = waiting
+        head = getattr(self.backend, "watch_head", None)
+        if head is not None and getattr(self, "_end_when_lost", False):
+            head(lambda what: end_lost(self, what))  # never left to Ray's own timeouts
         self._phases["setup"] = clock.perf_counter() - self._wall_start
         try:
             self._read_texts()
@@ -440,6 +449,8 @@ class Execution:
         watch = nullcontext()
         if handle_signals and threading.current_thread() is threading.main_thread():
             watch = SignalWatch(self)
+            # the process is the run's: it may end it when the Ray head is lost
+            self._end_when_lost = True
         with watch:  # over finish() too: releasing a subsystem may hang as well
             if self.status == "created":
                 self.start()
@@ -447,13 +458,19 @@ class Execution:
                 pass
             return self.finish()
 
-    def abandon(self, signal_number: int) -> RunResult:
-        """The run as far as it got, for a process that ends at once (a second signal),
-        made from another thread while the main thread may be inside an FMU: no
-        subsystem is called and no worker asked (the counters of workers elsewhere are
-        not known then, only where they ran)."""
-        name = signal.Signals(signal_number).name
-        if self.status in ("completed", "failed"):  # ended already, finishing: it says so
+    def abandon(self, signal_number: int | None, lost: str | None = None) -> RunResult:
+        """The run as far as it got, for a process that ends at once (a second signal,
+        or ``lost``: what the run cannot go on without, such as the Ray head), made
+        from another thread while the main thread may be inside an FMU: no subsystem
+        is called and no worker asked (the counters of workers elsewhere are not known
+        then, only where they ran)."""
+        name = signal.Signals(signal_number).name if signal_number else ""
+        if lost is not None:
+            self.status = status = "failed"
+            message = (f"{lost} (stopped at t = {self.time:g} s, step {self.index} of "
+                       f"{self.planned_steps})")
+            self.error = SimulationError(message)
+        elif self.status in ("completed", "failed"):  # ended already: it says so
             status = self.status
             message = (str(self.error) if self.error else "completed") + \
                 f"; then ended at once by {name} while the subsystems were released"

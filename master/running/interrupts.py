@@ -2,7 +2,9 @@
 
 The first signal asks the run to stop after the current step
 (:meth:`~dsim.master.running.execution.Execution.stop`): the step ends, the subsystems are
-released, every file is finished, and the command exits with 128 + the signal.
+released, every file is finished, and the command exits with 128 + the signal.  A step
+that has not finished :data:`GRACE` seconds later (a hung FMU, a frozen worker) is not
+waited for: the run ends as on a second signal.
 
 A second signal ends the process at once.  A Python signal handler runs only in the
 main thread, between two bytecodes: while the main thread is inside an FMU's
@@ -42,6 +44,10 @@ from dsim.master.recording.results import RunResult
 
 #: seconds after a second signal by which the process has ended, whatever hangs
 DEADLINE = 3.0
+#: seconds the step under way has after the first signal: a step that has not finished
+#: by then (an FMU or a worker that hangs, a frozen worker) ends the run as a second
+#: signal would, with every converged row
+GRACE = 5.0
 #: the signals a run answers
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 #: what the watch writes into its own pipe to stop its thread (no signal has number 0)
@@ -99,8 +105,22 @@ class SignalWatch:
                 name = signal.Signals(number).name
                 if self.count == 1:
                     self.execution.stop(f"interrupted by {name}", number)
+                    grace = threading.Timer(GRACE, self._graced,
+                                            (self.execution.index, number))
+                    grace.daemon = True
+                    grace.start()
                 else:
                     end_at_once(self.execution, number)
+
+
+    def _graced(self, index: int, number: int) -> None:
+        """The grace after the first signal is over: a run still in the step it was in
+        ends at once (see :data:`GRACE`)."""
+        execution = self.execution
+        if self.count == 1 and execution.status == "running" and execution.index == index:
+            execution.stop(f"interrupted by {signal.Signals(number).name}; the step under "
+                           f"way did not finish within {GRACE:g} s", number)
+            end_at_once(execution, number)
 
 
 def _nothing(number, frame) -> None:
@@ -133,6 +153,33 @@ def end_at_once(execution, number: int) -> None:
     _say(f"dsim: interrupted: {result.message}"
          + (f"; the {result.steps} converged steps are in {where}" if where else ""))
     os._exit(code)
+
+
+def end_lost(execution, what: str) -> None:
+    """End the process now as a failed run (exit 1), keeping what can be kept, when
+    ``what`` is lost and the run cannot go on (the Ray head: no call to a worker
+    would ever come back), from the watchdog's thread."""
+    deadline = threading.Timer(DEADLINE, _last_resort, (1,))
+    deadline.daemon = True
+    deadline.start()
+    try:
+        result = execution.abandon(None, lost=what)
+    except Exception as error:  # the rows matter more than complete statistics
+        result = _bare_result(execution, signal.SIGTERM, error)
+        result.status = result.statistics["status"] = "failed"
+    for observer in execution.observers:
+        try:
+            observer.abandoned(result)
+        except Exception as error:  # one observer must not stop the others
+            _say(f"dsim: {type(observer).__name__}: {error}")
+        result.files.update(getattr(observer, "files", {}))
+    kill_descendants()
+    where, stats = result.files.get("csv"), result.files.get("statistics")
+    _say(f"dsim: simulation failed: {result.message}")
+    if where:
+        _say(f"dsim: the {result.steps} converged steps are in {where}, statistics in "
+             f"{stats or 'nowhere'}")
+    os._exit(1)
 
 
 def _last_resort(code: int) -> None:

@@ -14,6 +14,7 @@ import logging
 import os
 import signal
 import socket
+import tempfile
 import threading
 from pathlib import Path
 
@@ -167,11 +168,18 @@ def _unreachable(address: str) -> str:
 _QUIETED = False
 
 
+def ray_log() -> Path:
+    """Where this process keeps what Ray's own processes said to it (a raylet's notice
+    of a dead worker, its post-mortem when it is lost): never on dsim's output."""
+    return Path(tempfile.gettempdir()) / f"dsim-{os.getuid()}" / f"ray-{os.getpid()}.log"
+
+
 def _quiet_worker_deaths(ray) -> None:
-    """Drop Ray's multi-line notice of a worker process that died from the driver's
-    output: the run says it in one line naming the component and the time.  (Ray
-    prints the notice from a thread of every driver; the hook is internal to Ray, so
-    if it is not there the notice is only noise, never a failure.)"""
+    """Keep Ray's raylet messages (the multi-line notice of a worker process that died,
+    a lost raylet's post-mortem) off the driver's output, in :func:`ray_log`: the run
+    says what happened in one line naming the component and the time.  (Ray prints
+    them from a thread of every driver; the hook is internal to Ray, so if it is not
+    there they are only noise, never a failure.)"""
     global _QUIETED
     if _QUIETED:
         return
@@ -183,8 +191,14 @@ def _quiet_worker_deaths(ray) -> None:
         return
 
     def filtered(data, *args, **kwargs):
-        lines = data.get("lines", []) if isinstance(data, dict) else []
-        if data.get("pid") == "raylet" and any("worker died" in str(line) for line in lines):
+        if isinstance(data, dict) and data.get("pid") == "raylet":
+            try:
+                path = ray_log()
+                path.parent.mkdir(parents=True, exist_ok=True)
+                with open(path, "a") as log:
+                    log.write("".join(f"{line}\n" for line in data.get("lines", [])))
+            except OSError:  # the log is a courtesy; the output stays quiet regardless
+                pass
             return None
         return original(data, *args, **kwargs)
 

@@ -32,7 +32,7 @@ TABLE_FILE = "sweep.csv"
 
 #: settings that say where the points run, not what they compute: a sweep killed on
 #: Ray may be finished in-process, and the other way round
-WHERE = ("backend", "address", "call_timeout")
+WHERE = ("backend", "address", "call_timeout", "restarts")
 
 
 def _typed(name: str, value):

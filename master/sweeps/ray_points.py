@@ -8,10 +8,16 @@ in flight, hands points on as they finish and submits the next.  SIGINT or SIGTE
 on the driver raise a flag (a small actor) that every running point looks at
 between steps: it ends after its current step, as interrupted, with its converged
 steps kept; no further point is submitted.
+
+A point lost to the infrastructure is run again from its start: one lost with a node
+(a node of the cluster was lost meanwhile) up to ``restarts`` times (default 3), then
+it is ``lost`` (a rerun of the sweep runs it again); one whose worker died while every
+node stayed once more, and if it dies again it ``failed`` (its FMU ends its process).
 """
 from __future__ import annotations
 
 import signal
+import socket
 import tempfile
 import threading
 import time as clock
@@ -22,12 +28,13 @@ from dsim.master.errors import InputError
 from dsim.master.recording.observers import CsvRecorder, Observer, StatisticsWriter
 from dsim.master.recording.output_files import write_whole
 from dsim.master.recording.results import RunResult
+from dsim.master.running.backends.ray_recovery import RESTARTS
 from dsim.master.running.execution import Execution
 from dsim.master.running.ray_cluster import Shipment, connect, landed
 from dsim.master.sweeps.point import PointRun, keywords
 
 #: the settings that choose where the sweep runs, not how each point runs
-WHERE = ("backend", "address")
+WHERE = ("backend", "address", "restarts")
 #: seconds between two looks of a running point at the stop flag
 POLL_SECONDS = 0.25
 
@@ -71,6 +78,10 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
         point_settings = {k: v for k, v in fixed.items() if k not in WHERE}
         task = ray.remote(_run_remote).options(num_cpus=1, max_retries=0)
         waiting = list(configurations)[::-1]
+        chosen = dict(configurations)
+        limit = RESTARTS if fixed.get("restarts") is None else int(fixed["restarts"])
+        losses: dict[int, list[str]] = {}
+        nodes = {node["NodeID"] for node in ray.nodes() if node.get("Alive")}
         width = max(1, connection.cpus())
         pending: dict = {}
         while waiting or pending:
@@ -84,7 +95,16 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
             for ref in done:
                 k = pending.pop(ref)
-                finish(k, _collect(ray, ref, out / f"point_{k + 1:03d}.csv", inputs))
+                run = _collect(ray, ref, out / f"point_{k + 1:03d}.csv", inputs, nodes)
+                if isinstance(run, _LostPoint):
+                    run = _again(k, run, losses.setdefault(k, []), limit)
+                    if run is None and not caught:
+                        waiting.append((k, chosen[k]))  # next, before the others
+                        continue
+                    run = run or PointRun(RunResult(
+                        "interrupted", "lost with its worker, not run again: the sweep was "
+                        "interrupted", 0.0, 0, statistics={}), wall_seconds=0.0)
+                finish(k, run)
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
@@ -92,19 +112,65 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
         connection.close()
 
 
-def _collect(ray, ref, results: Path, inputs) -> PointRun:
-    """The point's run, its files written at ``results``."""
+class _LostPoint:
+    """A point whose worker was lost: Ray's words, and whether a node was lost too."""
+
+    def __init__(self, said: str, node_lost: bool):
+        self.said, self.node_lost = said, node_lost
+
+
+def _again(k: int, lost: _LostPoint, said: list[str], limit: int) -> PointRun | None:
+    """None when point ``k`` is to run again after ``lost``, else how it ended: lost
+    (with a node, over and over) or failed (its worker died twice, every node there)."""
+    said.append(lost.said)
+    if lost.node_lost:
+        if len(said) <= limit:
+            return None
+        return PointRun(RunResult("lost", f"lost with a node of the cluster {len(said)} "
+                                  f"times ({lost.said}); a rerun of the sweep runs it again",
+                                  0.0, 0, statistics={}), wall_seconds=0.0)
+    if len(said) < 2:
+        return None  # a killed worker, or an FMU that ends its process: once more
+    return PointRun(RunResult("failed", "the worker process running the point died twice, "
+                              f"every node of the cluster there: the FMU ends its process "
+                              f"({lost.said})", 0.0, 0, statistics={}), wall_seconds=0.0)
+
+
+def _collect(ray, ref, results: Path, inputs, nodes: set) -> PointRun | _LostPoint:
+    """The point's run, its files written at ``results``; _LostPoint when its worker
+    was lost (killed, its FMU crashed, its node lost: one of ``nodes``, those there
+    when the sweep began)."""
     try:
         answer = ray.get(ref)
-    except ray.exceptions.RayError as error:  # the worker died (an FMU crashed it)
-        message = f"the worker process running the point died: {str(error).splitlines()[0]}"
+    except ray.exceptions.RayTaskError as error:  # dsim's own, a bug: said as it is
+        message = f"the point's task failed: {str(error).splitlines()[0]}"
         return PointRun(RunResult("failed", message, 0.0, 0, statistics={}), wall_seconds=0.0)
+    except ray.exceptions.RayError as error:
+        return _LostPoint(str(error).strip().splitlines()[0], _a_node_lost(ray, nodes))
     run, files = answer
     if run.result is not None:
         for suffix, data in files.items():
             write_whole(results.with_suffix(suffix), data, inputs)
         run.results = results
     return run
+
+
+def _a_node_lost(ray, nodes: set) -> bool:
+    """Whether one of ``nodes`` (ids) is gone: the cluster says so, or its raylet no
+    longer listens (the cluster learns of it only after its health checks)."""
+    try:
+        found = [node for node in ray.nodes() if node.get("NodeID") in nodes]
+    except Exception:  # the head itself is gone
+        return True
+    for node in found:
+        if not node.get("Alive"):
+            return True
+        try:
+            socket.create_connection((node["NodeManagerAddress"], node["NodeManagerPort"]),
+                                     timeout=1.0).close()
+        except (OSError, KeyError):
+            return True
+    return False
 
 
 class _StopWhenAsked(Observer):

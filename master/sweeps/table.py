@@ -56,8 +56,9 @@ class Point:
 
     @property
     def finished(self) -> bool:
-        """Whether a rerun of the sweep keeps this point (an interrupted one runs again)."""
-        return self.status not in ("", "interrupted")
+        """Whether a rerun of the sweep keeps this point (an interrupted one, and one
+        lost with a node of the cluster, runs again)."""
+        return self.status not in ("", "interrupted", "lost")
 
 
 #: one word per point's state, what each means: a point is in exactly one of them

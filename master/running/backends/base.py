@@ -9,7 +9,9 @@ from abc import ABC, abstractmethod
 BACKEND_OPTIONS = {"address": "only the ray backend takes it (--backend ray)",
                    "call_timeout": "only the ray and isolated backends take it (--backend "
                                    "ray, --isolate): an FMU in dsim's own process cannot be "
-                                   "stopped"}
+                                   "stopped",
+                   "restarts": "only the ray and isolated backends take it (--backend ray, "
+                               "--isolate): they start a lost worker again"}
 
 
 class Backend(ABC):

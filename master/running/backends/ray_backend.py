@@ -14,14 +14,29 @@ that, subsystems share workers, dealt round-robin); a component placed with
 ``glue:Placement`` runs on a node that has the named Ray resource.
 ``isolated``: one worker process per FMU instance on a local Ray instance, so an FMU
 that crashes its process ends the run with a message, never dsim itself.
+
+A lost worker (killed, or gone with its node) does not end the run
+(docs/distributed.md, "What survives what"): after every ``begin_step`` each worker
+sends the saved state of its subsystems, serialized, and the driver keeps it with the
+calls made since; a fresh worker (on a node that is still there) instantiates the
+same FMUs, goes on from that state, takes the same calls again and answers the call
+that was lost: the numbers are those of an undisturbed run, bit for bit.  At most
+``restarts`` workers are started again in a run; an FMU that cannot serialize its
+state, an FMU that crashed (it left a crash report) and a worker lost again on the
+same call end the run as before, with a line that says which it was.
 """
 from __future__ import annotations
 
+import copy
 import threading
+import time as clock
 
 from dsim.master.errors import InputError, SimulationError
 from dsim.master.running.backends.base import Backend
-from dsim.master.running.backends.ray_worker import Host, deal
+from dsim.master.running.backends.ray_recovery import (RESTARTS, Recovery, _cause,
+                                                       _first_line, _quoted, _unrestartable,
+                                                       _who)
+from dsim.master.running.backends.ray_worker import CHECKPOINT, Host, deal
 from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
 
 #: seconds to wait for the workers to start and instantiate their FMUs
@@ -29,6 +44,8 @@ START_SECONDS = 300.0
 #: what a placed worker takes of its node's resource: little, so that any number of
 #: components can share a node (the resource says where, not how many)
 PLACEMENT_SHARE = 0.001
+#: seconds a worker may take to end its FMUs when the run is over (a frozen one: never)
+CLOSE_SECONDS = 10.0
 
 
 class _Cluster:
@@ -55,9 +72,26 @@ class _Cluster:
         #: (worker, slot) -> the outputs read right after its last step, while no other
         #: call has reached it: what read_outputs returns without a round trip
         self.outputs: dict[tuple[int, int], object] = {}
+        # --- what it takes to start a lost worker again --------------------------
+        #: per worker: its specs, shipped files and Ray options (to start it again)
+        self.specs: list[list] = []
+        self.files: list[list] = []
+        self.options: list[dict] = []
+        #: per worker: why it cannot be started again (None: it can)
+        self.unrestartable: list[str | None] = []
+        #: workers that may be started again in this run, at most, and still may be
+        self.restarts = self.restarts_left = 0
+        #: (worker, slot) -> the last checkpoint (None: from instantiation on)
+        self.checkpoints: dict[tuple[int, int], dict | None] = {}
+        #: (worker, slot) -> the calls answered since that checkpoint
+        self.journal: dict[tuple[int, int], list] = {}
+        #: every worker lost: time, node, address, pid, components, what, recovery seconds
+        self.losses: list[dict] = []
+        #: (worker, since when, time.monotonic) while the driver waits for its answer
+        self.waiting: tuple[int, float] | None = None
 
 
-class RayBackend(Backend):
+class RayBackend(Recovery, Backend):
     """Every subsystem in a Ray actor (a worker process); batched calls in parallel."""
 
     name = "ray"
@@ -75,7 +109,7 @@ class RayBackend(Backend):
     @classmethod
     def problems(cls, **options) -> list[str]:
         found = super().problems(**{k: v for k, v in options.items()
-                                    if k not in ("address", "call_timeout")})
+                                    if k not in ("address", "call_timeout", "restarts")})
         if not available():
             found.append(f"backend '{cls.name}' needs the ray package: {INSTALL}")
         address = options.get("address")
@@ -84,12 +118,14 @@ class RayBackend(Backend):
         return found
 
     @classmethod
-    def from_specs(cls, specs, address=None, call_timeout=None,
+    def from_specs(cls, specs, address=None, call_timeout=None, restarts=None,
                    **options) -> "RayBackend":
         connection = connect(address)
         try:
             backend = cls._start(connection, list(specs))
             backend._cluster.call_timeout = call_timeout
+            backend._cluster.restarts = RESTARTS if restarts is None else restarts
+            backend._cluster.restarts_left = backend._cluster.restarts
             return backend
         except BaseException:
             connection.close()
@@ -100,7 +136,7 @@ class RayBackend(Backend):
         ray = connection.ray
         shipment = Shipment(ray)
         remote = ray.remote(Host)
-        hosts, assigned, members = [], [], [None] * len(specs)
+        hosts, assigned, members, worker_options = [], [], [None] * len(specs), []
         for placement, indices in cls._groups(connection, specs):
             options = {"num_cpus": 0, "max_restarts": 0}
             if placement:
@@ -113,11 +149,21 @@ class RayBackend(Backend):
                     members[index] = (len(hosts), slot)
                 hosts.append(remote.options(**options).remote())
                 assigned.append(chosen)
-        opened = [host.open.remote([specs[i] for i in chosen],
-                                   [_shipped_files(shipment, specs[i]) for i in chosen])
-                  for host, chosen in zip(hosts, assigned)]
+                worker_options.append(options)
+        shipped = [[_shipped_files(shipment, specs[i]) for i in chosen] for chosen in assigned]
+        opened = [host.open.remote([specs[i] for i in chosen], files)
+                  for host, chosen, files in zip(hosts, assigned, shipped)]
         owners = [[specs[i].name for i in chosen] for chosen in assigned]
-        backend = cls(_Cluster(connection, hosts, owners), members, [s.name for s in specs])
+        cluster = _Cluster(connection, hosts, owners)
+        cluster.specs = [[specs[i] for i in chosen] for chosen in assigned]
+        cluster.files = shipped
+        cluster.options = worker_options
+        cluster.unrestartable = [_unrestartable(cluster.specs[h]) for h in range(len(hosts))]
+        for h, chosen in enumerate(assigned):
+            for slot in range(len(chosen)):
+                cluster.checkpoints[(h, slot)] = None
+                cluster.journal[(h, slot)] = []
+        backend = cls(cluster, members, [s.name for s in specs])
         try:
             backend._cluster.places = backend._open(opened)
         except BaseException:
@@ -193,17 +239,27 @@ class RayBackend(Backend):
             for host, batch in batches.items():
                 cluster.deferred.setdefault(host, []).extend(batch)
             return [[] for _ in steps]
-        pending, skipped = {}, {}
+        pending, skipped, payloads = {}, {}, {}
         for host, batch in batches.items():
             ahead = cluster.deferred.pop(host, [])
             skipped[host] = len(ahead)
-            pending[host] = cluster.hosts[host].run.remote(ahead + batch)
-        answers = {host: iter(self._answer(host, ref)[skipped[host]:])
-                   for host, ref in pending.items()}
+            payloads[host] = ahead + batch
+            if self._restartable(host):  # the journal must hold the values as sent
+                payloads[host] = copy.deepcopy(payloads[host])
+            pending[host] = cluster.hosts[host].run.remote(payloads[host])
+        answers = {}
+        for host, ref in pending.items():
+            cluster.waiting = (host, clock.monotonic())  # for the progress line
+            try:
+                results = self._answer(host, ref, payloads[host])
+            finally:
+                cluster.waiting = None
+            self._journal(host, payloads[host], results)
+            answers[host] = iter(results[skipped[host]:])
         return [next(answers[host]) if calls else []
                 for (host, _), calls in zip(self.members, steps)]
 
-    def _answer(self, host: int, ref):
+    def _answer(self, host: int, ref, payload=None):
         ray = self._cluster.connection.ray
         who = _who(self._cluster.owners[host])
         try:
@@ -216,17 +272,16 @@ class RayBackend(Backend):
                                   "FMU hangs or is too slow; the worker was stopped",
                                   time=self._cluster.time) from None
         except ray.exceptions.RayTaskError as error:
-            raise _cause(error) from None
-        except ray.exceptions.RayActorError:
-            self._cluster.dead.add(host)
-            place = self._cluster.places[host] or {}
-            raise SimulationError(f"{who}: the worker process (pid {place.get('pid', '?')}) "
-                                  "died: the FMU crashed or was killed",
-                                  time=self._cluster.time) from None
-        except ray.exceptions.RayError as error:  # its node, or the cluster, is gone
-            self._cluster.dead.add(host)
-            raise SimulationError(f"{who}: Ray lost the worker: {_first_line(error)}",
-                                  time=self._cluster.time) from None
+            cause = _cause(error)
+            if payload is not None:  # the calls made up to the error changed the worker
+                self._journal_failed(host, payload, getattr(cause, "dsim_at", None))
+            raise cause from None
+        except ray.exceptions.RayError as error:  # the worker, its node, or the cluster
+            if payload is None:
+                self._cluster.dead.add(host)
+                raise SimulationError(f"{who}: {self._lost(host, error)['said']}",
+                                      time=self._cluster.time) from None
+            return self._recover(host, payload, error)
 
     def _each(self, method, *columns, time=None, answer: bool = True) -> list:
         """``method`` on every subsystem, with the i-th entry of each column: the
@@ -265,7 +320,10 @@ class RayBackend(Backend):
         return list(self._names)
 
     def begin_step(self) -> None:
-        self._each("begin_step", answer=False)
+        # a worker that may be started again sends each subsystem's saved state too
+        self._run([[("begin_step", ())] + ([(CHECKPOINT, ())] if self._restartable(host)
+                                           else [])
+                   for host, _ in self.members], answer=False)
 
     def trial_step(self, forces, time, step_size):
         n = len(self.members)
@@ -351,9 +409,9 @@ class RayBackend(Backend):
             closing = {h: cluster.hosts[h].close.remote() for h in live}
             for h, ref in closing.items():
                 try:
-                    errors += ray.get(ref)
+                    errors += ray.get(ref, timeout=CLOSE_SECONDS)
                 except ray.exceptions.RayError:
-                    pass  # a worker gone while closing has nothing left to release
+                    pass  # a worker gone (or frozen) while closing: it is killed below
             for host in cluster.hosts:
                 ray.kill(host)
         finally:
@@ -390,8 +448,9 @@ class RayBackend(Backend):
             slots = [(slot, [("statistics", ())]) for slot in
                      range(len(self._cluster.owners[h]))]
             try:
-                values = ray.get(self._cluster.hosts[h].run.remote(ahead + slots))
-            except ray.exceptions.RayError:
+                values = ray.get(self._cluster.hosts[h].run.remote(ahead + slots),
+                                 timeout=CLOSE_SECONDS)
+            except ray.exceptions.RayError:  # gone, or frozen: its counters are not known
                 continue
             counters.update(zip(self._cluster.owners[h],
                                 (v[0] for v in values[len(ahead):])))
@@ -423,22 +482,3 @@ def _shipped_files(shipment, spec) -> tuple:
     its String parameters name (parameter -> shipped file)."""
     return (shipment.add(spec.path),
             {name: shipment.add(spec.parameters[name][1]) for name in spec.files})
-
-
-def _who(names) -> str:
-    return f"component {_quoted(names)}" if len(names) == 1 else \
-        f"components {_quoted(names)} (one worker process)"
-
-
-def _quoted(names) -> str:
-    return ", ".join(f"'{n}'" for n in names)
-
-
-def _first_line(error) -> str:
-    return (str(error).strip().splitlines() or [type(error).__name__])[0]
-
-
-def _cause(error) -> Exception:
-    """The exception a worker raised (dsim's own errors arrive whole)."""
-    cause = getattr(error, "cause", None)
-    return cause if isinstance(cause, Exception) else error

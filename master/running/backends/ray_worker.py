@@ -1,13 +1,50 @@
 """The worker side of the Ray backends: the actor that holds some FMU instances in its
-process, and how the subsystems are dealt onto workers."""
+process, and how the subsystems are dealt onto workers.
+
+A worker can be replaced (docs/distributed.md, "What survives what"): after every
+``begin_step`` the driver may ask for a :data:`CHECKPOINT` of a subsystem (its saved FMU
+state serialized, and the inputs last written to it), and a fresh worker elsewhere
+goes on from one with :data:`RESUME`.  An FMU that crashes its process leaves a
+report (Python's :mod:`faulthandler`, in :func:`fault_file`), so that the driver can
+tell a crashed FMU from a killed worker."""
 from __future__ import annotations
 
+import faulthandler
 import os
+import tempfile
 from dataclasses import replace
+from pathlib import Path
 
 from dsim.master.running.backends.base import terminate_all
 from dsim.master.running.fmi import open_subsystem
 from dsim.master.running.ray_cluster import landed
+
+#: the pseudo-methods of :meth:`Host.run` that take or restore a checkpoint, and that
+#: take a call again that raised an error the first time (a step an FMU discarded)
+CHECKPOINT, RESUME, FAILED = "@checkpoint", "@resume", "@failed"
+#: the calls whose last arguments a checkpoint keeps: inputs an FMU state need not hold
+#: (a restored state brings back its own, others keep what was written last)
+REMEMBERED = ("write_start_inputs", "write_inputs", "write_texts", "set_forces",
+              "hold_inputs")
+
+
+def fault_file(pid: int) -> Path:
+    """Where the worker process ``pid`` of this machine reports a crash."""
+    return Path(tempfile.gettempdir()) / f"dsim-worker-{os.getuid()}" / f"fault-{pid}.txt"
+
+
+def crash_report(pid: int) -> str | None:
+    """The first line of the crash report of worker ``pid`` on this machine (e.g.
+    ``Fatal Python error: Aborted``), or None when it left none; the report is
+    removed."""
+    path = fault_file(pid)
+    try:
+        text = path.read_text(errors="replace")
+        path.unlink()
+    except OSError:
+        return None
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[0] if lines else None
 
 
 class Host:
@@ -15,6 +52,16 @@ class Host:
 
     def __init__(self):
         self.subsystems = []
+        #: per subsystem: {"start": {method: arguments}, "inputs": {...}}, most recent
+        #: last (what a checkpoint keeps besides the FMU state)
+        self.written = []
+        self.initialized = []
+        path = fault_file(os.getpid())
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # a crashing FMU (SIGSEGV, SIGABRT, SIGBUS, SIGFPE, SIGILL) leaves its report
+        # here, where the driver looks when the process is gone
+        self._faults = open(path, "w")
+        faulthandler.enable(self._faults)
 
     def open(self, specs, files) -> dict:
         """Instantiate the FMUs of ``specs`` from the shipped ``files`` (for each, its
@@ -27,17 +74,75 @@ class Host:
                                                 for name, shipped in scene_files.items()}}
             self.subsystems.append(open_subsystem(replace(spec, path=landed(fmu),
                                                           parameters=parameters)))
+            self.written.append({"start": {}, "inputs": {}})
+            self.initialized.append(False)
         return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid()}
 
     def run(self, calls) -> list:
         """Each (slot, [(method, arguments), ...]) in order; the results of each
-        subsystem's calls (a list per subsystem)."""
-        return [[getattr(self.subsystems[slot], method)(*arguments)
-                 for method, arguments in steps] for slot, steps in calls]
+        subsystem's calls (a list per subsystem).  An error raised by a call carries
+        ``dsim_at``: (entry, call) where the calls stopped (those before it were made)."""
+        results = []
+        for entry, (slot, steps) in enumerate(calls):
+            done = []
+            for call, (method, arguments) in enumerate(steps):
+                try:
+                    done.append(self._call(slot, method, arguments))
+                except Exception as error:
+                    error.dsim_at = (entry, call)  # pickled with it (BaseException.__reduce__)
+                    raise
+            results.append(done)
+        return results
+
+    def _call(self, slot: int, method: str, arguments):
+        if method == FAILED:  # taken again: it failed the first time, and may again
+            try:
+                return self._call(slot, *arguments)
+            except Exception:
+                return None
+        if method == CHECKPOINT:
+            return self._checkpoint(slot)
+        if method == RESUME:
+            return self._resume(slot, *arguments)
+        if method in REMEMBERED:
+            kept = self.written[slot]["inputs" if self.initialized[slot] else "start"]
+            kept.pop(method, None)
+            kept[method] = arguments
+        elif method == "finish_initialization":
+            self.initialized[slot] = True
+        return getattr(self.subsystems[slot], method)(*arguments)
+
+    def _checkpoint(self, slot: int) -> dict:
+        """What a fresh worker needs to go on from subsystem ``slot``'s saved state,
+        or {"error": why not} (an FMU that says it can serialize and cannot)."""
+        try:
+            state = self.subsystems[slot].checkpoint()
+        except Exception as error:  # the run goes on; only a restart is not possible
+            return {"error": f"{type(error).__name__}: {error}"}
+        written = self.written[slot]
+        return {"state": state, "start": list(written["start"].items()),
+                "inputs": list(written["inputs"].items())}
+
+    def _resume(self, slot: int, checkpoint: dict) -> None:
+        """Bring the fresh subsystem ``slot`` to a :meth:`_checkpoint` of another
+        worker's: the start inputs in initialization mode, the inputs written last,
+        then the saved FMU state."""
+        for method, arguments in checkpoint["start"]:
+            self._call(slot, method, arguments)
+        self._call(slot, "finish_initialization", ())
+        for method, arguments in checkpoint["inputs"]:
+            self._call(slot, method, arguments)
+        self.subsystems[slot].resume(checkpoint["state"])
 
     def close(self) -> list[Exception]:
         """Terminate every subsystem, even if some fail; the errors they raised."""
         errors, self.subsystems = terminate_all(self.subsystems), []
+        faulthandler.disable()
+        self._faults.close()
+        try:
+            fault_file(os.getpid()).unlink()
+        except OSError:
+            pass
         return errors
 
 

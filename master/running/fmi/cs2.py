@@ -284,6 +284,25 @@ class FmuSubsystem(Checkpoint, Subsystem):
         self._set_state(self._state)
         self.ended_at = None  # back before the end: the step is taken again
 
+    def checkpoint(self) -> dict:
+        """The state saved by the last :meth:`save_state` as bytes
+        (fmi2SerializeFMUstate), with what this adapter keeps beside it: what a fresh
+        instance of the same FMU needs to go on from there (:meth:`resume`), in
+        another process or on another machine (a lost Ray worker)."""
+        data = self._call("fmi2SerializeFMUstate", self.fmu.serializeFMUstate, self._state)
+        return {"fmu": bytes(data), "time": self.time, "stepped": self._stepped}
+
+    def resume(self, checkpoint: dict) -> None:
+        """Go on from a :meth:`checkpoint` of another instance of this FMU (this one
+        out of initialization mode): its state set and kept as the saved one."""
+        state = self._call("fmi2DeSerializeFMUstate", self.fmu.deSerializeFMUstate,
+                           checkpoint["fmu"])
+        if self._state is not None:
+            self._free_state(ctypes.byref(self._state))
+        self._state = state
+        self.restore_state()
+        self.time, self._stepped, self._dirty = checkpoint["time"], checkpoint["stepped"], False
+
     def set_forces(self, forces):
         self._forces.write(forces)
 
