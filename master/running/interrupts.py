@@ -137,12 +137,7 @@ def end_at_once(execution, number: int) -> None:
         result = execution.abandon(number)
     except Exception as error:  # the rows matter more than complete statistics
         result = _bare_result(execution, number, error)
-    for observer in execution.observers:
-        try:
-            observer.abandoned(result)
-        except Exception as error:  # one observer must not stop the others
-            _say(f"dsim: {type(observer).__name__}: {error}")
-        result.files.update(getattr(observer, "files", {}))
+    _abandon_observers(execution, result)
     try:
         if execution.backend is not None:
             execution.backend.abandon()
@@ -153,6 +148,17 @@ def end_at_once(execution, number: int) -> None:
     _say(f"dsim: interrupted: {result.message}"
          + (f"; the {result.steps} converged steps are in {where}" if where else ""))
     os._exit(code)
+
+
+def _abandon_observers(execution, result) -> None:
+    """Let every observer keep what it can of an abandoned run (rows, statistics) and
+    note the files each wrote in ``result``."""
+    for observer in execution.observers:
+        try:
+            observer.abandoned(result)
+        except Exception as error:  # one observer must not stop the others
+            _say(f"dsim: {type(observer).__name__}: {error}")
+        result.files.update(getattr(observer, "files", {}))
 
 
 def end_lost(execution, what: str) -> None:
@@ -167,12 +173,7 @@ def end_lost(execution, what: str) -> None:
     except Exception as error:  # the rows matter more than complete statistics
         result = _bare_result(execution, signal.SIGTERM, error)
         result.status = result.statistics["status"] = "failed"
-    for observer in execution.observers:
-        try:
-            observer.abandoned(result)
-        except Exception as error:  # one observer must not stop the others
-            _say(f"dsim: {type(observer).__name__}: {error}")
-        result.files.update(getattr(observer, "files", {}))
+    _abandon_observers(execution, result)
     kill_descendants()
     where, stats = result.files.get("csv"), result.files.get("statistics")
     _say(f"dsim: simulation failed: {result.message}")
