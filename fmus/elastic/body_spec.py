@@ -341,8 +341,7 @@ class SlotBody(InterfaceCore):
         return full
 
     def get_state(self) -> dict:
-        # _forces is replaced, never changed in place: the state may hold it itself
-        return {"body": self.body.get_state(), "forces": self._forces}
+        return {"body": self.body.get_state(), "forces": self._forces.copy()}
 
     def caches(self):
         return self.body.caches()
@@ -352,7 +351,7 @@ class SlotBody(InterfaceCore):
 
     def set_state(self, state: dict) -> None:
         self.body.set_state(state["body"])
-        self._forces = state["forces"]
+        self._forces = state["forces"].copy()
         self._pushed = True  # the body's state holds its own forces
 
     def outputs(self) -> dict[str, float]:

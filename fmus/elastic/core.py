@@ -292,20 +292,14 @@ class ElasticBody(InterfaceCore):
     def set_caches(self, caches) -> None:
         self._repeat.resume(caches)
 
-    # The state holds the body's arrays themselves, not copies: q, v, a and the forces
-    # are never changed in place (a step, a repeat and set_interface_forces make new
-    # arrays), so a saved state cannot change after it is taken.  A glued step saves
-    # once and restores once per Newton correction: copies cost more than the repeat,
-    # and a restored state that is the remembered start is recognised by identity
-    # (fmus/elastic/retry.py).
     def get_state(self) -> dict:
-        return {"time": self.time, "q": self._q, "v": self._v, "a": self._a,
-                "forces": self._forces}
+        return {"time": self.time, "q": self._q.copy(), "v": self._v.copy(),
+                "a": self._a.copy(), "forces": self._forces.copy()}
 
     def set_state(self, state: dict) -> None:
         self.time = float(state["time"])
-        self._q, self._v = state["q"], state["v"]
-        self._a, self._forces = state["a"], state["forces"]
+        self._q, self._v = state["q"].copy(), state["v"].copy()
+        self._a, self._forces = state["a"].copy(), state["forces"].copy()
 
     def outputs(self) -> dict[str, float]:
         """Probe displacements ``<probe>.u_<dof>`` (m); ``<probe>.von_mises`` (Pa) if asked."""

@@ -74,7 +74,7 @@ class RepeatedStep:
     def _same_start(self, time: float, step_size: float, start: tuple) -> bool:
         last_time, h, last_start, _, _ = self._last
         return (time == last_time and self.integrator.same_step(step_size, h)
-                and all(x is y or np.array_equal(x, y) for x, y in zip(start, last_start)))
+                and all(np.array_equal(x, y) for x, y in zip(start, last_start)))
 
     def _response_for(self, h: float):
         """Z^T for step size ``h`` (single-vector solves, as a step's: the same bits in
