@@ -109,11 +109,11 @@ def ray_lines(n: int, result: dict) -> list[str]:
         f"{'yes' if result['identical'] else 'NO'}.", "",
         "The workers instantiate their FMUs at the same time, one remote call each, "
         "sent to every worker before any answer is awaited; a worker pauses Python's "
-        "garbage collector while it instantiates (as the in-process backend does: 500 "
+        "garbage collector while it instantiates (as the in-process backend does: in one measurement 500 "
         "SpringMass instances took 1.27 s of CPU with it running, 0.85 s paused) and "
         "lands the shipped FMU once per file, not once per instance (a read and a "
         "SHA-256 of the FMU each). With two cores there are two workers, so Ray can "
-        "save at most half of the instantiation (about 0.9 s at chain_1000); starting "
+        "save at most half of the instantiation (about 0.7 s at chain_1000); starting "
         "the two worker processes and importing dsim there costs 0.8 to 1.2 s on these "
         "machines, and each initialisation step is a round trip to the workers. The two "
         "set-ups are therefore about equal here, and which is ahead in a run depends on "
