@@ -16,6 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from dsim.master.running.backends.base import terminate_all
+from dsim.master.running.collector import collector_paused
 from dsim.master.running.fmi import open_subsystem
 from dsim.master.running.ray_cluster import landed
 
@@ -69,13 +70,24 @@ class Host:
         where this worker runs."""
         import ray
 
-        for spec, (fmu, scene_files) in zip(specs, files):
-            parameters = {**spec.parameters, **{name: ("String", str(landed(shipped)))
-                                                for name, shipped in scene_files.items()}}
-            self.subsystems.append(open_subsystem(replace(spec, path=landed(fmu),
-                                                          parameters=parameters)))
-            self.written.append({"start": {}, "inputs": {}})
-            self.initialized.append(False)
+        places: dict[tuple, Path] = {}  # shipped file -> where it landed: once per file
+
+        def place(shipped) -> Path:
+            key = tuple(shipped[:2])  # (path, content digest)
+            if key not in places:
+                places[key] = landed(shipped)
+            return places[key]
+
+        # a worker instantiates hundreds of FMUs in a row, as the in-process backend
+        # does: with the collector paused (collector.py)
+        with collector_paused():
+            for spec, (fmu, scene_files) in zip(specs, files):
+                parameters = {**spec.parameters, **{name: ("String", str(place(shipped)))
+                                                    for name, shipped in scene_files.items()}}
+                self.subsystems.append(open_subsystem(replace(spec, path=place(fmu),
+                                                              parameters=parameters)))
+                self.written.append({"start": {}, "inputs": {}})
+                self.initialized.append(False)
         return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid()}
 
     def run(self, calls) -> list:

@@ -1,0 +1,46 @@
+"""A Ray worker's instantiation of its share of the FMUs (docs/scaling.md, "Set-up on a
+local Ray cluster"): each shipped file landed once, whatever the number of instances
+that use it, and the garbage collector left as it was found."""
+from __future__ import annotations
+
+import faulthandler
+import gc
+import sys
+from collections import Counter
+
+import dsim
+from dsim.master.running.backends import ray_worker
+from dsim.master.running.backends.ray_backend import _shipped_files
+from dsim.master.running.ray_cluster import Shipment
+
+
+def test_a_worker_lands_each_shipped_file_once_and_gives_the_collector_back(
+        built, ray_local, monkeypatch):
+    # frame_split: five instances of one ElasticBody FMU, each with its own mesh file
+    plan = dsim.prepare(built["ssp"] / "frame_split.ssp")
+    shipment = Shipment(ray_local)
+    files = [_shipped_files(shipment, spec) for spec in plan.specs]
+    landings = Counter()
+    real = ray_worker.landed
+
+    def counted(shipped):
+        landings[tuple(shipped[:2])] += 1
+        return real(shipped)
+
+    monkeypatch.setattr(ray_worker, "landed", counted)
+    handler_on = faulthandler.is_enabled()
+    host = ray_worker.Host()  # the actor's class, in this process
+    try:
+        place = host.open(plan.specs, files)
+        assert len(host.subsystems) == len(plan.specs) == 5
+        assert gc.isenabled()
+    finally:
+        host.close()
+        if handler_on:  # the worker's crash report replaced pytest's handler
+            faulthandler.enable(sys.__stderr__)
+    shipped = {tuple(s[:2]) for fmu, scene_files in files
+               for s in (fmu, *scene_files.values())}
+    fmus = {tuple(fmu[:2]) for fmu, _ in files}
+    assert len(fmus) == 1 and len(shipped) == 6  # one FMU file, five mesh files
+    assert landings == Counter(dict.fromkeys(shipped, 1))
+    assert place["node"] == ray_local.get_runtime_context().get_node_id()
