@@ -13,6 +13,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -131,6 +132,71 @@ def test_a_sweep_on_the_cluster_gives_the_points_of_a_serial_sweep(built, cluste
             (tmp_path / "serial" / name).read_bytes()
     columns = (tmp_path / "spread" / "sweep.csv").read_text().splitlines()
     assert len(columns) == 3 and all(",completed,true," in row for row in columns[1:])
+
+
+@contextmanager
+def own_head(cpus: int = 1):
+    """A one-node cluster of its own (a test that kills its head, or wants a node with
+    more CPUs): its address, environment and node process."""
+    folder = Path(tempfile.mkdtemp(prefix="dsimhead", dir="/tmp"))  # short: socket paths
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
+           "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
+    port = free_port()
+    head = start_node(["--head", f"--port={port}", f"--num-cpus={cpus}",
+                       "--include-dashboard=false", f"--temp-dir={folder}",
+                       "--object-store-memory=80000000"], env, folder / "head.log")
+    try:
+        yield {"address": f"127.0.0.1:{port}", "env": env, "head": head}
+    finally:
+        stop_node(head)
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def nodes_of_components(stats_file: Path) -> dict[str, str]:
+    """Component -> the Ray node id its worker ran on, as the statistics say."""
+    stats = json.loads(stats_file.read_text())
+    return {name: c["worker"]["node"] for name, c in stats["components"].items()}
+
+
+def test_components_without_a_placement_each_run_on_a_node_of_their_own(built, cluster,
+                                                                         tmp_path):
+    """Two nodes, two components without a placement: in every run each on its own node
+    (Ray's SPREAD alone put both on one node in 4 of 9 runs); and a component placed on
+    the second node leaves the head to the other."""
+    nodes = nodes_with(cluster)
+    plain = built["ssp"] / "spring_mass_linear.ssp"
+    placed = placed_scene(built, tmp_path / "scene",
+                          '<glue:Placement component="left" resource="right_node"/>')
+    for n, scene in enumerate([plain, plain, placed]):
+        target = tmp_path / f"run{n}.csv"
+        run = subprocess.run(DSIM + ["run", str(scene), "--stop", "0.05", "--quiet",
+                                     "--backend", "ray", "--address", cluster["address"],
+                                     "--out", str(target)],
+                             cwd=ROOT, env=cluster["env"], capture_output=True, text=True,
+                             timeout=300)
+        assert run.returncode == 0 and run.stderr == "" and run.stdout == "", run.stderr
+        where = nodes_of_components(target.with_suffix(".stats.json"))
+        assert sorted(where.values()) == sorted(nodes.values()), (n, where, nodes)
+    assert where == {"left": nodes["right_node"], "right": nodes["head_node"]}
+
+
+def test_fewer_nodes_than_workers_to_spread_is_said_in_one_line(built, tmp_path):
+    """One node of two CPUs: the two workers share it, and one line says so."""
+    with own_head(cpus=2) as head:
+        target = tmp_path / "run.csv"
+        run = subprocess.run(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
+                                     "--stop", "0.05", "--quiet", "--backend", "ray",
+                                     "--address", head["address"], "--out", str(target)],
+                             cwd=ROOT, env=head["env"], capture_output=True, text=True,
+                             timeout=300)
+    assert run.returncode == 0 and run.stdout == "", run.stderr
+    where = nodes_of_components(target.with_suffix(".stats.json"))
+    assert len(set(where.values())) == 1
+    [line] = run.stderr.splitlines()
+    assert re.fullmatch(
+        r"dsim: warning: placement: 2 workers of components without a placement, 1 node "
+        r"with CPUs in the cluster: not one node each \(components 'left', 'right' share "
+        rf"node [\d.]+, {where['left'][:12]}\)", line), line
 
 
 # --- what survives what (docs/distributed.md) ---------------------------------------

@@ -70,11 +70,12 @@ def _host_port(address: str) -> tuple[str, int | None]:
 
 class Connection:
     """This process's connection to Ray; ``owned`` when :func:`connect` made it (and
-    then :meth:`close` undoes it)."""
+    then :meth:`close` undoes it); ``address``: the cluster's, when one was given."""
 
-    def __init__(self, ray, owned: bool):
+    def __init__(self, ray, owned: bool, address: str | None = None):
         self.ray = ray
         self.owned = owned
+        self.address = address
 
     def cpus(self, resource: str = "") -> int:
         """Logical CPUs of the live nodes (those holding ``resource``, if named)."""
@@ -126,7 +127,7 @@ def connect(address: str | None = None) -> Connection:
     finally:
         if in_main and previous is not None:
             signal.signal(signal.SIGTERM, previous)
-    return Connection(ray, owned=True)
+    return Connection(ray, owned=True, address=address)
 
 
 def _check_reachable(address: str) -> None:

@@ -199,6 +199,9 @@ class Recovery:
         # the cluster learns of a lost node late: a node lost in this run is no choice
         gone = {loss["node"] for loss in cluster.losses if loss["what"] == "lost node"}
         alive = [n for n in ray.nodes() if n.get("Alive") and n.get("NodeID") not in gone]
+        pinned = getattr(options.get("scheduling_strategy"), "node_id", None)
+        if pinned and pinned not in {n["NodeID"] for n in alive}:
+            gone.add(pinned)  # its node is gone too, whatever the words said
         if not alive:
             raise SimulationError("no node of the cluster is left")
         if placement and not any(n.get("Resources", {}).get(placement) for n in alive):
@@ -305,13 +308,15 @@ class Recovery:
                 | said for loss in self._cluster.losses]
 
     def notes(self) -> list[str]:
-        """What a user should know before the run: the components whose worker
-        cannot be started again if it is lost."""
+        """What a user should know before the run: a placement that cannot hold (fewer
+        nodes than workers to spread), the components whose worker cannot be started
+        again if it is lost."""
         cluster = self._cluster
+        notes = list(cluster.notes)
         if cluster.restarts_left <= 0:
-            return []
+            return notes
         reasons = sorted({why for why in cluster.unrestartable if why})
-        return [f"a lost worker ends the run: {why}" for why in reasons]
+        return notes + [f"a lost worker ends the run: {why}" for why in reasons]
 
 
 class _Answered(Exception):
