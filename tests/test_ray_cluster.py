@@ -364,3 +364,49 @@ def test_a_point_lost_with_its_node_is_lost_not_failed_and_a_rerun_runs_it(built
         final = list(csv.DictReader(table))
         assert [row["status"] for row in final] == ["completed"] * 3, [
             (row["status"], row["message"]) for row in final]
+
+
+def test_a_lost_head_ends_a_sweep_within_seconds_its_lost_points_run_again(built, tmp_path):
+    """A head of its own (one CPU: one point at a time); its GCS killed while the second
+    point runs: the sweep's own watch ends it in seconds (Ray would wait a minute), exit
+    1, one line naming what was lost; the first point kept, the second `lost`; the same
+    sweep again (in-process: where it runs is not part of the sweep) runs only that one."""
+    out = tmp_path / "sweep"
+    sweep = DSIM + ["sweep", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "1,150",
+                    "--out", str(out)]
+    with own_head(cpus=1) as head:
+        process = subprocess.Popen(sweep + ["--backend", "ray", "--address", head["address"]],
+                                   cwd=ROOT, env=head["env"], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 180
+        while not ((out / "point_001.csv").exists()
+                   and processes_of(head["head"], "_run_remote")):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline
+            time.sleep(0.1)
+        [gcs] = processes_of(head["head"], "gcs_server")
+        os.kill(gcs, signal.SIGKILL)
+        killed = time.monotonic()
+        out_text, err = process.communicate(timeout=120)
+        ended = time.monotonic() - killed
+    assert process.returncode == 1 and ended < 10 and out_text == "", err
+    assert re.fullmatch(r"point 1/2: stop=1: completed, error \S+, [\d.]+ s",
+                        err.splitlines()[0]), err
+    assert err.splitlines()[1] == "point 2/2: stop=150: lost, 0.00 s", err
+    lines = err.splitlines()[2:]
+    assert len(lines) in (1, 2), err  # what was lost; where Ray's words are, if it said any
+    assert re.fullmatch(r"dsim: sweep failed: lost the Ray head \(its GCS at \S+ stopped "
+                        r"answering\): the points under way are lost \(2; a rerun of the "
+                        r"sweep into the same folder runs them and those not started\), the "
+                        rf"finished points are kept in {re.escape(str(out))}", lines[0]), err
+    assert lines[1:] in ([], [f"dsim: what Ray's own processes said meanwhile is in "
+                              f"/tmp/dsim-{os.getuid()}/ray-{process.pid}.log"]), err
+    with open(out / "sweep.csv") as table:
+        found = [(row["point"], row["status"]) for row in csv.DictReader(table)]
+    assert found == [("1", "completed"), ("2", "lost")]
+    again = subprocess.run(sweep, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert "1 of 2 points already finished" in again.stderr
+    with open(out / "sweep.csv") as table:
+        assert [(row["point"], row["status"], row["steps"]) for row in csv.DictReader(table)] \
+            == [("1", "completed", "100"), ("2", "completed", "15000")]
