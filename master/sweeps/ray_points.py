@@ -75,7 +75,13 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
     ends, its files written in ``out`` as ``point_{k + 1:03d}``."""
     connection = connect(fixed.get("address"))
     ray = connection.ray
-    stop = ray.remote(StopFlag).options(num_cpus=0).remote()
+    # the flag on the driver's own node: anywhere else its node may be lost (Ray put it
+    # on a node already lost, still "alive" to the head, and the running points failed;
+    # imported here: Ray is an optional extra)
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    here = NodeAffinitySchedulingStrategy(ray.get_runtime_context().get_node_id(), soft=False)
+    stop = ray.remote(StopFlag).options(num_cpus=0, scheduling_strategy=here).remote()
     caught: list[int] = []
     previous = {}
 
@@ -242,17 +248,26 @@ class _StopWhenAsked(Observer):
         self.execution = None
         self._asked = None
         self._when = clock.monotonic()
+        #: the flag is lost (with the driver's node, or the driver): nobody can ask
+        #: this point to stop any more, and that is no reason for it to fail
+        self.lost = False
 
     def stepped(self, record):
         import ray
 
+        if self.lost:
+            return
         if self._asked is None:
             if clock.monotonic() - self._when >= POLL_SECONDS:
                 self._asked, self._when = self.flag.get.remote(), clock.monotonic()
             return
         if not ray.wait([self._asked], timeout=0)[0]:
             return
-        number, self._asked = ray.get(self._asked), None
+        try:
+            number, self._asked = ray.get(self._asked), None
+        except ray.exceptions.RayError:
+            self.lost, self._asked = True, None
+            return
         if number:
             self.execution.stop(f"interrupted by {signal.Signals(number).name}", number)
 
