@@ -13,6 +13,8 @@ A point lost to the infrastructure is run again from its start: one lost with a 
 (a node of the cluster was lost meanwhile) up to ``restarts`` times (default 3), then
 it is ``lost`` (a rerun of the sweep runs it again); one whose worker died while every
 node stayed once more, and if it dies again it ``failed`` (its FMU ends its process).
+A lost head (its GCS) ends the sweep within seconds (the head watch of ray_cluster.py):
+the points under way are ``lost``, the finished ones kept; :class:`HeadLost` says which.
 """
 from __future__ import annotations
 
