@@ -299,7 +299,9 @@ def test_a_lost_head_ends_the_run_within_seconds_with_everything_kept(built, tmp
         shutil.rmtree(folder, ignore_errors=True)
     assert process.returncode == 1 and ended < 10 and out == "", err
     lines = err.strip().splitlines()
-    assert len(lines) == 2, lines
+    assert len(lines) in (2, 3), lines
+    assert lines[2:] in ([], [f"dsim: what Ray's own processes said meanwhile is in "
+                              f"/tmp/dsim-{os.getuid()}/ray-{process.pid}.log"]), lines
     assert re.fullmatch(r"dsim: simulation failed: lost the Ray head \(its GCS at \S+ stopped "
                         r"answering\): no worker can be reached \(stopped at t = [\d.]+ s, step "
                         r"(\d+) of 100000\)", lines[0])
