@@ -99,3 +99,21 @@ def test_an_interrupted_ray_sweep_ends_its_running_points_and_starts_no_other(bu
     finally:
         process.kill()
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_a_point_goes_on_when_the_sweeps_stop_flag_is_lost(ray_local):
+    """The flag a running point looks at between steps (a Ray actor) lost, as with a
+    node of the cluster that held it: the point is not failed for it, it runs on (a
+    rerun of a sweep with a point lost with its node failed that point when the flag
+    had been on the lost node)."""
+    from dsim.master.sweeps.ray_points import POLL_SECONDS, StopFlag, _StopWhenAsked
+
+    flag = ray_local.remote(StopFlag).options(num_cpus=0).remote()
+    ray_local.get(flag.get.remote())
+    ray_local.kill(flag)
+    watcher = _StopWhenAsked(flag)
+    deadline = time.monotonic() + 20 * POLL_SECONDS
+    while time.monotonic() < deadline:  # asks, finds the answer an error, asks no more
+        watcher.stepped(None)
+        time.sleep(POLL_SECONDS / 5)
+    assert watcher.execution is None and watcher.lost

@@ -16,6 +16,7 @@ import signal
 import socket
 import tempfile
 import threading
+import time as clock
 from pathlib import Path
 
 from dsim.master.errors import InputError
@@ -28,6 +29,11 @@ LOCAL_OBJECT_STORE = 256 * 1024 ** 2
 #: seconds to wait for a TCP answer from a cluster's address before calling it
 #: unreachable (Ray itself retries for minutes)
 REACH_SECONDS = 5.0
+#: the head watch: seconds between two looks at the head's GCS port, and the looks in a
+#: row that find nothing listening before the head is called lost
+HEAD_EVERY, HEAD_MISSES = 1.0, 3
+#: when this process began (a Ray log older than that is another process's)
+_BEGAN = clock.time()
 
 
 def ray_module():
@@ -70,11 +76,12 @@ def _host_port(address: str) -> tuple[str, int | None]:
 
 class Connection:
     """This process's connection to Ray; ``owned`` when :func:`connect` made it (and
-    then :meth:`close` undoes it)."""
+    then :meth:`close` undoes it); ``address``: the cluster's, when one was given."""
 
-    def __init__(self, ray, owned: bool):
+    def __init__(self, ray, owned: bool, address: str | None = None):
         self.ray = ray
         self.owned = owned
+        self.address = address
 
     def cpus(self, resource: str = "") -> int:
         """Logical CPUs of the live nodes (those holding ``resource``, if named)."""
@@ -126,7 +133,7 @@ def connect(address: str | None = None) -> Connection:
     finally:
         if in_main and previous is not None:
             signal.signal(signal.SIGTERM, previous)
-    return Connection(ray, owned=True)
+    return Connection(ray, owned=True, address=address)
 
 
 def _check_reachable(address: str) -> None:
@@ -163,6 +170,54 @@ def _unreachable(address: str) -> str:
     setting (a run setting of ``dsim serve`` too) tells nothing about the network."""
     return (f"setting address '{address}': no Ray cluster answers there; start one with "
             "`ray start --head` and give the address it prints")
+
+
+def watch_head(ray, on_lost, over) -> bool:
+    """Call ``on_lost(what)`` from a thread of its own when the cluster's head (its
+    GCS) stops answering: :data:`HEAD_MISSES` looks in a row, :data:`HEAD_EVERY` s
+    apart, find nothing listening at its address; the watch ends when ``over()``.
+    Ray itself would wait a minute, then end this process without a word of its own.
+    False when there is no address to watch (Ray Client, or a Ray that does not say)."""
+    try:
+        address = ray.get_runtime_context().gcs_address
+    except Exception:
+        return False
+    host, _, port = str(address).rpartition(":")
+    if not host or not port.isdigit():
+        return False
+
+    def watch():
+        misses = 0
+        while not over():
+            clock.sleep(HEAD_EVERY)
+            misses = 0 if listening(host, int(port)) else misses + 1
+            if misses >= HEAD_MISSES and not over():
+                on_lost(f"lost the Ray head (its GCS at {address} stopped answering)")
+                return
+
+    threading.Thread(target=watch, name="dsim-ray-head", daemon=True).start()
+    return True
+
+
+def listening(host: str, port: int) -> bool:
+    """Whether something accepts a TCP connection at host:port (within a second)."""
+    try:
+        with socket.create_connection((host, port), timeout=1.0):
+            return True
+    except OSError:
+        return False
+
+
+def ray_log_line() -> str | None:
+    """The line that names :func:`ray_log` after something failed, when Ray's
+    processes said anything to this process (else None)."""
+    path = ray_log()
+    try:
+        if path.stat().st_mtime >= _BEGAN:
+            return f"dsim: what Ray's own processes said meanwhile is in {path}"
+    except OSError:
+        pass
+    return None
 
 
 _QUIETED = False

@@ -68,6 +68,8 @@ STATES = {
     "failed": "the run failed (its row says why)",
     "refused": "its settings or parameters were refused before it ran (bad input)",
     "interrupted": "stopped by SIGINT or SIGTERM; a rerun of the sweep runs it again",
+    "lost": "lost with a node or the head of the Ray cluster; a rerun of the sweep runs it "
+            "again",
 }
 
 

@@ -36,6 +36,7 @@ from dsim.master.running.backends.base import Backend
 from dsim.master.running.backends.ray_recovery import (RESTARTS, Recovery, _cause,
                                                        _first_line, _quoted, _unrestartable,
                                                        _who)
+from dsim.master.running.backends.ray_placement import Placement
 from dsim.master.running.backends.ray_worker import CHECKPOINT, Host, deal
 from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
 
@@ -89,6 +90,8 @@ class _Cluster:
         self.losses: list[dict] = []
         #: (worker, since when, time.monotonic) while the driver waits for its answer
         self.waiting: tuple[int, float] | None = None
+        #: what a user should know of where the workers run (a placement that cannot hold)
+        self.notes: list[str] = []
 
 
 class RayBackend(Recovery, Backend):
@@ -137,19 +140,26 @@ class RayBackend(Recovery, Backend):
         shipment = Shipment(ray)
         remote = ray.remote(Host)
         hosts, assigned, members, worker_options = [], [], [None] * len(specs), []
-        for placement, indices in cls._groups(connection, specs):
+        groups = [(placement, indices, cls._workers(connection, placement, len(indices)))
+                  for placement, indices in cls._groups(connection, specs)]
+        # each worker pinned to its node, chosen here (ray_placement.py)
+        nodes = Placement(connection, [(placement, n) for placement, _, n in groups])
+        spread = {}  # worker number in the group without a placement -> its components
+        for placement, indices, count in groups:
             options = {"num_cpus": 0, "max_restarts": 0}
             if placement:
                 options["resources"] = {placement: PLACEMENT_SHARE}
-            else:  # over the nodes, as evenly as Ray can
-                options["scheduling_strategy"] = "SPREAD"
-            for dealt in deal(len(indices), cls._workers(connection, placement, len(indices))):
+            for number, dealt in enumerate(deal(len(indices), count)):
                 chosen = [indices[i] for i in dealt]
                 for slot, index in enumerate(chosen):
                     members[index] = (len(hosts), slot)
-                hosts.append(remote.options(**options).remote())
+                placed = {**options, **nodes.options(placement, number)}
+                hosts.append(remote.options(**placed).remote())
                 assigned.append(chosen)
-                worker_options.append(options)
+                worker_options.append(placed)
+                if not placement:
+                    spread[number] = [specs[i].name for i in chosen]
+        nodes.check(spread)
         shipped = [[_shipped_files(shipment, specs[i]) for i in chosen] for chosen in assigned]
         opened = [host.open.remote([specs[i] for i in chosen], files)
                   for host, chosen, files in zip(hosts, assigned, shipped)]
@@ -158,6 +168,7 @@ class RayBackend(Recovery, Backend):
         cluster.specs = [[specs[i] for i in chosen] for chosen in assigned]
         cluster.files = shipped
         cluster.options = worker_options
+        cluster.notes = nodes.notes
         cluster.unrestartable = [_unrestartable(cluster.specs[h]) for h in range(len(hosts))]
         for h, chosen in enumerate(assigned):
             for slot in range(len(chosen)):

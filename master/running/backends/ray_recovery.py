@@ -13,15 +13,14 @@ line's "no answer for N s" and the watch of the head's GCS are here too.
 """
 from __future__ import annotations
 
-import socket
-import threading
 import time as clock
 
 from dsim.master.errors import SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.running.backends.ray_worker import (CHECKPOINT, FAILED, RESUME, Host,
                                                      crash_report)
-from dsim.master.running.ray_cluster import ray_log
+from dsim.master.running.ray_cluster import listening as _listening
+from dsim.master.running.ray_cluster import ray_log, watch_head
 
 #: workers started again in one run, at most, when no ``restarts`` setting says
 RESTARTS = 3
@@ -29,9 +28,6 @@ RESTARTS = 3
 RESTART_SECONDS = 60.0
 #: seconds without an answer from a worker before the progress line names it
 LATE_SECONDS = 3.0
-#: the head watch: seconds between two looks at the head's GCS port, and the looks in a
-#: row that find nothing listening before the head is called lost
-HEAD_EVERY, HEAD_MISSES = 1.0, 3
 
 
 class Recovery:
@@ -199,6 +195,9 @@ class Recovery:
         # the cluster learns of a lost node late: a node lost in this run is no choice
         gone = {loss["node"] for loss in cluster.losses if loss["what"] == "lost node"}
         alive = [n for n in ray.nodes() if n.get("Alive") and n.get("NodeID") not in gone]
+        pinned = getattr(options.get("scheduling_strategy"), "node_id", None)
+        if pinned and pinned not in {n["NodeID"] for n in alive}:
+            gone.add(pinned)  # its node is gone too, whatever the words said
         if not alive:
             raise SimulationError("no node of the cluster is left")
         if placement and not any(n.get("Resources", {}).get(placement) for n in alive):
@@ -271,29 +270,11 @@ class Recovery:
 
     def watch_head(self, on_lost) -> None:
         """Call ``on_lost(what)`` from a thread of its own when the cluster's head (its
-        GCS) stops answering: :data:`HEAD_MISSES` looks in a row, :data:`HEAD_EVERY`
-        s apart, find nothing listening at its address.  Ray itself would wait a
-        minute, then end this process without a word of its own."""
+        GCS) stops answering (:func:`~dsim.master.running.ray_cluster.watch_head`)."""
         cluster = self._cluster
-        try:
-            address = cluster.connection.ray.get_runtime_context().gcs_address
-        except Exception:  # Ray Client, or a Ray that does not say: nothing to watch
-            return
-        host, _, port = str(address).rpartition(":")
-        if not host or not port.isdigit():
-            return
-
-        def watch():
-            misses = 0
-            while not cluster.closed:
-                clock.sleep(HEAD_EVERY)
-                misses = 0 if _listening(host, int(port)) else misses + 1
-                if misses >= HEAD_MISSES and not cluster.closed:
-                    on_lost(f"lost the Ray head (its GCS at {address} stopped answering): "
-                            "no worker can be reached")
-                    return
-
-        threading.Thread(target=watch, name="dsim-ray-head", daemon=True).start()
+        watch_head(cluster.connection.ray,
+                   lambda what: on_lost(f"{what}: no worker can be reached"),
+                   lambda: cluster.closed)
 
     def losses(self) -> list[dict]:
         """Every worker lost in the run: time (s, simulated), node (Ray id and
@@ -305,13 +286,15 @@ class Recovery:
                 | said for loss in self._cluster.losses]
 
     def notes(self) -> list[str]:
-        """What a user should know before the run: the components whose worker
-        cannot be started again if it is lost."""
+        """What a user should know before the run: a placement that cannot hold (fewer
+        nodes than workers to spread), the components whose worker cannot be started
+        again if it is lost."""
         cluster = self._cluster
+        notes = list(cluster.notes)
         if cluster.restarts_left <= 0:
-            return []
+            return notes
         reasons = sorted({why for why in cluster.unrestartable if why})
-        return [f"a lost worker ends the run: {why}" for why in reasons]
+        return notes + [f"a lost worker ends the run: {why}" for why in reasons]
 
 
 class _Answered(Exception):
@@ -343,15 +326,6 @@ def _unrestartable(specs) -> str | None:
             return (f"component '{spec.name}': its FMU cannot serialize its state "
                     "(canSerializeFMUstate is false)")
     return None
-
-
-def _listening(host: str, port: int) -> bool:
-    """Whether something accepts a TCP connection at host:port (within a second)."""
-    try:
-        with socket.create_connection((host, port), timeout=1.0):
-            return True
-    except OSError:
-        return False
 
 
 def _field(text: str, name: str) -> str | None:
