@@ -130,6 +130,8 @@ NODE_MARKERS = {
     "tests/test_serve_api.py::test_a_parameter_sweep_from_the_form_shows_kpis_sensitivity_and_plots": ("slow",),
     "tests/test_serve_api.py::test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form": ("slow",),
     "tests/test_serve_processes.py::test_runs_in_flight_when_the_server_ends_show_as_interrupted": ("slow",),
+    "tests/test_serve_security.py::test_parallel_uploads_of_one_fmu_are_one_model": ("slow",),
+    "tests/test_validate_and_regress.py::test_regress_finds_a_regression_and_reports_it": ("slow",),
     "tests/test_scaling.py::test_ten_thousand_components_validate_with_the_right_findings": ("slow",),
     "tests/test_scaling.py::test_validation_grows_linearly_with_the_components": ("slow",),
 }
