@@ -3,10 +3,6 @@ wall time per phase, iterations per step, flexibility refreshes, and per compone
 the doSteps, state saves and restores, and calls and seconds per FMI function."""
 from __future__ import annotations
 
-from collections import Counter
-
-import numpy as np
-
 #: counter names of the FMI functions (FMU subsystems) and core methods (in-process)
 DO_STEP = ("fmi2DoStep", "step", "fmi3DoStep", "fmiDoStep", "integrate")
 SAVE = ("fmi2GetFMUstate", "get_state", "fmi3GetFMUState", "save continuous states")
@@ -60,7 +56,10 @@ def run_statistics(execution, wall_seconds: float, components: dict | None = Non
     # (an abandoned run knows only where its workers ran: no seconds, no counts)
     inside = sum(c.get("seconds", 0.0) for c in components.values())
     do_steps = sum(c.get("do_steps", 0) for c in components.values())
-    iterations = np.array(execution._iterations or [0])
+    # Newton iterations -> steps that took that many
+    counts = dict(execution._iterations)  # (a copy: abandon() reads it from another thread)
+    taken = sum(counts.values())
+    total = sum(iterations * count for iterations, count in counts.items())
     steps = execution.index
     coupling = execution.coupling
     phases = dict(execution._phases)
@@ -87,10 +86,10 @@ def run_statistics(execution, wall_seconds: float, components: dict | None = Non
         "seconds_in_fmus": inside,
         "seconds_in_master": wall_seconds - inside,
         "iterations": {
-            "total": int(iterations.sum()) if steps else 0,
-            "mean_per_step": float(iterations.mean()) if steps else 0.0,
-            "max_per_step": int(iterations.max()) if steps else 0,
-            "histogram": {str(k): v for k, v in sorted(Counter(execution._iterations).items())},
+            "total": total if steps else 0,
+            "mean_per_step": total / taken if steps and taken else 0.0,
+            "max_per_step": max(counts, default=0) if steps else 0,
+            "histogram": {str(k): v for k, v in sorted(counts.items()) if v},
         },
         "lambda_refreshes": coupling.refreshes if coupling is not None else 0,
         "lambda_factorizations": coupling.factorizations if coupling is not None else 0,

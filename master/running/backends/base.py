@@ -71,6 +71,13 @@ class Backend(ABC):
         values) pairs), takes one plain step (no forces, no state saved) and reads
         its outputs; the outputs of every subsystem."""
 
+    def causal_kernel(self, transfer, outputs):
+        """What takes a macro step of every subsystem here when none is in a joint, made
+        once (``transfer``: the causal connections into them; ``outputs``: each one's
+        outputs now): a callable ``(outputs, time, step_size) -> outputs``, flat arrays
+        as :meth:`step` would give them joined; None (the default): :meth:`step` it is."""
+        return None
+
     @abstractmethod
     def hold_inputs(self, ramps) -> None:
         """Each subsystem's connected inputs ramping as ``ramps`` say ((start, end,

@@ -146,10 +146,33 @@ class Coupling(ABC):
 
 class CausalCoupling(Coupling):
     """No joints: every subsystem takes one doStep per macro step with inputs from
-    the outputs at the step start; no state is saved, no Newton runs."""
+    the outputs at the step start; no state is saved, no Newton runs.  Without
+    algebraic loops the backend's causal kernel takes the steps, where it has one
+    (:meth:`~dsim.master.running.backends.base.Backend.causal_kernel`)."""
 
     name = "causal"
     rolls_back = False
+    #: the backend's kernel that takes the steps (None: the template step)
+    kernel = None
+    _kernel_asked = False
+
+    def solve_loops(self, time: float) -> None:
+        super().solve_loops(time)
+        # at the start point every loop has been probed: a kernel when none is solved
+        # (a loop of FMUs that compute their outputs only in their step is passed on)
+        if self._kernel_asked:
+            return
+        self._kernel_asked = True
+        if not self._order[0] and (self.loop_solver is None or not any(
+                active is not False for active in self.loop_solver.active)):
+            self.kernel = self.free.causal_kernel(self._free_inputs,
+                                                  self._outputs_by_subsystem)
+
+    def step(self, time: float, step_size: float, step_index: int) -> StepReport:
+        if self.kernel is None:
+            return super().step(time, step_size, step_index)
+        self.outputs = self.kernel(self.outputs, time, step_size)
+        return _NOTHING
 
     def _advance(self, time, step_size, step_index) -> StepReport:
         return StepReport(0, 0, 0.0)

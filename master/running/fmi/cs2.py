@@ -184,6 +184,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
             raise InputError(f"{self._location}: FMU {self.path.name} cannot be loaded: "
                              f"{error}") from None
         self._calls: dict[str, _Call] = {}
+        #: the causal kernel that calls this FMU's step (fused_step), or None
+        self._kernel = None
         self.handle = None
         forget(spec.name)
         # until finish_initialization() the instance is in initialization mode, where a
@@ -245,8 +247,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
             self._calls[name] = _Call(self, name)
         return self._calls[name]
 
-    def statistics(self) -> dict:
-        """FMI function -> [calls, seconds], set-up and time loop together."""
+    def _statistics(self) -> dict:
         counters = {name: list(entry) for name, entry in self.counters.items()}
         for name, call in self._calls.items():
             if call.calls:
@@ -362,6 +363,38 @@ class FmuSubsystem(Checkpoint, Subsystem):
         if status > 1:
             get.check(status)
         return reads.array.copy()
+
+    def fused_step(self, inputs, outputs, time, step_size, kernel):
+        """This FMU's causal macro step for a kernel that runs many FMUs in one loop
+        (:class:`~dsim.master.running.backends.inprocess.CausalKernel`), or None when
+        it cannot be fused (inputs or outputs of another type than Real, or in
+        initialization mode): ``(fmi2SetReal call and its arguments or None, fmi2DoStep
+        and its, fmi2GetReal and its or None)``, every argument a ctypes object made
+        here once: ``fmi2SetReal`` sends the float64 array ``inputs`` (a view into the
+        kernel's buffer, None: no input), ``fmi2GetReal`` writes into ``outputs``, and
+        ``time`` and ``step_size`` are the kernel's ``ctypes.c_double`` of the step.
+        The kernel times each call into its ``seconds`` and counts them when
+        :meth:`statistics` asks (``kernel.sync``)."""
+        if self._initializing or (inputs is not None and self._write_direct is None) \
+                or (len(outputs) and not self._read_direct):
+            return None
+        handle, put, get = self.handle, None, None
+        if inputs is not None:
+            writes = self._write_direct
+            buffer = (ctypes.c_double * writes.size).from_buffer(inputs)
+            put = (writes.set, (handle, writes.vrs, writes.count, buffer))
+        if len(outputs):
+            reads = self._reads[0]
+            buffer = (ctypes.c_double * reads.size).from_buffer(outputs)
+            get = (reads.get, (handle, reads.vrs, reads.count, buffer))
+        self._kernel = kernel
+        return put, (self._do_step, (handle, time, step_size, 1)), get
+
+    def statistics(self) -> dict:
+        """FMI function -> [calls, seconds], set-up and time loop together."""
+        if self._kernel is not None:  # the calls a causal kernel made and not yet counted
+            self._kernel.sync()
+        return self._statistics()
 
     def kinematics(self):
         n = len(self.interface)
