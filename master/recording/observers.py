@@ -103,12 +103,16 @@ class Observer:
         an FMU call); ``result`` is the interrupted run as far as it got."""
 
 
-def _csv_block(rows) -> str:
-    """The CSV text of (time, values, texts) rows, each number as ``repr`` writes it
-    (the shortest text that reads back as the same double).  Rows of float times and
-    float64 values only (every run's, unless it records Strings) go through one
-    table: numpy gathers them, one ``map(repr)`` over all its numbers (Python's loop,
-    in C) and one join per row, about 1.6 times as fast as a join of reprs per row."""
+def _csv_block(records) -> str:
+    """The CSV text of :class:`StepRecord` rows (time, values, texts), each number as
+    ``repr`` writes it (the shortest text that reads back as the same double).  Rows
+    of float times and float64 values only (every run's, unless it records Strings)
+    go through one table: numpy gathers them, one ``map(repr)`` over all its numbers
+    (Python's loop, in C) and one join per row, about 1.6 times as fast as a join of
+    reprs per row.  (``repr`` of the table's ``tolist()`` with its brackets and
+    spaces replaced gives the same text, 1.2 times slower: measured in
+    docs/causal_benchmark.md; the ``repr`` of each double is most of the cost.)"""
+    rows = [(record.time, record.values, record.texts) for record in records]
     width = len(rows[0][1])
     if any(texts or type(time) is not float or values.dtype != np.float64
            or len(values) != width for time, values, texts in rows):
@@ -145,10 +149,12 @@ class CsvRecorder(Observer):
         #: run even when the CSV would not fit the free disk space
         self.force = force
         self.output: OutputFile | None = None
-        self.rows = 0
+        self._written = 0
         self.flush_seconds = flush_seconds
         self._pending: deque = deque()
         self._flushed_at = 0.0
+        #: when the main thread writes the pending rows itself (monotonic seconds)
+        self._due = 0.0
         self._lock = threading.Lock()
         self._done = threading.Event()
         self._late_error: OutputError | None = None
@@ -163,16 +169,22 @@ class CsvRecorder(Observer):
         self.output.append((",".join(("time",) + info.columns + info.text_columns)
                             + "\n").encode())
         self._flushed_at = clock.monotonic()
+        self._due = self._flushed_at + self.flush_seconds
         self._done.clear()
         threading.Thread(target=self._flush_late_rows, name="dsim-csv-flush",
                          daemon=True).start()
 
+    @property
+    def rows(self) -> int:
+        """Rows recorded so far (written or pending)."""
+        return self._written + len(self._pending)
+
     def stepped(self, record: StepRecord) -> None:
         # no lock here: a deque's append and popleft are atomic, and the rows leave it
-        # in order, only under the lock
-        self._pending.append((record.time, record.values, record.texts))
-        self.rows += 1
-        if clock.monotonic() - self._flushed_at >= self.flush_seconds:
+        # in order, only under the lock (the record is kept as it is: a NamedTuple,
+        # its values a new array every step)
+        self._pending.append(record)
+        if clock.monotonic() >= self._due:
             self.flush()
 
     def flush(self) -> None:
@@ -191,7 +203,9 @@ class CsvRecorder(Observer):
         rows = [pending.popleft() for _ in range(len(pending))]
         if rows:
             self.output.append(_csv_block(rows).encode(), separator=b"\n")
+            self._written += len(rows)
         self._flushed_at = clock.monotonic()
+        self._due = self._flushed_at + self.flush_seconds
 
     def _flush_late_rows(self) -> None:
         """The flushing thread: rows that waited ``flush_seconds`` go to the file

@@ -177,7 +177,7 @@ class CausalKernel:
         if self._ended is not None:
             self._ended._raise_ended()
         if self._transfer is None:
-            np.take(outputs, self._gather, out=self.inputs)
+            outputs.take(self._gather, out=self.inputs)
         else:
             self.inputs[:] = self._transfer.values(outputs)
         self._time.value = self._at = time
