@@ -37,6 +37,7 @@ import numpy as np
 from fmpy.ssp.simulation import simulate_ssp
 
 import dsim
+from dsim.master.recording.observers import StepRecord, _csv_block
 from tests.third_party.build import c_fmu, causal_ring_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -151,6 +152,103 @@ def profile(ssp: Path, folder: Path, short: float, long: float, shown: int = 12)
     return lines
 
 
+def _loop(kernel, steps: int, clock: str) -> float:
+    """CPU seconds of ``steps`` macro steps of ``kernel``'s FMUs called the kernel's way
+    (its argument objects, statuses checked) with nothing else: no gather, no copy, no
+    record; ``clock``: "none", "pair" (one clock reading before and one after each
+    FMU's three calls, their seconds added together) or "calls" (a reading between
+    calls, each function's seconds its own: what the kernel does)."""
+    entries = [entry[:6] for entry in kernel.entries]
+    now = time.perf_counter
+    seconds = {"": 0.0}
+    start = time.process_time()
+    for n in range(steps):
+        kernel._time.value = 10.0 + n * STEP  # after the run's stop time: no clash
+        for put, put_args, step, step_args, get, get_args in entries:
+            if clock == "none":
+                if put.function(*put_args) > 1 or step.function(*step_args) > 1 \
+                        or get.function(*get_args) > 1:
+                    raise RuntimeError("an FMI call failed")
+            elif clock == "pair":
+                begin = now()
+                if put.function(*put_args) > 1 or step.function(*step_args) > 1 \
+                        or get.function(*get_args) > 1:
+                    raise RuntimeError("an FMI call failed")
+                seconds[""] += now() - begin
+            else:
+                begin = now()
+                status = put.function(*put_args)
+                end = now()
+                put.seconds += end - begin
+                if status > 1:
+                    raise RuntimeError("fmi2SetReal failed")
+                status = step.function(*step_args)
+                begin = now()
+                step.seconds += begin - end
+                if status > 1:
+                    raise RuntimeError("fmi2DoStep failed")
+                status = get.function(*get_args)
+                get.seconds += now() - begin
+                if status > 1:
+                    raise RuntimeError("fmi2GetReal failed")
+    return time.process_time() - start
+
+
+def kernel_floor(ssp: Path, steps: int, repetitions: int) -> dict:
+    """Microseconds per macro step of the FMUs' calls alone, as dsim's causal kernel
+    makes them (:func:`_loop`), least of ``repetitions``: what a master in Python
+    cannot go below with these FMUs and ctypes, with the clock readings of two ways of
+    timing the calls."""
+    execution = dsim.Execution(dsim.prepare(ssp), keep_signals=False)
+    execution.start()
+    try:
+        kernel = execution.coupling.kernel
+        if kernel is None or any(entry[-1] is not None or entry[0] is None
+                                 or entry[4] is None for entry in kernel.entries):
+            return {}
+        return {clock: min(_loop(kernel, steps, clock) for _ in range(repetitions))
+                / steps * 1e6 for clock in ("none", "pair", "calls")}
+    finally:
+        execution.finish()
+
+
+def csv_formats(ssp: Path, stop: float, repetitions: int) -> dict:
+    """Microseconds per row of ways to write the ring's rows as dsim's CSV text, least of
+    ``repetitions``, each checked to give the same text: dsim's ``_csv_block`` (one
+    ``map(repr)`` over a table of the block), ``repr`` of the table's ``tolist()`` with
+    its brackets and spaces replaced, and numpy's ``astype(str)`` of the table (the
+    same shortest round-trip digits)."""
+    result = dsim.simulate(ssp, stop=stop, handle_signals=False)
+    signals = result.signals
+    names = [name for name in signals if name != "time"]
+    table = np.column_stack([signals["time"]] + [signals[name] for name in names])
+    times = table[:, 0].tolist()
+    records = [StepRecord(n, t, row[1:]) for n, (t, row) in enumerate(zip(times, table))]
+
+    def listed():
+        text = repr(np.column_stack((times, np.array([r.values for r in records]))).tolist())
+        return text[2:-2].replace("], [", "\n").replace(", ", ",") + "\n"
+
+    def numpy_text():
+        cells = np.column_stack((times, np.array([r.values for r in records]))).astype(str)
+        return "\n".join(map(",".join, cells.tolist())) + "\n"
+
+    ways = {"map(repr) (dsim)": lambda: _csv_block(records), "repr of tolist()": listed,
+            "numpy astype(str)": numpy_text}
+    expected = _csv_block(records)
+    costs = {}
+    for name, way in ways.items():
+        if way() != expected:
+            raise RuntimeError(f"{name} does not give dsim's CSV text")
+        best = float("inf")
+        for _ in range(repetitions):
+            start = time.process_time()
+            way()
+            best = min(best, time.process_time() - start)
+        costs[name] = best / len(records) * 1e6
+    return costs
+
+
 def recurrence(count: int, steps: int, inputs_start_at_zero: bool) -> np.ndarray:
     """The ring's outputs after each step, by the blocks' own exact update with the
     inputs held over a step (Jacobi): rows 1 .. steps, columns b1 .. b<count>."""
@@ -217,17 +315,67 @@ def _libcosim_summary(rows) -> list[str]:
             "its FMUs from a pool of threads: its CPU time includes theirs.", ""]
 
 
+def _where(rows, count: int, floor: dict, formats: dict) -> list[str]:
+    """Where a step of the ``count``-block ring goes, from the times per step of the
+    table and the kernel's floor, as page lines."""
+    found = [result for n, result, _ in rows if n == count]
+    if not found or not floor:
+        return []
+    us = {name: entry["us"] for name, entry in found[0].items()}
+    memory, csv = us["dsim (in memory)"], us["dsim (CSV + statistics)"]
+    calls, timed, pair = floor["none"], floor["calls"], floor["pair"]
+    lines = [
+        f"Where a step goes ({count} blocks, CPU microseconds per step; the FMUs' calls "
+        "alone measured by running the kernel's own calls with their argument objects "
+        "and status checks in a bare loop, `kernel_floor`):",
+        "",
+        "| part | us per step |",
+        "|---|---|",
+        f"| the {3 * count} FMI calls alone (`fmi2SetReal`, `fmi2DoStep`, `fmi2GetReal` per "
+        f"FMU: the ctypes crossing and the FMUs' code) | {calls:.2f} |",
+        f"| timing each call for the statistics ({4 * count} clock readings) | "
+        f"{timed - calls:.2f} |",
+        f"| the rest of dsim's step in memory (the gather of the connections, the copy of "
+        f"the outputs, the finite check, the step record, the statistics' counters) | "
+        f"{memory - timed:.2f} |",
+        f"| writing the CSV (the `repr` of every double, the rows' text, the writes) | "
+        f"{csv - memory:.2f} |",
+        f"| total, dsim writing its CSV | {csv:.2f} |",
+        ""]
+    if "libcosim (last values)" in us:
+        cosim = us["libcosim (last values)"]
+        lines += [f"libcosim recording nothing takes {cosim:.2f} us per step here: dsim in "
+                  f"memory {memory / cosim:.2f} times that, and the FMI calls alone "
+                  f"{calls / cosim:.2f} times (libcosim calls the same functions from C++, "
+                  "without a ctypes crossing, but hands each step to its pool of threads: "
+                  "its CPU time includes theirs).", ""]
+    lines += [
+        "Measured and dropped: timing each FMU's three calls with one pair of clock "
+        f"readings instead of one reading between calls costs {pair - calls:.2f} us per "
+        f"step instead of {timed - calls:.2f}, but would merge the three functions' "
+        "seconds in the statistics (`functions.<name>.seconds`): kept per call. Ways to "
+        "write the same CSV text (microseconds per row of the ring's rows, each checked "
+        "to give dsim's text): " + ", ".join(f"{name} {cost:.2f}" for name, cost in
+                                              formats.items())
+        + "; dsim keeps the first. The recorder's flush thread formats nothing in these "
+        "runs: the main thread writes each block when its flush interval has passed "
+        "(the thread writes only rows that wait longer, behind an FMU stuck in its step), "
+        "so there is no overlap to win and no contention for the interpreter to lose; "
+        "formatting in another process would move the CPU time, not save it.", ""]
+    return lines
+
+
 def main(argv=None) -> str:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--blocks", default="4,10,50")
+    parser.add_argument("--blocks", default="4,10,50", help="ring sizes, comma-separated")
     parser.add_argument("--profile-blocks", type=int, default=4,
-                        help="the ring whose dsim run is profiled")
+                        help="the ring whose dsim run is profiled and broken down")
     parser.add_argument("--repetitions", type=int, default=7)
     parser.add_argument("--short", type=float, default=0.5, help="short run, s")
     parser.add_argument("--long", type=float, default=5.0, help="long run, s")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "causal_benchmark.md"))
     args = parser.parse_args(argv)
-    rows, profiled = [], []
+    rows, profiled, floor, formats = [], [], {}, {}
     with tempfile.TemporaryDirectory(prefix="dsim-causal-") as temp:
         folder = Path(temp)
         fmu = c_fmu(folder, "block")
@@ -240,6 +388,9 @@ def main(argv=None) -> str:
                 f"{name} {r['us']:.1f} us/step" for name, r in result.items()), flush=True)
             if count == args.profile_blocks:
                 profiled = profile(ssp, folder, args.short, args.long)
+                steps = round((args.long - args.short) / STEP)
+                floor = kernel_floor(ssp, steps, args.repetitions)
+                formats = csv_formats(ssp, args.short, args.repetitions)
     text = "\n".join([
         "# Causal systems: dsim against fmpy's SSP runner and libcosim",
         "",
@@ -262,15 +413,20 @@ def main(argv=None) -> str:
         "",
         *_libcosim_summary(rows),
         "dsim runs a system without joints with its causal coupling: no state is saved or "
-        "restored and no Newton runs; each FMU takes one batched `fmi2SetReal` of its inputs, "
-        "one `fmi2DoStep` and one batched `fmi2GetReal` of what is recorded or feeds a "
-        "connection, through value-reference arrays resolved once, in one call of the "
-        "subsystem per step (each FMI call still counted, timed and its status checked). "
+        "restored and no Newton runs. Unless the system has an algebraic loop to solve, its "
+        "steps go through the in-process backend's causal kernel, specialised once at the "
+        "start: one gather of every connection's value into one input buffer, then for each "
+        "FMU one batched `fmi2SetReal` from that buffer, one `fmi2DoStep` and one batched "
+        "`fmi2GetReal` into one output buffer, each called with ctypes argument objects "
+        "made at the start (value-reference arrays, the buffers, the step's time), each "
+        "timed, its status checked before the next call and counted per step; then one copy "
+        "of the outputs as the step's row. "
         "The CSV column includes formatting and writing every output of every step in full "
         "precision (Python's `repr` of each double, the shortest text that reads back the "
         "same: most of the difference between dsim's two columns; rows are formatted a "
         "block at a time on the recorder's flush) and the statistics; fmpy keeps its rows "
-        "in memory, as dsim's in-memory column does. The error columns: the largest difference of every block output from "
+        "in memory, as dsim's in-memory column does. The error columns: the largest "
+        "difference of every block output from "
         "the blocks' exact update computed in numpy (benchmarks/causal_benchmark.py, "
         "`recurrence`): dsim feeds every input from the outputs at the step start, the first "
         "step too; fmpy's runner starts every input at 0. libcosim's CSV files hold every "
@@ -279,17 +435,17 @@ def main(argv=None) -> str:
         "",
         f"## Where dsim's time goes ({args.profile_blocks} blocks)",
         "",
+        *_where(rows, args.profile_blocks, floor, formats),
         f"dsim (CSV + statistics) on the {args.profile_blocks}-block ring under cProfile, "
         f"the {args.long:g} s run less the {args.short:g} s one (start-up cancels): the "
-        "functions of most own time, per macro step. "
-        "`_Call.__call__` is dsim's checkpoint around every FMI call (one `fmi2SetReal`, "
-        "`fmi2DoStep` and `fmi2GetReal` per FMU per step: it counts and times each call "
-        "for the statistics and checks its status); its own time includes the FMU's "
-        "function, which runs in C and shows in no Python frame. What is left in Python "
-        "is the step loop (`execution.py` `step`), the in-process backend's loop over the "
-        "FMUs, the connections' transfer (one gather per step) and the CSV rows, "
-        "formatted in blocks on the recorder's flush (`_csv_block`: one `repr` of a block "
-        "of rows).",
+        "functions of most own time, per macro step (cProfile's own cost included: its "
+        "total is well above the plain run's). The kernel's `__call__` makes every FMI "
+        "call: its own time includes the FMUs' functions, which run in C through ctypes and "
+        "show in no Python frame, and the clock readings that time them "
+        "(`time.perf_counter`). What is left is the execution's step (`_kernel_step`), the "
+        "finite check of the row, the recorder's queue (`stepped`) and the CSV rows, "
+        "formatted in blocks on the recorder's flush (`_csv_block`: one `repr` of each "
+        "double of a block of rows).",
         "",
         *profiled,
         ""])

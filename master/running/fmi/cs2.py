@@ -375,12 +375,13 @@ class FmuSubsystem(Checkpoint, Subsystem):
         ``time`` and ``step_size`` are the kernel's ``ctypes.c_double`` of the step.
         The kernel times each call into its ``seconds`` and counts them when
         :meth:`statistics` asks (``kernel.sync``)."""
-        if self._initializing or (inputs is not None and self._write_direct is None) \
-                or (len(outputs) and not self._read_direct):
+        writes = self._write_direct
+        if self._initializing or (inputs is not None and (
+                writes is None or len(inputs) != writes.size)) or (len(outputs) and (
+                not self._read_direct or len(outputs) != self._reads[0].size)):
             return None
         handle, put, get = self.handle, None, None
         if inputs is not None:
-            writes = self._write_direct
             buffer = (ctypes.c_double * writes.size).from_buffer(inputs)
             put = (writes.set, (handle, writes.vrs, writes.count, buffer))
         if len(outputs):
