@@ -29,6 +29,7 @@ import platform
 import pstats
 import statistics as stats
 import tempfile
+import threading
 import time
 from datetime import date
 from pathlib import Path
@@ -37,7 +38,7 @@ import numpy as np
 from fmpy.ssp.simulation import simulate_ssp
 
 import dsim
-from dsim.master.recording.observers import StepRecord, _csv_block
+from dsim.master.recording.observers import CsvRecorder, StepRecord, _csv_block
 from tests.third_party.build import c_fmu, causal_ring_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -212,6 +213,28 @@ def kernel_floor(ssp: Path, steps: int, repetitions: int) -> dict:
         execution.finish()
 
 
+def flush_threads(ssp: Path, folder: Path, stop: float) -> dict:
+    """Which thread wrote the CSV's rows in one dsim run to ``stop``: thread name ->
+    [blocks written, rows] (the recorder's own method, wrapped for the run)."""
+    written: dict[str, list[int]] = {}
+    original = CsvRecorder._write_pending
+
+    def counted(recorder):
+        rows = len(recorder._pending)
+        original(recorder)
+        entry = written.setdefault(threading.current_thread().name, [0, 0])
+        entry[0] += 1
+        entry[1] += rows
+
+    CsvRecorder._write_pending = counted
+    try:
+        dsim.simulate(ssp, out=folder / "threads.csv", stop=stop, handle_signals=False,
+                      force=True)
+    finally:
+        CsvRecorder._write_pending = original
+    return written
+
+
 def csv_formats(ssp: Path, stop: float, repetitions: int) -> dict:
     """Microseconds per row of ways to write the ring's rows as dsim's CSV text, least of
     ``repetitions``, each checked to give the same text: dsim's ``_csv_block`` (one
@@ -315,7 +338,8 @@ def _libcosim_summary(rows) -> list[str]:
             "its FMUs from a pool of threads: its CPU time includes theirs.", ""]
 
 
-def _where(rows, count: int, floor: dict, formats: dict) -> list[str]:
+def _where(rows, count: int, floor: dict, formats: dict, writers: dict,
+           stop: float) -> list[str]:
     """Where a step of the ``count``-block ring goes, from the times per step of the
     table and the kernel's floor, as page lines."""
     found = [result for n, result, _ in rows if n == count]
@@ -357,11 +381,17 @@ def _where(rows, count: int, floor: dict, formats: dict) -> list[str]:
         "write the same CSV text (microseconds per row of the ring's rows, each checked "
         "to give dsim's text): " + ", ".join(f"{name} {cost:.2f}" for name, cost in
                                               formats.items())
-        + "; dsim keeps the first. The recorder's flush thread formats nothing in these "
-        "runs: the main thread writes each block when its flush interval has passed "
-        "(the thread writes only rows that wait longer, behind an FMU stuck in its step), "
-        "so there is no overlap to win and no contention for the interpreter to lose; "
-        "formatting in another process would move the CPU time, not save it.", ""]
+        + "; dsim keeps the first. Who formats and writes the rows, in a "
+        f"{stop:g} s run (thread: blocks written, rows): " + ", ".join(
+            f"{name}: {blocks}, {rows}" for name, (blocks, rows) in
+            {"MainThread": [0, 0], "dsim-csv-flush": [0, 0], **writers}.items())
+        + ". The main thread writes a block when the recorder's flush interval has passed "
+        "at the end of a step; the flush thread writes only rows that waited longer than "
+        "that (behind an FMU stuck in its step). The Python code of two threads never runs "
+        "at once (one interpreter lock): formatting in the flush thread could overlap only "
+        "the FMUs' own code, a fraction of a microsecond per call, while the steps wait for "
+        "the lock; formatting in another process would move the CPU time (counted here), "
+        "not save it.", ""]
     return lines
 
 
@@ -375,7 +405,7 @@ def main(argv=None) -> str:
     parser.add_argument("--long", type=float, default=5.0, help="long run, s")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "causal_benchmark.md"))
     args = parser.parse_args(argv)
-    rows, profiled, floor, formats = [], [], {}, {}
+    rows, profiled, floor, formats, writers = [], [], {}, {}, {}
     with tempfile.TemporaryDirectory(prefix="dsim-causal-") as temp:
         folder = Path(temp)
         fmu = c_fmu(folder, "block")
@@ -391,6 +421,7 @@ def main(argv=None) -> str:
                 steps = round((args.long - args.short) / STEP)
                 floor = kernel_floor(ssp, steps, args.repetitions)
                 formats = csv_formats(ssp, args.short, args.repetitions)
+                writers = flush_threads(ssp, folder, args.long)
     text = "\n".join([
         "# Causal systems: dsim against fmpy's SSP runner and libcosim",
         "",
@@ -435,7 +466,7 @@ def main(argv=None) -> str:
         "",
         f"## Where dsim's time goes ({args.profile_blocks} blocks)",
         "",
-        *_where(rows, args.profile_blocks, floor, formats),
+        *_where(rows, args.profile_blocks, floor, formats, writers, args.long),
         f"dsim (CSV + statistics) on the {args.profile_blocks}-block ring under cProfile, "
         f"the {args.long:g} s run less the {args.short:g} s one (start-up cancels): the "
         "functions of most own time, per macro step (cProfile's own cost included: its "
