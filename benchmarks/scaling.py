@@ -36,12 +36,10 @@ import dsim.master.api  # imported before the clock starts (dsim imports it when
 from dsim.master.recording.observers import Observer
 
 class Clock(Observer):
-    # CPU seconds at the first row (set-up done) and at the last
+    # CPU seconds at every row: the first is the end of the set-up
     marks = []
     def stepped(self, record):
-        self.marks[1:] = [time.process_time()] if self.marks else []
-        if not self.marks:
-            self.marks.append(time.process_time())
+        self.marks.append(time.process_time())
 
 clock = Clock()
 begun = time.process_time()
@@ -51,7 +49,7 @@ usage = resource.getrusage(resource.RUSAGE_SELF)
 s = result.statistics
 print(json.dumps({"status": s["status"], "steps": s["steps"], "wall": s["wall_seconds"],
                   "setup": s["setup_seconds"], "setup_cpu": clock.marks[0] - begun,
-                  "steps_cpu": clock.marks[1] - clock.marks[0],
+                  "marks": clock.marks,
                   "cpu": usage.ru_utime + usage.ru_stime, "peak_mb": usage.ru_maxrss / 1024}))
 """
 
@@ -132,17 +130,39 @@ NOTES = (
     "description, ports, capability checks) is computed once per file, and a system's "
     "annotations once per system; the gluing incidence is built as one sparse matrix; "
     "Python's cyclic garbage collector is paused while a scene is read, planned and "
-    "instantiated (its passes over millions of young objects cost as much as the work). "
-    "Every instance of one FMU file shares one binding of its library's functions "
-    "(`dsim.master.running.fmi.library`: fmpy bound them again for each instance, 6 ms "
-    "apiece). What is left of the set-up is each instance's own start-up: the "
-    "SpringMass FMU is a pythonfmu FMU, whose instance builds its Python model and "
-    "registers its variables (about 2 ms), and whose Python objects are most of the "
-    "memory of a large chain (about 170 kB per instance). The time per step per "
-    "subsystem grows from 100 to 10,000 subsystems although every step's work is linear "
-    "(the profile of a chain_1000 step is the FMUs' own code and one call per FMI "
-    "function per subsystem): thousands of Python FMU instances no longer fit the "
-    "processor's caches.")
+    "instantiated (its passes over millions of young objects cost as much as the work), "
+    "and the objects the set-up made are frozen out of its passes until the run ends "
+    "(`gc.freeze`: at chain_10000 its full passes over a million objects took about "
+    "15% of the steps' time). Every instance of one FMU file shares one binding of its library's "
+    "functions (`dsim.master.running.fmi.library`: fmpy bound them again for each "
+    "instance, 6 ms apiece).",
+    "",
+    "The SpringMass instances were most of a large chain's memory and set-up (166 kB "
+    "each; 1.86 GB and 25 s of CPU to set up chain_10000): pythonfmu 0.7 runs the FMU's "
+    "script again for every instance it makes, to find the model class, and keeps what "
+    "that run makes (it never releases the method resolution lists it reads), so a class "
+    "defined in the script was made again, with its methods, for each instance; and "
+    "pythonfmu registers every variable of every instance as Python objects (95 "
+    "variables with a getter and a setter each, about 110 kB). The script now imports "
+    "the model class (`fmus/spring_mass/slave.py`), which declares its variables once "
+    "for the class (`fmus/fmi_binding.py`, `Variable`: pythonfmu's C side only calls the "
+    "slave's get and set methods, which answer from that table). A component now costs "
+    "about 33 kB, its FMU instance, dsim's handle of it and the scene's objects for it "
+    "together (the resident size over 2,000 components; tracemalloc agrees).",
+    "",
+    "The time per step per subsystem still grows with the chain, although a step's work "
+    "is linear: profiles of steps of chain_1000 and chain_10000 show the same calls per "
+    "subsystem (about ten FMI calls, each into the FMU's Python) and no function whose "
+    "calls grow; each call takes longer. The FMUs are Python objects spread over memory, "
+    "and a step of a large chain visits all of them: the `cores alone` columns step the "
+    "SpringMass physics cores one after the other in plain Python, without FMI and "
+    "without the master, and grow too from 100 to 10,000 cores; a step of the chain "
+    "visits several times more objects per subsystem (pythonfmu's instance, the FMU's "
+    "binding and core, fmpy's and dsim's handles of it) and grows more. The machine "
+    "is shared (two cores, one 32 MB cache): a step of chain_10000 touches hundreds of "
+    "megabytes, and whatever runs beside it empties that cache, so the large chains' "
+    "times vary more from run to run than the small ones'.",
+)
 
 
 def chain_folder(n: int, folder: Path) -> Path:
@@ -156,14 +176,86 @@ def chain_folder(n: int, folder: Path) -> Path:
     return folder
 
 
+#: steps per window of the CPU time per step (the least window is the table's)
+WINDOW = 10
+
+
+def written_apart(n: int, folder: Path) -> Path:
+    """:func:`chain_folder` written by a child process: a child's peak memory counts
+    its parent's at the fork (Linux), and this process so stays as small as at its start."""
+    subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; "
+                    "from benchmarks.scaling import chain_folder; "
+                    "chain_folder(int(sys.argv[1]), Path(sys.argv[2]))", str(n), str(folder)],
+                   check=True, cwd=ROOT)
+    return folder
+
+
 def run(folder: Path, steps: int) -> dict:
-    """One run of ``steps`` macro steps in a fresh process."""
+    """One run of ``steps`` macro steps in a fresh process.
+
+    ``per_step`` is the wall time per step over the whole run (set-up excluded);
+    ``first_cpu`` the CPU seconds of the first step, which also measures the interface
+    flexibility (the coupling holds none before); ``per_step_cpu`` the least CPU time
+    per step over the windows of :data:`WINDOW` consecutive steps after it (the
+    machine is shared: the least window is the step's own cost, the others include
+    waiting on caches another process emptied), ``mean_cpu`` the mean over them."""
     found = subprocess.run([sys.executable, "-c", _RUN, str(folder), str(steps * 1e-3)],
                            capture_output=True, text=True, check=True)
     result = json.loads(found.stdout.strip().splitlines()[-1])
+    marks = result.pop("marks")
+    if len(marks) < WINDOW + 2:
+        raise ValueError(f"{folder.name}: {len(marks) - 1} steps, fewer than {WINDOW + 1}")
     result["per_step"] = (result["wall"] - result["setup"]) / result["steps"]
-    result["per_step_cpu"] = result["steps_cpu"] / result["steps"]
+    result["first_cpu"] = marks[1] - marks[0]
+    result["per_step_cpu"] = min(marks[i + WINDOW] - marks[i]
+                                 for i in range(1, len(marks) - WINDOW)) / WINDOW
+    result["mean_cpu"] = (marks[-1] - marks[1]) / (len(marks) - 2)
     return result
+
+
+def least(results: list[dict]) -> dict:
+    """Repetitions of one run combined: the least of every time (what the run costs
+    with the least interference from other work), the largest peak memory."""
+    combined = dict(results[0])
+    for key in ("setup", "setup_cpu", "per_step", "first_cpu", "per_step_cpu", "mean_cpu"):
+        combined[key] = min(r[key] for r in results)
+    combined["peak_mb"] = max(r["peak_mb"] for r in results)
+    combined["repetitions"] = len(results)
+    return combined
+
+
+#: n SpringMass cores (the FMU's physics, no FMI, no master) stepped one after the
+#: other, as a run steps its FMUs: least CPU microseconds per core and step of 5 sweeps
+_CORES = """
+import json, sys, time
+import numpy as np
+from dsim.fmus.spring_mass.core import ChainParameters, SpringMassChain
+n = int(sys.argv[1])
+cores = []
+for i in range(n):
+    p = ChainParameters()
+    p.k_ground[0], p.x0[0] = 1e4, 1e-3 * (i % 7)
+    cores.append(SpringMassChain(p))
+    cores[-1].initialize(0.0)
+sweeps, best, forces = max(2, 20000 // n), float("inf"), np.zeros(2)
+for repetition in range(5):
+    begun = time.process_time()
+    for k in range(sweeps):
+        for core in cores:
+            core.set_interface_forces(forces)
+            core.step(k * 1e-3, 1e-3)
+            core.interface_kinematics()
+    best = min(best, (time.process_time() - begun) / sweeps / n * 1e6)
+print(json.dumps(best))
+"""
+
+
+def cores_alone(n: int) -> float:
+    """CPU microseconds per step of one SpringMass core among ``n`` stepped in turn in
+    plain Python (no FMI, no master), in a fresh process."""
+    found = subprocess.run([sys.executable, "-c", _CORES, str(n)], capture_output=True,
+                           text=True, check=True)
+    return json.loads(found.stdout.strip().splitlines()[-1])
 
 
 #: one dsim command in a child process; its CPU seconds and peak memory to stderr
@@ -192,13 +284,16 @@ def command(*args) -> dict:
 def main(argv=None) -> str:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", default="10,100,1000,10000", help="subsystems per run")
-    parser.add_argument("--steps", default="200,50,20,10",
-                        help="macro steps of each run (whole tens: one flexibility refresh "
-                        "in ten steps for every chain)")
+    parser.add_argument("--steps", default="200,50,40,30",
+                        help="macro steps of each run (at least %d: the first, then "
+                        "windows of %d)" % (WINDOW + 1, WINDOW))
+    parser.add_argument("--repeat", type=int, default=3,
+                        help="runs of each chain, in turn (the table gives the least times)")
     parser.add_argument("--checks", default="1000,10000,100000",
-                        help="components of the validate and info scenes")
+                        help="components of the validate and info scenes ('': none)")
     parser.add_argument("--ray", type=int, default=1000,
-                        help="subsystems of the set-up in-process vs Ray (0: none)")
+                        help="subsystems of the set-up in-process vs Ray (0: keep the "
+                        "page's section)")
     parser.add_argument("--only", choices=["ray"],
                         help="measure only this and replace its section of the page")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "scaling.md"))
@@ -209,33 +304,48 @@ def main(argv=None) -> str:
             result = ray_setup(args.ray, Path(temp))
         print(f"ray chain_{args.ray}: {result}", flush=True)
         ray_text = ray_lines(args.ray, result)
+    elif Path(args.docs).is_file() and RAY_HEADING in Path(args.docs).read_text():
+        # not measured this time: the page's section is kept as it is
+        ray_text = [RAY_HEADING + Path(args.docs).read_text().split(RAY_HEADING, 1)[1]]
     if args.only == "ray":
         page = Path(args.docs).read_text()
         kept = page.split(RAY_HEADING)[0].rstrip("\n")
         text = "\n".join([kept, "", *ray_text])
         Path(args.docs).write_text(text)
         return text
-    runs, checks = [], []
+    runs, checks, alone = [], [], {}
     with tempfile.TemporaryDirectory(prefix="dsim-scaling-") as temp:
-        for n, steps in zip(map(int, args.runs.split(",")), map(int, args.steps.split(","))):
-            result = run(chain_folder(n, Path(temp) / f"chain_{n}"), steps)
-            runs.append((n, result))
-            print(f"chain_{n}: {result}", flush=True)
-            shutil.rmtree(Path(temp) / f"chain_{n}")
-        for n in map(int, args.checks.split(",")):
-            folder = chain_folder(n, Path(temp) / f"chain_{n}")
+        sizes = list(zip(map(int, args.runs.split(",")), map(int, args.steps.split(","))))
+        folders = {n: written_apart(n, Path(temp) / f"chain_{n}") for n, _ in sizes}
+        each: dict[int, list] = {n: [] for n, _ in sizes}
+        for repetition in range(args.repeat):  # in turn: each size sees the same load
+            for n, steps in sizes:
+                each[n].append(run(folders[n], steps))
+                print(f"chain_{n} ({repetition + 1}/{args.repeat}): {each[n][-1]}", flush=True)
+            for n, _ in sizes:
+                alone[n] = min(alone.get(n, float("inf")), cores_alone(n))
+        runs = [(n, least(each[n])) for n, _ in sizes]
+        for folder in folders.values():
+            shutil.rmtree(folder)
+        for n in (map(int, args.checks.split(",")) if args.checks else ()):
+            folder = written_apart(n, Path(temp) / f"chain_{n}")
             checks.append((n, command("validate", folder), command("info", folder)))
             print(f"validate/info chain_{n}: {checks[-1][1:]}", flush=True)
             shutil.rmtree(folder)
     base = next((r["per_step_cpu"] / n for n, r in runs if n == 100), None)
-    lines = ["| subsystems | macro steps | set-up: wall (s) | CPU (s) | per macro step: wall "
-             "(ms) | CPU (ms) | CPU per step per subsystem (ms) | / chain_100's | peak "
-             "memory (MB) |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| subsystems | macro steps | set-up: wall (s) | CPU (s) | first step: CPU (ms) "
+             "| per macro step: wall (ms) | CPU, mean (ms) | CPU, least window (ms) | CPU per "
+             "step per subsystem (ms) | / chain_100's | cores alone: CPU per step per core "
+             "(ms) | / 100's | peak memory (MB) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for n, r in runs:
         each = r["per_step_cpu"] / n
         lines.append(f"| {n} | {r['steps']} | {r['setup']:.2f} | {r['setup_cpu']:.2f} | "
-                     f"{r['per_step'] * 1e3:.1f} | {r['per_step_cpu'] * 1e3:.1f} | "
-                     f"{each * 1e3:.3f} | " + (f"{each / base:.2f}" if base else "-")
+                     f"{r['first_cpu'] * 1e3:.1f} | {r['per_step'] * 1e3:.1f} | "
+                     f"{r['mean_cpu'] * 1e3:.1f} | {r['per_step_cpu'] * 1e3:.1f} | "
+                     f"{each * 1e3:.4f} | " + (f"{each / base:.2f}" if base else "-")
+                     + f" | {alone[n] * 1e-3:.4f} | "
+                     + (f"{alone[n] / alone[100]:.2f}" if 100 in alone else "-")
                      + f" | {r['peak_mb']:.0f} |")
     check_lines = ["| components | validate: wall (s) | CPU (s) | peak memory (MB) | "
                    "info: wall (s) | CPU (s) | peak memory (MB) |",
@@ -252,11 +362,14 @@ def main(argv=None) -> str:
         "joints (`build_fmus/scenes.py`, `chain(n)`), each measured in a fresh process. "
         "Set-up is reading, planning, instantiating and initialising every FMU and the "
         "start forces: wall, the run's `setup_seconds`; CPU, from calling `dsim.simulate` "
-        "to the first row. Per macro step is the rest of the run over its steps (a "
-        "refresh of the interface flexibility every 10 steps included), wall and CPU; "
-        "peak memory is the process's maximum resident size. The machine is shared with "
-        "other work (two cores): wall seconds include waiting for a core, CPU seconds "
-        "are what the run costs.",
+        "to the first row. The first step also measures the interface flexibility (the "
+        "coupling holds none before). Per macro step: wall, over the whole run; CPU, the "
+        "mean over the steps after the first, and the least over every window of "
+        f"{WINDOW} consecutive steps after the first, which the columns per subsystem "
+        f"use. Each chain runs {args.repeat} times, the sizes in turn, and the table "
+        "gives the least of each time and the largest peak memory (the process's maximum "
+        "resident size). The machine is shared with other work (two cores): wall seconds "
+        "include waiting for a core, CPU seconds are what the run costs.",
         "",
         *lines,
         "",
@@ -266,7 +379,7 @@ def main(argv=None) -> str:
         "",
         *check_lines,
         "",
-        NOTES,
+        *NOTES,
         "",
         *ray_text])
     Path(args.docs).write_text(text)

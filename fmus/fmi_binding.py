@@ -1,9 +1,10 @@
 """What every pythonfmu wrapper of an :class:`~dsim.fmus.interface.InterfaceCore` shares.
 
-pythonfmu finds the model class by a regular expression that wants
-``class Name(Fmi2Slave):`` verbatim, so the shared part cannot be a base class;
-it is this binding object, which a wrapper creates in ``__init__`` and calls from
-its FMI callbacks.  It registers the port variables of DESIGN.md (``P.f_x`` input,
+pythonfmu before 0.7 found the model class by a regular expression that wants
+``class Name(Fmi2Slave):`` verbatim, so the shared part is not a base class; it is
+this binding object, which a wrapper creates in ``__init__`` and calls from its FMI
+callbacks.  A wrapper may declare its variables once for its class
+(:class:`Variable`, :func:`port_variables`) instead of registering them per instance.  It registers the port variables of DESIGN.md (``P.f_x`` input,
 ``P.u_x``/``P.v_x``/``P.a_x`` outputs), answers batched reads and writes of them,
 computes outputs when they are read, and implements the complete FMU state (the
 core's numerical state plus inputs).
@@ -29,12 +30,80 @@ import abc
 import pickle
 
 import numpy as np
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
 from .interface import InterfaceCore
 
 KINEMATIC_PREFIXES = ("u", "v", "a")
+#: pythonfmu variable type -> how Fmi2Slave's getters convert a value of it
+CONVERT = {Real: float, Integer: int, Boolean: bool, String: str}
+
+
+class Variable:
+    """One FMI variable of a wrapper class, declared once for all its instances: its
+    pythonfmu type (``Real``, ``Integer``, ...), name and attributes, and how it is read
+    (``get(slave)``) and written (``set(slave, value)``, None: not settable) in one
+    instance.
+
+    pythonfmu registers variables per instance, each a ``ScalarVariable`` with a getter
+    and a setter closed over the instance: 95 variables and about 110 kB for each
+    SpringMass instance (a chain of 10,000 held 1.1 GB of them).  At run time
+    pythonfmu's C side calls only the slave's methods (``get_real``, ``set_integer``,
+    ...), never its variables; a class that declares its variables (``variables``, see
+    :func:`glued_slave`) so answers from one table made per class, and registers
+    pythonfmu's variables only for the model description, when the FMU is built.
+    """
+
+    __slots__ = ("kind", "name", "options", "get", "set")
+
+    def __init__(self, kind, name: str, get, set=None, **options):
+        self.kind, self.name, self.get, self.set, self.options = kind, name, get, set, options
+
+    def bound(self, slave):
+        """pythonfmu's variable of this one in ``slave`` (to register it there)."""
+        get, put = self.get, self.set
+        return self.kind(self.name, getter=lambda: get(slave),
+                         setter=None if put is None else (lambda value: put(slave, value)),
+                         **self.options)
+
+
+def port_variables(interface, output_names=()) -> list[Variable]:
+    """The variables of :class:`CoreBinding`, in its order: the force input of every port
+    dof (``P.f_x``), then its position, velocity and acceleration outputs (``P.u_x``,
+    ``P.v_x``, ``P.a_x``), then the named outputs; each reads the slave's ``binding``."""
+    interface, n = tuple(interface), len(interface)
+    variables = [Variable(
+        Real, f"{port}.f_{dof}", causality=Fmi2Causality.input,
+        variability=Fmi2Variability.continuous, start=0.0,
+        description="force (moment for r*) applied at the port, N or N.m",
+        get=lambda slave, i=i: float(slave.binding.forces[i]),
+        set=lambda slave, value, i=i: slave.binding._set_forces([i], [value]))
+        for i, (port, dof) in enumerate(interface)]
+    for row, (prefix, what) in enumerate(zip(
+            KINEMATIC_PREFIXES, ("position", "velocity", "acceleration"))):
+        variables += [Variable(
+            Real, f"{port}.{prefix}_{dof}", causality=Fmi2Causality.output,
+            variability=Fmi2Variability.continuous, description=f"global {what} of the port",
+            get=lambda slave, k=(row + 1) * n + i, row=row: slave.binding._readable((row,))[k])
+            for i, (port, dof) in enumerate(interface)]
+    variables += [Variable(Real, name, causality=Fmi2Causality.output,
+                           variability=Fmi2Variability.continuous,
+                           get=lambda slave, k=4 * n + j: slave.binding._readable((3,))[k])
+                  for j, name in enumerate(output_names)]
+    return variables
+
+
+#: (wrapper class, interface, output names) -> (value reference -> place in the
+#: readable values, the batch cache): one per class whose variables are declared
+_LAYOUTS: dict[tuple, tuple] = {}
+
+
+def _place_table(references) -> np.ndarray:
+    """Value reference -> place in the readable values (-1: not a port or output)."""
+    place = np.full(max(references, default=-1) + 1, -1, dtype=int)
+    place[references] = np.arange(len(references))
+    return place
 
 
 class CoreBinding:
@@ -64,36 +133,22 @@ class CoreBinding:
         self._stale = [True] * 4
         # readable values: forces, then u, v, a per dof, then the named outputs
         self._values = np.zeros(4 * n + len(self.output_names))
-        references = []
-        for i, (port, dof) in enumerate(self.interface):
-            variable = Real(
-                f"{port}.f_{dof}", causality=Fmi2Causality.input,
-                variability=Fmi2Variability.continuous, start=0.0,
-                description="force (moment for r*) applied at the port, N or N.m",
-                getter=lambda i=i: float(self.forces[i]),
-                setter=lambda value, i=i: self._set_forces([i], [value]))
-            slave.register_variable(variable, nested=False)
-            references.append(variable.value_reference)
-        for row, (prefix, what) in enumerate(zip(
-                KINEMATIC_PREFIXES, ("position", "velocity", "acceleration"))):
-            for i, (port, dof) in enumerate(self.interface):
-                variable = Real(
-                    f"{port}.{prefix}_{dof}", causality=Fmi2Causality.output,
-                    variability=Fmi2Variability.continuous,
-                    description=f"global {what} of the port",
-                    getter=lambda k=(row + 1) * n + i, row=row: self._readable((row,))[k])
-                slave.register_variable(variable, nested=False)
-                references.append(variable.value_reference)
-        for j, name in enumerate(self.output_names):
-            variable = Real(name, causality=Fmi2Causality.output,
-                            variability=Fmi2Variability.continuous,
-                            getter=lambda k=4 * n + j: self._readable((3,))[k])
-            slave.register_variable(variable, nested=False)
-            references.append(variable.value_reference)
-        # value reference -> place in the readable values (-1: not a port or output)
-        self._place = np.full(max(references, default=-1) + 1, -1, dtype=int)
-        self._place[references] = np.arange(len(references))
-        self._batches: dict[tuple, tuple | None] = {}
+        declared = getattr(type(slave), "declared", None)
+        if declared is None:  # a wrapper that registers its variables per instance
+            references = []
+            for variable in port_variables(self.interface, self.output_names):
+                bound = variable.bound(slave)
+                slave.register_variable(bound, nested=False)
+                references.append(bound.value_reference)
+            self._place = _place_table(references)
+            self._batches: dict[tuple, tuple | None] = {}
+        else:  # declared once per class: so are the places, and the batches they make
+            key = (type(slave), self.interface, self.output_names)
+            if key not in _LAYOUTS:
+                by_name = {variable.name: vr for vr, variable in declared.items()}
+                _LAYOUTS[key] = (_place_table([by_name[variable.name] for variable in
+                                               port_variables(*key[1:])]), {})
+            self._place, self._batches = _LAYOUTS[key]
 
     # --- batched access (the master's calls) ----------------------------------------
     def places(self, vrs, forces_only: bool = False):
@@ -227,7 +282,12 @@ def glued_slave(cls):
     the module's docstring), so a master can tell the user which parameter the model
     refused and still free the instance; an ``ArithmeticError`` from a step (the
     core's own iteration failed) discards the step.  (A decorator and not a base class:
-    pythonfmu finds the model class by the literal line ``class Name(Fmi2Slave):``.)
+    pythonfmu before 0.7 found the model class by the line ``class Name(Fmi2Slave):``.)
+
+    A class with a ``variables`` attribute (a sequence of :class:`Variable`, its own
+    then :func:`port_variables`) declares them once: value reference = place in it,
+    every FMI get and set of them answered from that table, and pythonfmu's variables
+    registered only to write the model description (``to_xml``, when the FMU is built).
     """
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
         self.binding.start_time = start_time
@@ -258,20 +318,77 @@ def glued_slave(cls):
     def get_real(self, vrs):
         places = self.binding.places(vrs)
         if places is None:  # parameters and the like: one getter per variable
-            return Fmi2Slave.get_real(self, vrs)
+            return get_each(self, vrs, Real)
         return self.binding.get_reals(places)
 
     def set_real(self, vrs, values):
         places = self.binding.places(vrs, forces_only=True)
         if places is None:
-            return Fmi2Slave.set_real(self, vrs, values)
+            return set_each(self, vrs, values, Real)
         self.binding.set_reals(places, values)
 
     for method in (setup_experiment, enter_initialization_mode, exit_initialization_mode,
                    do_step, _get_fmu_state, _set_fmu_state, get_real, set_real):
         if method.__name__ not in cls.__dict__:
             setattr(cls, method.__name__, method)
+    if "variables" in cls.__dict__:
+        _declare(cls, cls.variables)
     cls._fmu_state_to_bytes = staticmethod(state_to_bytes)
     cls._fmu_state_from_bytes = staticmethod(state_from_bytes)
     abc.update_abstractmethods(cls)
     return cls
+
+
+def get_each(slave, vrs, kind) -> list:
+    """Values of the variables ``vrs`` of type ``kind`` (``Real``, ...) of ``slave``, one
+    getter each: from its class's declared table, else pythonfmu's registered variables."""
+    declared = getattr(type(slave), "declared", None)
+    if declared is None:
+        return getattr(Fmi2Slave, f"get_{kind.__name__.lower()}")(slave, vrs)
+    values = []
+    for vr in vrs:
+        variable = declared[vr]  # a KeyError, as Fmi2Slave's: no such variable
+        if variable.kind is not kind:
+            raise TypeError(f"Variable with valueReference={vr} is not of type "
+                            f"{kind.__name__}!")
+        values.append(CONVERT[kind](variable.get(slave)))
+    return values
+
+
+def set_each(slave, vrs, values, kind) -> None:
+    """Set the variables ``vrs`` of type ``kind`` of ``slave``, one setter each (as
+    :func:`get_each`)."""
+    declared = getattr(type(slave), "declared", None)
+    if declared is None:
+        return getattr(Fmi2Slave, f"set_{kind.__name__.lower()}")(slave, vrs, values)
+    for vr, value in zip(vrs, values):
+        variable = declared[vr]
+        if variable.kind is not kind or variable.set is None:
+            raise TypeError(f"Variable with valueReference={vr} is not a settable "
+                            f"{kind.__name__}!")
+        variable.set(slave, value)
+
+
+def _declare(cls, variables) -> None:
+    """Give ``cls`` its declared ``variables`` (:class:`Variable`, value references in
+    their order) as one table for every instance: FMI get and set calls answered from
+    it, pythonfmu's variables registered only when the model description is written."""
+    cls.declared = dict(enumerate(variables))
+    for kind in (Integer, Boolean, String):
+        name = kind.__name__.lower()
+        if f"get_{name}" not in cls.__dict__:
+            setattr(cls, f"get_{name}", lambda self, vrs, kind=kind: get_each(self, vrs, kind))
+        if f"set_{name}" not in cls.__dict__:
+            setattr(cls, f"set_{name}", lambda self, vrs, values, kind=kind:
+                    set_each(self, vrs, values, kind))
+
+    def to_xml(self, model_options=None):
+        # the model description (when the FMU is built) is written from pythonfmu's
+        # variables: registered here, in the declared order (value reference = index)
+        if not self.vars:
+            for variable in cls.declared.values():
+                self.register_variable(variable.bound(self), nested=False)
+        return Fmi2Slave.to_xml(self, model_options or {})
+
+    if "to_xml" not in cls.__dict__:
+        cls.to_xml = to_xml

@@ -110,3 +110,37 @@ def test_instances_of_one_fmu_file_share_one_binding_of_its_library(built, tmp_p
     columns = [f"m{i}.x[1]" for i in range(1, 11)]
     assert all(np.array_equal(first.signals[c], again.signals[c]) for c in columns)
     assert np.abs(first.signals["m1.x[1]"]).max() > 1e-6  # it moved
+
+
+def test_a_run_keeps_its_set_up_out_of_the_collectors_passes_until_it_ends(built,
+                                                                           tmp_path):
+    """The scene, plan and instances of an in-process run are frozen (gc.freeze) from
+    the end of its set-up to its end: the collector's full passes do not walk them at
+    every few steps; two runs at once thaw them when the last ends, and a run's end
+    gives every object back (freed cycles included)."""
+    import gc
+
+    from dsim.master.recording.observers import Observer
+
+    folder = chain_folder(tmp_path / "chain", built["fmus"] / "SpringMass.fmu", 30)
+    seen = []
+
+    class Frozen(Observer):
+        def stepped(self, record):
+            seen.append(gc.get_freeze_count())
+
+    before = gc.get_freeze_count()
+    plan = prepare(folder)
+    outer = InProcessBackend.from_specs(plan.specs)
+    try:
+        held = gc.get_freeze_count() - before
+        assert held > 30 * 50  # every instance's objects, at least
+        result = dsim.simulate(folder, stop=0.01, handle_signals=False,
+                               observers=[Frozen()])
+        # the inner run's are frozen with it, and its end left the outer's frozen
+        assert len(seen) == 11 and min(seen) - before - held > 30 * 50
+        assert gc.get_freeze_count() - before > 0.9 * held
+    finally:
+        assert outer.close() == []
+    assert gc.get_freeze_count() == before
+    assert np.abs(result.signals["m1.x[1]"]).max() > 1e-6

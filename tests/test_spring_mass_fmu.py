@@ -88,3 +88,59 @@ for scene in ("crank_slider_rigid", "chain_10"):
                              timeout=300)
     assert process.returncode == 0, process.stderr[-2000:]
     assert "crank_slider_rigid 2" in process.stdout and "chain_10 2" in process.stdout
+
+
+def test_many_instances_share_one_model_class_and_its_variables(built, tmp_path):
+    """pythonfmu 0.7 runs the FMU's script again for every instance and keeps what that
+    makes, and pythonfmu registers Python variables per instance: 40 more instances in
+    one process must add no model class and no pythonfmu variable (a chain of 10,000
+    held 1.8 GB so), the script's namespace must keep its references (pythonfmu releases
+    one per instance it never took), and every instance must still compute its own
+    oscillator (m = 1 kg, k = 100 N/m, x0 = 0.01 m: x after one step of h = 1 ms)."""
+    import json
+    import subprocess
+    import sys
+
+    code = f"""
+import gc, json, sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+folder = extract({str(built["fmus"] / "SpringMass.fmu")!r}, unzipdir={str(tmp_path / "fmu")!r})
+md = read_model_description(folder)
+vr = {{v.name: v.valueReference for v in md.modelVariables}}
+def counts():
+    gc.collect()
+    objects = gc.get_objects()
+    return {{"classes": sum(isinstance(o, type) and o.__name__ == "SpringMass" for o in objects),
+             "variables": sum(type(o).__module__ == "pythonfmu.variables" for o in objects),
+             "namespace": sys.getrefcount(sys.modules["spring_mass_fmu"].__dict__)}}
+instances, seen = [], []
+for i in range(42):
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier="SpringMass",
+                    instanceName=f"m{{i}}")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.setInteger([vr["n"]], [1])
+    fmu.setReal([vr["m[1]"], vr["k_ground[1]"], vr["x0[1]"]], [1.0, 100.0, 0.01 * (i + 1)])
+    fmu.exitInitializationMode()
+    instances.append(fmu)
+    if i in (1, 41):
+        seen.append(counts())
+for fmu in instances:
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+print(json.dumps({{"seen": seen, "x": [f.getReal([vr["x[1]"]])[0] for f in instances],
+                   "n": [f.getInteger([vr["n"]])[0] for f in instances]}}))
+"""
+    process = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             timeout=300)
+    assert process.returncode == 0, process.stderr[-2000:]
+    found = json.loads(process.stdout.strip().splitlines()[-1])
+    two, forty_two = found["seen"]
+    assert forty_two["classes"] == two["classes"] == 1
+    assert forty_two["variables"] == two["variables"] == 0  # no pythonfmu variable at run time
+    assert forty_two["namespace"] >= two["namespace"]
+    # trapezoidal rule, one step: x1 = x0 (1 - h^2 w^2 / 4) / (1 + h^2 w^2 / 4)
+    shrink = (1 - 1e-6 * 100 / 4) / (1 + 1e-6 * 100 / 4)
+    assert np.allclose(found["x"], [0.01 * (i + 1) * shrink for i in range(42)], rtol=1e-12)
+    assert found["n"] == [1] * 42

@@ -8,7 +8,7 @@ import time as clock
 import numpy as np
 
 from dsim.master.running.backends.base import Backend, terminate_all
-from dsim.master.running.collector import collector_paused
+from dsim.master.running.collector import collector_paused, freeze, thaw
 from dsim.master.running.fmi import open_subsystem
 
 
@@ -19,6 +19,7 @@ class InProcessBackend(Backend):
 
     def __init__(self, subsystems):
         self.subsystems = list(subsystems)
+        self._frozen = False
 
     @classmethod
     def from_specs(cls, specs, **options) -> "InProcessBackend":
@@ -30,7 +31,12 @@ class InProcessBackend(Backend):
         except BaseException:
             cls(subsystems).close()
             raise
-        return cls(subsystems)
+        backend = cls(subsystems)
+        # the scene, its plan and the instances live as long as the run: out of the
+        # collector's passes until it is closed (collector.py)
+        freeze()
+        backend._frozen = True
+        return backend
 
     def subset(self, indices) -> "InProcessBackend":
         return InProcessBackend([self.subsystems[i] for i in indices])
@@ -113,7 +119,12 @@ class InProcessBackend(Backend):
         return [s.statistics() for s in self.subsystems]
 
     def close(self) -> list[Exception]:
-        return terminate_all(self.subsystems)
+        try:
+            return terminate_all(self.subsystems)
+        finally:
+            if self._frozen:
+                self._frozen = False
+                thaw()
 
 
 class CausalKernel:
