@@ -35,6 +35,8 @@ from pythonfmu.enums import Fmi2Status
 from .interface import InterfaceCore
 
 KINEMATIC_PREFIXES = ("u", "v", "a")
+#: a batch whose core reader was not asked for yet
+_UNASKED = object()
 
 
 class CoreBinding:
@@ -47,6 +49,10 @@ class CoreBinding:
     batch of forces.  Outputs are computed when they are read, not after every step
     and restore (a trial step whose outputs nobody reads costs nothing extra).
     """
+
+    #: (value references, what :meth:`places` found for them) of the last batch read
+    #: and of the last batch of forces written
+    _last_get = _last_set = (None, None)
 
     def __init__(self, slave, interface, output_names=()):
         self.slave = slave
@@ -100,6 +106,11 @@ class CoreBinding:
         """(places of value references in the readable values, the sections they fall
         in), or None when one of them is not a port variable or output (or,
         ``forces_only``, not a force input)."""
+        # a master asks for the same batch call after call: compare it with the last
+        # one of its kind before building and hashing a key
+        last = self._last_set if forces_only else self._last_get
+        if last[0] == vrs:
+            return last[1]
         key = (tuple(vrs), forces_only)
         if key not in self._batches:
             vrs = np.asarray(vrs, dtype=int)
@@ -111,14 +122,36 @@ class CoreBinding:
                 if places.min() >= 0 and places.max() < limit:
                     sections = tuple(sorted({min((int(p) - n) // n, 3) if n else 3
                                              for p in places if p >= n}))
-                    found = (places, sections)
+                    # the third entry: the core's reader of this batch, once asked
+                    found = [places, sections, _UNASKED]
             self._batches[key] = found
-        return self._batches[key]
+        found = self._batches[key]
+        if forces_only:
+            self._last_set = (list(vrs), found)
+        else:
+            self._last_get = (list(vrs), found)
+        return found
 
     def get_reals(self, found) -> list[float]:
-        """Values at the places :meth:`places` found."""
-        places, sections = found
+        """Values at the places :meth:`places` found (a batch of one kinematic kind
+        straight from the core's state, when the core can: no full vector between)."""
+        places, sections, reader = found
+        if self.core is not None:
+            if reader is _UNASKED:
+                reader = found[2] = self._reader(places, sections)
+            if reader is not None:
+                return reader().tolist()
         return self._readable(sections)[places].tolist()
+
+    def _reader(self, places, sections):
+        """The core's reader of places that all hold one kinematic kind, else None."""
+        n = len(self.interface)
+        if len(sections) != 1 or sections[0] > 2:
+            return None
+        start = (sections[0] + 1) * n
+        if places.min() < start or places.max() >= start + n:
+            return None
+        return self.core.kinematic_reader(sections[0], places - start)
 
     def set_reals(self, found, values) -> None:
         """Forces at the places :meth:`places` (``forces_only``) found."""

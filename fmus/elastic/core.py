@@ -286,6 +286,18 @@ class ElasticBody(InterfaceCore):
         values = self._interface_map.apply((self._q, self._v, self._a)[kind])
         return self._reference + values if kind == 0 else values
 
+    def kinematic_reader(self, kind: int, rows: np.ndarray):
+        """Entries ``rows`` of :meth:`interface_kinematic`, read straight from the state
+        where B only picks coordinates (each entry the same sum as there), else None."""
+        interface_map = self._interface_map
+        if interface_map.picked is None or not interface_map._every_row:
+            return None
+        picked = interface_map.picked[rows]
+        if kind == 0:
+            reference = self._reference[rows]
+            return lambda: reference + self._q[picked]
+        return lambda: (self._v if kind == 1 else self._a)[picked]
+
     def caches(self):
         return self._repeat.snapshot()
 
