@@ -82,6 +82,83 @@ def bare_cores_twice(stop: float) -> float:
     return time.perf_counter() - start
 
 
+#: the FMU's Python methods behind the FMI calls of a glued step (pythonfmu calls them)
+SLAVE_METHODS = {"do_step": "fmi2DoStep", "get_real": "fmi2GetReal", "set_real": "fmi2SetReal",
+                 "_get_fmu_state": "fmi2GetFMUstate", "_set_fmu_state": "fmi2SetFMUstate"}
+#: what the master's counters time per FMI call in the step loop
+LOOP_FUNCTIONS = (*SLAVE_METHODS.values(), "fmi2FreeFMUstate")
+
+
+def time_budget(stop: float = 0.1) -> dict:
+    """Seconds per macro step of a glued run, split by where they go: the parts' full
+    Newmark steps, the repeated steps (q1 + Z dF, the start compared), the FMU's Python
+    around them (the binding, the slot layout, pythonfmu's Python callbacks), the crossing
+    from the master's ctypes call into that Python and back (the master's timing of each
+    FMI call less the time inside its Python), the master's own Python in the step loop,
+    and the set-up once.  pythonfmu runs an FMU's Python in this process, so its methods
+    can be timed from here: they are wrapped for this one run (a perf_counter pair per
+    call, a fraction of a microsecond) and restored after."""
+    import sys
+    from dsim.master.api import simulate
+
+    scene = ROOT / "build" / "ssp" / "frame_split.ssp"
+    simulate(scene, stop=0.002, handle_signals=False)  # imports the FMU's modules
+    # the FMU's own copies of its modules (from its resources folder, not dsim.fmus)
+    slave = sys.modules["elastic_body_fmu"].ElasticBody
+    newmark = sys.modules["fmus.elastic.newmark"].NewmarkAverageAcceleration
+    repeat = sys.modules["fmus.elastic.retry"].RepeatedStep
+    binding = sys.modules["fmus.fmi_binding"].CoreBinding
+    seconds: dict[str, float] = {}
+    wrapped = [(slave, name, name) for name in SLAVE_METHODS] + [
+        (newmark, "step", "full steps"), (repeat, "step", "all steps"),
+        (binding, "build", "build")]  # the bodies built at the first read: set-up
+    originals = [(owner, name, owner.__dict__.get(name)) for owner, name, _ in wrapped]
+
+    def timed(function, label):
+        def call(*args, **keywords):
+            start = time.perf_counter()
+            try:
+                return function(*args, **keywords)
+            finally:
+                seconds[label] = seconds.get(label, 0.0) + time.perf_counter() - start
+        return call
+
+    try:
+        for owner, name, label in wrapped:
+            setattr(owner, name, timed(getattr(owner, name), label))
+        with tempfile.TemporaryDirectory() as folder:
+            statistics = simulate(scene, out=Path(folder) / "budget.csv", stop=stop,
+                                  handle_signals=False).statistics
+    finally:
+        for owner, name, original in originals:
+            if original is None:
+                delattr(owner, name)
+            else:
+                setattr(owner, name, original)
+    timed_by_master = sum(entry["seconds"] for component in statistics["components"].values()
+                          for name, entry in component["functions"].items()
+                          if name in LOOP_FUNCTIONS)
+    inside = sum(seconds.get(name, 0.0) for name in SLAVE_METHODS) - seconds.get("build", 0.0)
+    steps = statistics["steps"]
+    budget = {"full Newmark steps of the parts (sparse solve and its vectors)":
+              seconds["full steps"],
+              "repeated steps (q1 + Z dF, the start compared)":
+              seconds["all steps"] - seconds["full steps"],
+              "the FMU's Python around them (binding, slot layout, state copies, reads)":
+              inside - seconds["all steps"],
+              "crossing: the master's ctypes call into the FMU's Python and back":
+              timed_by_master - seconds.get("build", 0.0) - inside,
+              "the master's Python in the step loop (Newton, rows)":
+              statistics["phases"]["steps"] - (timed_by_master - seconds.get("build", 0.0))}
+    return {"per_step_us": {k: 1e6 * v / steps for k, v in budget.items()},
+            "setup": statistics["setup_seconds"], "steps": steps,
+            "wall": statistics["wall_seconds"],
+            "calls": {name: 1e6 * (seconds.get(name, 0.0)
+                                   - (seconds.get("build", 0.0) if name == "get_real" else 0.0))
+                      / steps for name in SLAVE_METHODS},
+            "build": seconds.get("build", 0.0)}
+
+
 def profile_glued(stop: float = 0.05, top: int = 16) -> tuple[str, dict]:
     """cProfile of a short glued run: the functions with most own time, and the
     profiled seconds in total, inside FMI calls (from the master's side of the

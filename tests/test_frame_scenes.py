@@ -135,14 +135,15 @@ def test_rollback_is_bit_for_bit_through_the_fmu(built):
     assert np.array_equal(histories[0], histories[1])  # bit for bit
 
 
-def test_a_batch_of_one_kind_reads_what_a_mixed_batch_reads(built):
+@pytest.mark.parametrize("part", ["cross_front", "rail_left"])  # a rail has clamped port nodes
+def test_a_batch_of_one_kind_reads_what_a_mixed_batch_reads(built, part):
     """A batch of port positions (or velocities) is read straight from the body's state,
     a batch of several kinds through the binding's full vectors: after steps, a restore
     and new forces both give the same numbers to the bit, and they move."""
-    fmu, variables = _instance(built, alone(part_parameters("cross_front")))
-    ports = [f"{p}[{k}]" for p in ("port1", "port2") for k in range(1, 6)]
-    forces = [variables[f"{q}.f_{d}"].valueReference for q in ports for d in "xy"]
-    kinds = {kind: [variables[f"{q}.{kind}_{d}"].valueReference for q in ports for d in "xy"]
+    fmu, variables = _instance(built, alone(part_parameters(part)))
+    pairs = build_body(spec_from_parameters(part_parameters(part)), FRAME_SPLIT).interface
+    forces = [variables[f"{q}.f_{d}"].valueReference for q, d in pairs]
+    kinds = {kind: [variables[f"{q}.{kind}_{d}"].valueReference for q, d in pairs]
              for kind in "uva"}
     rng, h = np.random.default_rng(5), 1e-4
     readings = []
