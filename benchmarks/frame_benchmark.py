@@ -29,6 +29,38 @@ SCENE = ROOT / "ssp" / "frame_split"  # its mesh_file values are paths in it
 CB_STEPS = 500
 
 
+#: what issue 30 tried on the glued step, measured on 2026-11-27 (these 2-core machines,
+#: shared: CPU seconds, least of several runs, A and B in turn); the ratio above is after it
+LEVERS = (
+    "Issue 30 (2.28 before it): the same scene run by the code before and after, in turn "
+    "in separate processes, 9 runs of 0.2 s each, took 1.876 and 1.731 CPU seconds at "
+    "least (-8%; glued / monolithic 2.35 to 2.46 before, 2.22 to 2.25 after, on a busy "
+    "machine), every result byte-identical. Kept, each switched off alone in one process "
+    "(12 runs of 0.05 s in turn, CPU seconds at least; alone each is within 0 to 6% from "
+    "run to run): the Newmark step's two sparse products by scipy's own kernel without "
+    "its dispatch (+6 to 9% when off, in three runs; the monolithic solve gains it too); a batch of port positions "
+    "read straight from the body's state instead of the binding's full vectors (the "
+    "reads inside the FMU went from 72 to 37 us per macro step); one master call per FMU "
+    "and trial (the master's Python 20 us per step less, 147 against 126 us on a busy "
+    "machine); a batch found by comparing it with the last one (+4 to 5% when off); "
+    "numpy's einsum kernel called without its Python wrapper (+3%); the repeat's start "
+    "compared without np.array_equal's dispatch (+0 to 2%). Not done: reusing FMU states "
+    "(FMI 2.0 lets fmi2GetFMUstate overwrite a state passed in, but pythonfmu 0.7 always "
+    "returns a new Python object and ignores the old one, which would leak; the free is "
+    "a decref, about 1 us); one timer pair per fused trial instead of per call (a chain "
+    "of five perf_counter readings per trial keeps the per-call table, a fraction of a "
+    "microsecond each); the output row from the last trial's values (frame_split records "
+    "the load point's probe, not the port positions the trials read: other variables); "
+    "a shortcut for a converged step (there is one: Newton ends after the first trial "
+    "when it is within the tolerance, which the predictor's never is here, and the "
+    "corrected forces need their own trial); FMI calls that keep the GIL (ctypes.PyDLL: "
+    "2.8 us per fmi2GetReal of 30 values either way, nothing to win with one thread); "
+    "the garbage collector (3 to 6 passes per 1000 steps, 5 to 40 ms). Tried earlier and "
+    "not kept: a body's saved state holding its arrays instead of copies (1%, within the "
+    "noise, and ElasticBody.get_state would no longer return a state the caller may "
+    "change).")
+
+
 def glued_versus_monolithic(stop: float, repetitions: int = 3) -> dict:
     """Wall times, the error and the run statistics of frame_split over [0, stop].
 
@@ -135,6 +167,9 @@ def time_budget(stop: float = 0.1) -> dict:
                 delattr(owner, name)
             else:
                 setattr(owner, name, original)
+    # the monolithic solve of the same span right after, for a comparison made under the
+    # same load (its set-up, the one mesh, included)
+    monolithic = frame.monolithic_frame(stop_time=stop).wall_time
     timed_by_master = sum(entry["seconds"] for component in statistics["components"].values()
                           for name, entry in component["functions"].items()
                           if name in LOOP_FUNCTIONS)
@@ -152,6 +187,7 @@ def time_budget(stop: float = 0.1) -> dict:
               statistics["phases"]["steps"] - (timed_by_master - seconds.get("build", 0.0))}
     return {"per_step_us": {k: 1e6 * v / steps for k, v in budget.items()},
             "setup": statistics["setup_seconds"], "steps": steps,
+            "monolithic_us": 1e6 * monolithic / steps,
             "wall": statistics["wall_seconds"],
             "calls": {name: 1e6 * (seconds.get(name, 0.0)
                                    - (seconds.get("build", 0.0) if name == "get_real" else 0.0))
@@ -161,9 +197,8 @@ def time_budget(stop: float = 0.1) -> dict:
 
 def profile_glued(stop: float = 0.05, top: int = 16) -> tuple[str, dict]:
     """cProfile of a short glued run: the functions with most own time, and the
-    profiled seconds in total, inside FMI calls (from the master's side of the
-    boundary: the call, the FMU's Python and its physics) and in the parts' sparse
-    Newmark solves."""
+    profiled seconds in total, in the FMU's Python answering the FMI calls (the
+    binding and its physics) and in the parts' sparse Newmark solves."""
     from dsim.master.api import simulate
 
     profiler = cProfile.Profile()
@@ -178,7 +213,8 @@ def profile_glued(stop: float = 0.05, top: int = 16) -> tuple[str, dict]:
     stats.sort_stats("tottime").print_stats(top)
     shares = {"total": stats.total_tt, "fmi": 0.0, "solves": 0.0, "fmi_calls": 0}
     for (file, _, function), (_, calls, own, cumulative, _) in stats.stats.items():
-        if file.endswith("cs2.py") and function == "__call__":
+        # what pythonfmu calls in the FMU's Python for the step loop's FMI calls
+        if file.endswith("fmi_binding.py") and function in SLAVE_METHODS:
             shares["fmi"] += cumulative
             shares["fmi_calls"] += calls
         elif "SuperLU" in function and "solve" in function:
@@ -248,6 +284,7 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
             total[0] += entry["calls"]
             total[1] += entry["seconds"]
     core_ms = {p: 1e3 * part_step_seconds(p, None) for p in ("rail_left", "cross_front")}
+    budget = time_budget()
     profile, shares = profile_glued()
     parts_ms, mesh_ms = solve_milliseconds()
     table = craig_bampton_table()
@@ -294,64 +331,80 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
         f"{core_ms['rail_left']:.3f} ms for a rail and {core_ms['cross_front']:.3f} ms for a "
         "cross member.", "",
         "## Where the time goes", "",
+        f"One glued run of {budget['steps']} steps, the FMU's Python methods timed from "
+        "this process (pythonfmu runs an FMU's Python in the master's interpreter), "
+        "microseconds per macro step, all five parts together (`time_budget`):", "",
+        "| where | us per macro step | share |", "|---|---|---|",
+    ]
+    total_us = sum(budget["per_step_us"].values())
+    for where, us in budget["per_step_us"].items():
+        lines.append(f"| {where} | {us:.0f} | {100 * us / total_us:.0f}% |")
+    mono_us = budget["monolithic_us"]
+    work_us = sum(list(budget["per_step_us"].values())[:2])
+    lines += [
+        f"| all of the step loop | {total_us:.0f} | 100% |",
+        f"| for comparison: one monolithic step (its set-up included), the same span "
+        f"right after | {mono_us:.0f} | |",
+        "", "Inside the FMU's Python, per macro step: " + ", ".join(
+            f"{name} {us:.0f} us" for name, us in budget["calls"].items()) + ". "
+        f"Set-up besides: {budget['setup']:.2f} s ({1e6 * budget['setup'] / budget['steps']:.0f} "
+        "us per step of this run), of which the five bodies' meshes, matrices and "
+        f"factorizations {budget['build']:.2f} s.", "",
         "1. Two doSteps per part per macro step: the predicted force, then one Newton "
-        "correction (the bodies are linear and Lambda exact, so the second trial converges). "
-        "Together the five parts have about as many coordinates as the one mesh, so the "
-        "first trial's finite-element work is about one monolithic step. The second starts "
-        "from the same state with other forces; a linear body answers it with its "
+        "correction (the bodies are linear and Lambda exact, so the second trial converges; "
+        "a first trial within the tolerance would end the step there, but the predictor's "
+        "never is). Together the five parts have about as many coordinates as the one mesh, "
+        "so the first trial's finite-element work is about one monolithic step. The second "
+        "starts from the same state with other forces; a linear body answers it with its "
         "interface response, q2 = q1 + Z (F2 - F1) with Z = K_eff^-1 B^T built once per step "
         "size (fmus/elastic/retry.py): a dense product of coordinates x interface dofs "
         "instead of a sparse solve. With two full solves the floor was 1.98 x the "
         "monolithic solve.",
-        "2. The FMI boundary, per trial: fmi2SetFMUstate, a batched fmi2SetReal of the forces, "
-        "the doStep and a batched fmi2GetReal of the port positions, each a call from C into "
-        "the FMU's Python (pythonfmu) of a few microseconds; fmi2GetFMUstate once per step. "
-        "The binding answers a batch of port variables with one table lookup, computes "
-        "outputs only when they are read, and a body glued at its own nodes picks its "
-        "interface coordinates instead of a sparse product (fmus/elastic/maps.py).",
-        "3. The master: the residual, the joint forces split per part and one solve with the "
-        "factored gluing matrix per iteration (factored once for the whole run: every step "
-        "has the same size to the last bit), and the CSV row.",
-        "4. Set-up: five FMU instances register their fixed list of about 2000 port "
-        "variables each (pythonfmu builds a Python object per variable).",
+        "2. The FMU's Python around each solve, per trial: the restore (copies of q, v, a), "
+        "the forces into the slot layout and the body, the positions read. A batch of one "
+        "kind (the port positions a Newton iteration reads) is read straight from the "
+        "body's state (`kinematic_reader`: the reference plus the picked coordinates), "
+        "other batches through the binding's full vectors; the binding finds a batch by "
+        "comparing it with the last one before hashing it.",
+        "3. The crossing: about 46 FMI calls per macro step (per part: the forces, the step "
+        "and the positions twice, a state restore, save and free; the output row), each "
+        "pythonfmu's C into Python and back (it builds a Python list of the value "
+        "references and of the values, and drains its log queue, every call).",
+        "4. The master: one call per FMU and trial (`FmuSubsystem.trial_step`: restore, "
+        "forces, step, positions, each still counted, timed and checked), the residual, "
+        "the joint forces split per part and one solve with the factored gluing matrix per "
+        "iteration (factored once for the whole run: every step has the same size to the "
+        "last bit), and the CSV row.",
         "",
         "**Profile summary** (the profile below, a 0.05 s glued run under cProfile, which "
         f"inflates Python calls): {shares['total']:.2f} s in all, "
-        f"{shares['fmi']:.2f} s ({100 * shares['fmi'] / shares['total']:.0f}%) inside "
-        f"{shares['fmi_calls']} FMI calls, of which {shares['solves']:.2f} s "
+        f"{shares['fmi']:.2f} s ({100 * shares['fmi'] / shares['total']:.0f}%) in the FMUs' "
+        f"Python answering {shares['fmi_calls']} FMI calls (the set-up's reads included), "
+        f"of which {shares['solves']:.2f} s "
         f"({100 * shares['solves'] / shares['total']:.0f}% of all) are the parts' sparse "
-        "Newmark solves; the rest of the FMI share is pythonfmu's boundary (C into Python, "
-        "a list of values each way) and the binding's and the core's Python around each "
-        "solve (a dozen numpy operations of a few microseconds on vectors of 400 to 1600 "
-        "entries). Outside the FMUs: set-up, the master's Newton (residual, joint forces "
-        "per part, one solve with the factored gluing matrix) and the CSV rows.",
+        "Newmark solves.",
         "",
-        "**Why not 1.6.** Measured bare, one sparse solve of the five parts together "
-        f"costs {parts_ms:.3f} ms and the one mesh's {mesh_ms:.3f} ms: the finite-element "
-        "work of a glued step is no more than the monolithic step's, and the repeated step "
-        "adds a dense product. The floor (the bare cores, twice per step) is "
-        f"{floor / mono:.2f} x the monolithic solve: five small bodies cost five times the "
-        "Python around one solve, and their solves run slower in a run than bare, "
-        "each evicting the others' factors from the cache. The glued run adds about "
-        f"{calls_per_step:.0f} FMI calls per macro step (per part: the forces, the step and "
-        "the positions twice, a state restore, save and free, the output row), each a "
-        "crossing from C into the FMU's Python and back of a few microseconds, and the "
-        "master's Python per iteration. None of these is physics, but none can go "
-        "without changing the FMI calls a glued step needs or the bits of the result "
-        "(the order of the floating-point operations of the solves and the repeated "
-        "step is what makes the results byte-identical to the baselines); the ratio above "
-        "is what is left.",
+        "**Why not 1.6.** The parts' finite-element work alone (the first two rows above, "
+        f"{work_us:.0f} us per step) is {work_us / mono_us:.2f} x a monolithic step; the "
+        f"floor (the bare cores, twice per step) {floor / mono:.2f} x. Measured bare, one "
+        f"sparse solve of the five parts together costs {parts_ms:.3f} ms and the one "
+        f"mesh's {mesh_ms:.3f} ms, but in a run each part's solve evicts the others' "
+        "factors from the cache, and five small bodies cost five times the Python around "
+        "one solve. 1.6 would leave "
+        f"{max(1.6 * mono_us - work_us, 0.0):.0f} us per step for everything else "
+        "(set-up, the FMUs' Python around the solves, 46 crossings, the master); what they "
+        f"take is {total_us - work_us + 1e6 * budget['setup'] / budget['steps']:.0f} us. "
+        "None of it is physics, but what is left cannot go without fewer FMI calls "
+        "than a glued step needs (two trials, a save and a restore per part), an FMU "
+        "that is not Python behind pythonfmu's boundary, or other bits in the result (the "
+        "order of the floating-point operations of the solves and the repeated step is "
+        "what keeps every scene byte-identical to its baseline).",
         "", "History: 15.6 (every doStep refactored the Newmark matrix for last-bit step "
         "differences), then 6 to 8 (one variable at a time through pythonfmu's getters and "
         "setters, outputs recomputed after every step and restore, numpy dispatch), then "
         "3.02 (two full Newmark solves per part per step), then 2.42 (the repeated step by "
-        "the linear response, on a busier machine), then the ratio above (the same code). "
-        "Tried and not kept: a body's saved state holding its arrays instead of copies "
-        "(so that a save and a restore copy nothing and the repeat knows its start by "
-        "identity) took 1% off the glued run (2.345 and 2.323 times the monolithic solve "
-        "in CPU seconds, the FMUs built before and after, in turn in one process, the "
-        "same result to the byte), within the noise of a shared machine, and "
-        "ElasticBody.get_state would no longer return a state the caller may change.",
+        "the linear response, on a busier machine), then 2.28, then the ratio above. "
+        + LEVERS,
         "", "Profile of a 0.05 s glued run (sorted by own time):", "", "```",
         profile.strip(), "```", "",
         "## Craig-Bampton (rail_left, forced at its three port edges)", "",
