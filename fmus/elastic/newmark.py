@@ -16,7 +16,8 @@ def _product(matrix, x: np.ndarray) -> np.ndarray:
     """``matrix @ x`` for a CSC matrix and one float vector, by scipy's own kernel
     (csc_matvec, into zeros: what ``@`` runs, so the same bits) without the several
     microseconds of dispatch that ``@`` spends first, twice in every step."""
-    if x.dtype != np.float64 or matrix.dtype != np.float64 or x.ndim != 1:
+    if (matrix.format != "csc" or x.dtype != np.float64 or matrix.dtype != np.float64
+            or x.ndim != 1):
         return matrix @ x
     rows, columns = matrix.shape
     result = np.zeros(rows)
