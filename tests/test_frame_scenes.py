@@ -167,7 +167,7 @@ def test_a_batch_of_one_kind_reads_what_a_mixed_batch_reads(built, part):
 
 def test_the_fused_glued_trial_gives_the_same_bits_and_counts(built, tmp_path, monkeypatch):
     """A glued trial of an FMU runs as one call (restore, forces, step, positions): the
-    run's results are the byte-identical to the general path's, with the same FMI calls
+    run's results are byte-identical to the general path's, with the same FMI calls
     counted."""
     from dsim.master.running.fmi.cs2 import FmuSubsystem
     from dsim.master.running.subsystem import Subsystem
