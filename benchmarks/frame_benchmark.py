@@ -29,6 +29,41 @@ SCENE = ROOT / "ssp" / "frame_split"  # its mesh_file values are paths in it
 CB_STEPS = 500
 
 
+#: what issue 30 tried on the glued step, measured on 2026-11-27 (these 2-core machines,
+#: shared: CPU seconds, least of several runs, A and B in turn); the ratio above is after it
+LEVERS = (
+    "Issue 30 (2.28 before it): the same scene run by the code before and after, in turn "
+    "in separate processes, 9 runs of 0.2 s each, took 1.795 and 1.674 CPU seconds at "
+    "least (-7%; glued / monolithic in CPU seconds 2.31 to 2.33 before, 2.13 to 2.17 "
+    "after, three rounds), every result byte-identical (`dsim regress`, each CSV compared "
+    "byte by byte with the code before). Kept, each switched off alone in one process "
+    "(12 runs of 0.05 s in turn, CPU seconds at least; alone each is within 0 to 6% from "
+    "run to run): the Newmark step's two sparse products by scipy's own kernel without "
+    "its dispatch (+6 to 9% when off, in three runs; the monolithic solve gains it too); a batch of port positions "
+    "read straight from the body's state instead of the binding's full vectors (the "
+    "reads inside the FMU went from 72 to 37 us per macro step); one master call per FMU "
+    "and trial (the master's Python 20 us per step less, 147 against 126 us on a busy "
+    "machine); a batch found by comparing it with the last one (+4 to 5% when off); "
+    "numpy's einsum kernel called without its Python wrapper (+3%); the repeat's start "
+    "compared without np.array_equal's dispatch (+0 to 2%); the dense gluing solve by the "
+    "LAPACK routine lu_solve calls, found once (2.4 against 6.2 us per solve, one per "
+    "step: below the noise of a run). Not done: reusing FMU states "
+    "(FMI 2.0 lets fmi2GetFMUstate overwrite a state passed in, but pythonfmu 0.7 always "
+    "returns a new Python object and ignores the old one, which would leak; the free is "
+    "a decref, about 1 us); one timer pair per fused trial instead of per call (a chain "
+    "of five perf_counter readings per trial keeps the per-call table, a fraction of a "
+    "microsecond each); the output row from the last trial's values (frame_split records "
+    "the load point's probe, not the port positions the trials read: other variables); "
+    "a shortcut for a converged step (there is one: Newton ends after the first trial "
+    "when it is within the tolerance, which the predictor's never is here, and the "
+    "corrected forces need their own trial); FMI calls that keep the GIL (ctypes.PyDLL: "
+    "2.8 us per fmi2GetReal of 30 values either way, nothing to win with one thread); "
+    "the garbage collector (3 to 6 passes per 1000 steps, 5 to 40 ms). Tried earlier and "
+    "not kept: a body's saved state holding its arrays instead of copies (1%, within the "
+    "noise, and ElasticBody.get_state would no longer return a state the caller may "
+    "change).")
+
+
 def glued_versus_monolithic(stop: float, repetitions: int = 3) -> dict:
     """Wall times, the error and the run statistics of frame_split over [0, stop].
 
@@ -82,11 +117,94 @@ def bare_cores_twice(stop: float) -> float:
     return time.perf_counter() - start
 
 
+#: the FMU's Python methods behind the FMI calls of a glued step (pythonfmu calls them)
+SLAVE_METHODS = {"do_step": "fmi2DoStep", "get_real": "fmi2GetReal", "set_real": "fmi2SetReal",
+                 "_get_fmu_state": "fmi2GetFMUstate", "_set_fmu_state": "fmi2SetFMUstate"}
+#: what the master's counters time per FMI call in the step loop
+LOOP_FUNCTIONS = (*SLAVE_METHODS.values(), "fmi2FreeFMUstate")
+
+
+def time_budget(stop: float = 0.1) -> dict:
+    """Seconds per macro step of a glued run, split by where they go: the parts' full
+    Newmark steps, the repeated steps (q1 + Z dF, the start compared), the FMU's Python
+    around them (the binding, the slot layout, pythonfmu's Python callbacks), the crossing
+    from the master's ctypes call into that Python and back (the master's timing of each
+    FMI call less the time inside its Python), the master's own Python in the step loop,
+    and the set-up once.  pythonfmu runs an FMU's Python in this process, so its methods
+    can be timed from here: they are wrapped for this one run (a perf_counter pair per
+    call, a fraction of a microsecond) and restored after."""
+    import sys
+    from dsim.master.api import simulate
+
+    scene = ROOT / "build" / "ssp" / "frame_split.ssp"
+    simulate(scene, stop=0.002, handle_signals=False)  # imports the FMU's modules
+    # the FMU's own copies of its modules (from its resources folder, not dsim.fmus)
+    slave = sys.modules["elastic_body_fmu"].ElasticBody
+    newmark = sys.modules["fmus.elastic.newmark"].NewmarkAverageAcceleration
+    repeat = sys.modules["fmus.elastic.retry"].RepeatedStep
+    binding = sys.modules["fmus.fmi_binding"].CoreBinding
+    seconds: dict[str, float] = {}
+    wrapped = [(slave, name, name) for name in SLAVE_METHODS] + [
+        (newmark, "step", "full steps"), (repeat, "step", "all steps"),
+        (binding, "build", "build")]  # the bodies built at the first read: set-up
+    originals = [(owner, name, owner.__dict__.get(name)) for owner, name, _ in wrapped]
+
+    def timed(function, label):
+        def call(*args, **keywords):
+            start = time.perf_counter()
+            try:
+                return function(*args, **keywords)
+            finally:
+                seconds[label] = seconds.get(label, 0.0) + time.perf_counter() - start
+        return call
+
+    try:
+        for owner, name, label in wrapped:
+            setattr(owner, name, timed(getattr(owner, name), label))
+        with tempfile.TemporaryDirectory() as folder:
+            statistics = simulate(scene, out=Path(folder) / "budget.csv", stop=stop,
+                                  handle_signals=False).statistics
+    finally:
+        for owner, name, original in originals:
+            if original is None:
+                delattr(owner, name)
+            else:
+                setattr(owner, name, original)
+    # the monolithic solve of the same span right after, for a comparison made under the
+    # same load; its set-up (the one mesh) left out: the same solve over two steps
+    # subtracted
+    short = 2 * frame.STEP_SIZE
+    monolithic = (frame.monolithic_frame(stop_time=stop).wall_time
+                  - frame.monolithic_frame(stop_time=short).wall_time)
+    timed_by_master = sum(entry["seconds"] for component in statistics["components"].values()
+                          for name, entry in component["functions"].items()
+                          if name in LOOP_FUNCTIONS)
+    inside = sum(seconds.get(name, 0.0) for name in SLAVE_METHODS) - seconds.get("build", 0.0)
+    steps = statistics["steps"]
+    budget = {"full Newmark steps of the parts (sparse solve and its vectors)":
+              seconds["full steps"],
+              "repeated steps (q1 + Z dF, the start compared)":
+              seconds["all steps"] - seconds["full steps"],
+              "the FMU's Python around them (binding, slot layout, state copies, reads)":
+              inside - seconds["all steps"],
+              "crossing: the master's ctypes call into the FMU's Python and back":
+              timed_by_master - seconds.get("build", 0.0) - inside,
+              "the master's Python in the step loop (Newton, rows)":
+              statistics["phases"]["steps"] - (timed_by_master - seconds.get("build", 0.0))}
+    return {"per_step_us": {k: 1e6 * v / steps for k, v in budget.items()},
+            "setup": statistics["setup_seconds"], "steps": steps,
+            "monolithic_us": 1e6 * monolithic / (steps - round(short / frame.STEP_SIZE)),
+            "wall": statistics["wall_seconds"],
+            "calls": {name: 1e6 * (seconds.get(name, 0.0)
+                                   - (seconds.get("build", 0.0) if name == "get_real" else 0.0))
+                      / steps for name in SLAVE_METHODS},
+            "build": seconds.get("build", 0.0)}
+
+
 def profile_glued(stop: float = 0.05, top: int = 16) -> tuple[str, dict]:
     """cProfile of a short glued run: the functions with most own time, and the
-    profiled seconds in total, inside FMI calls (from the master's side of the
-    boundary: the call, the FMU's Python and its physics) and in the parts' sparse
-    Newmark solves."""
+    profiled seconds in total, in the FMU's Python answering the FMI calls (the
+    binding and its physics) and in the parts' sparse Newmark solves."""
     from dsim.master.api import simulate
 
     profiler = cProfile.Profile()
@@ -101,7 +219,8 @@ def profile_glued(stop: float = 0.05, top: int = 16) -> tuple[str, dict]:
     stats.sort_stats("tottime").print_stats(top)
     shares = {"total": stats.total_tt, "fmi": 0.0, "solves": 0.0, "fmi_calls": 0}
     for (file, _, function), (_, calls, own, cumulative, _) in stats.stats.items():
-        if file.endswith("cs2.py") and function == "__call__":
+        # what pythonfmu calls in the FMU's Python for the step loop's FMI calls
+        if file.endswith("fmi_binding.py") and function in SLAVE_METHODS:
             shares["fmi"] += cumulative
             shares["fmi_calls"] += calls
         elif "SuperLU" in function and "solve" in function:
@@ -171,6 +290,7 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
             total[0] += entry["calls"]
             total[1] += entry["seconds"]
     core_ms = {p: 1e3 * part_step_seconds(p, None) for p in ("rail_left", "cross_front")}
+    budget = time_budget()
     profile, shares = profile_glued()
     parts_ms, mesh_ms = solve_milliseconds()
     table = craig_bampton_table()
@@ -217,64 +337,87 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
         f"{core_ms['rail_left']:.3f} ms for a rail and {core_ms['cross_front']:.3f} ms for a "
         "cross member.", "",
         "## Where the time goes", "",
+        f"One glued run of {budget['steps']} steps, the FMU's Python methods timed from "
+        "this process (pythonfmu runs an FMU's Python in the master's interpreter), "
+        "microseconds per macro step, all five parts together (`time_budget`):", "",
+        "| where | us per macro step | share |", "|---|---|---|",
+    ]
+    total_us = sum(budget["per_step_us"].values())
+    for where, us in budget["per_step_us"].items():
+        lines.append(f"| {where} | {us:.0f} | {100 * us / total_us:.0f}% |")
+    mono_us = budget["monolithic_us"]
+    work_us = sum(list(budget["per_step_us"].values())[:2])
+    lines += [
+        f"| all of the step loop | {total_us:.0f} | 100% |",
+        f"| for comparison: one monolithic step (its set-up left out), the same span "
+        f"right after | {mono_us:.0f} | |",
+        "", "Inside the FMU's Python, per macro step: " + ", ".join(
+            f"{name} {us:.0f} us" for name, us in budget["calls"].items()) + ". "
+        f"Set-up besides: {budget['setup']:.2f} s ({1e6 * budget['setup'] / budget['steps']:.0f} "
+        "us per step of this run), of which the five bodies' meshes, matrices and "
+        f"factorizations {budget['build']:.2f} s.", "",
         "1. Two doSteps per part per macro step: the predicted force, then one Newton "
-        "correction (the bodies are linear and Lambda exact, so the second trial converges). "
-        "Together the five parts have about as many coordinates as the one mesh, so the "
-        "first trial's finite-element work is about one monolithic step. The second starts "
-        "from the same state with other forces; a linear body answers it with its "
+        "correction (the bodies are linear and Lambda exact, so the second trial converges; "
+        "a first trial within the tolerance would end the step there, but the predictor's "
+        "never is). Together the five parts have about as many coordinates as the one mesh, "
+        "so the first trial's finite-element work is about one monolithic step. The second "
+        "starts from the same state with other forces; a linear body answers it with its "
         "interface response, q2 = q1 + Z (F2 - F1) with Z = K_eff^-1 B^T built once per step "
         "size (fmus/elastic/retry.py): a dense product of coordinates x interface dofs "
         "instead of a sparse solve. With two full solves the floor was 1.98 x the "
         "monolithic solve.",
-        "2. The FMI boundary, per trial: fmi2SetFMUstate, a batched fmi2SetReal of the forces, "
-        "the doStep and a batched fmi2GetReal of the port positions, each a call from C into "
-        "the FMU's Python (pythonfmu) of a few microseconds; fmi2GetFMUstate once per step. "
-        "The binding answers a batch of port variables with one table lookup, computes "
-        "outputs only when they are read, and a body glued at its own nodes picks its "
-        "interface coordinates instead of a sparse product (fmus/elastic/maps.py).",
-        "3. The master: the residual, the joint forces split per part and one solve with the "
-        "factored gluing matrix per iteration (factored once for the whole run: every step "
-        "has the same size to the last bit), and the CSV row.",
-        "4. Set-up: five FMU instances register their fixed list of about 2000 port "
-        "variables each (pythonfmu builds a Python object per variable).",
+        "2. The FMU's Python around each solve, per trial: the restore (copies of q, v, a), "
+        "the forces into the slot layout and the body, the positions read. A batch of one "
+        "kind (the port positions a Newton iteration reads) is read straight from the "
+        "body's state (`kinematic_reader`: the reference plus the picked coordinates), "
+        "other batches through the binding's full vectors; the binding finds a batch by "
+        "comparing it with the last one before hashing it.",
+        "3. The crossing: about 46 FMI calls per macro step (per part: the forces, the step "
+        "and the positions twice, a state restore, save and free; the output row), each "
+        "pythonfmu's C into Python and back (it builds a Python list of the value "
+        "references and of the values, and drains its log queue, every call).",
+        "4. The master: one call per FMU and trial (`FmuSubsystem.trial_step`: restore, "
+        "forces, step, positions, each still counted, timed and checked), the residual, "
+        "the joint forces split per part and one solve with the factored gluing matrix per "
+        "iteration (factored once for the whole run: every step has the same size to the "
+        "last bit), and the CSV row.",
         "",
         "**Profile summary** (the profile below, a 0.05 s glued run under cProfile, which "
         f"inflates Python calls): {shares['total']:.2f} s in all, "
-        f"{shares['fmi']:.2f} s ({100 * shares['fmi'] / shares['total']:.0f}%) inside "
-        f"{shares['fmi_calls']} FMI calls, of which {shares['solves']:.2f} s "
+        f"{shares['fmi']:.2f} s ({100 * shares['fmi'] / shares['total']:.0f}%) in the FMUs' "
+        f"Python answering {shares['fmi_calls']} FMI calls (the set-up's reads included), "
+        f"of which {shares['solves']:.2f} s "
         f"({100 * shares['solves'] / shares['total']:.0f}% of all) are the parts' sparse "
-        "Newmark solves; the rest of the FMI share is pythonfmu's boundary (C into Python, "
-        "a list of values each way) and the binding's and the core's Python around each "
-        "solve (a dozen numpy operations of a few microseconds on vectors of 400 to 1600 "
-        "entries). Outside the FMUs: set-up, the master's Newton (residual, joint forces "
-        "per part, one solve with the factored gluing matrix) and the CSV rows.",
+        "Newmark solves.",
         "",
-        "**Why not 1.6.** Measured bare, one sparse solve of the five parts together "
-        f"costs {parts_ms:.3f} ms and the one mesh's {mesh_ms:.3f} ms: the finite-element "
-        "work of a glued step is no more than the monolithic step's, and the repeated step "
-        "adds a dense product. The floor (the bare cores, twice per step) is "
-        f"{floor / mono:.2f} x the monolithic solve: five small bodies cost five times the "
-        "Python around one solve, and their solves run slower in a run than bare, "
-        "each evicting the others' factors from the cache. The glued run adds about "
-        f"{calls_per_step:.0f} FMI calls per macro step (per part: the forces, the step and "
-        "the positions twice, a state restore, save and free, the output row), each a "
-        "crossing from C into the FMU's Python and back of a few microseconds, and the "
-        "master's Python per iteration. None of these is physics, but none can go "
-        "without changing the FMI calls a glued step needs or the bits of the result "
-        "(the order of the floating-point operations of the solves and the repeated "
-        "step is what makes the results byte-identical to the baselines); the ratio above "
-        "is what is left.",
+        "**Why not 1.6.** The parts' finite-element work alone (the first two rows above, "
+        f"{work_us:.0f} us per step) is {work_us / mono_us:.2f} x a monolithic step; the "
+        f"floor (the bare cores, twice per step) {floor / mono:.2f} x the monolithic solve. "
+        f"Measured bare, one sparse solve of the five parts together costs {parts_ms:.3f} "
+        f"ms and the one mesh's {mesh_ms:.3f} ms, but in a run each part's solve evicts the "
+        "others' factors from the cache, and five small bodies cost five times the Python "
+        f"around one solve. 1.6 x the monolithic solve is {1.6 * mono:.2f} s: "
+        f"{glued - 1.6 * mono:.2f} s ({1e6 * (glued - 1.6 * mono) / stats['steps']:.0f} us "
+        f"per step) less than the glued run, while everything that is not finite-element "
+        f"work (the FMUs' Python around the solves, the crossings and the master: "
+        f"{total_us - work_us:.0f} us per step above) would have to go down to "
+        f"{max(total_us - work_us - 1e6 * (glued - 1.6 * mono) / stats['steps'], 0.0):.0f} "
+        "us per step. "
+        "None of it is physics, and it is spread thin: a crossing costs about "
+        f"{list(budget['per_step_us'].values())[3] / calls_per_step:.1f} us per FMI call, a "
+        "trial's Python in the FMU is a dozen small numpy operations, a Newton iteration's "
+        "in the master a few sparse products and reductions; each lever tried on them "
+        "moved the run by 0 to 9% (below). Closing the gap would take fewer FMI calls than "
+        "a glued step needs (two trials, a save and a restore per part), an FMU whose step "
+        "is not Python behind pythonfmu's boundary, or other bits in the result (the "
+        "order of the floating-point operations of the solves and the repeated step is "
+        "what keeps every scene byte-identical to its baseline).",
         "", "History: 15.6 (every doStep refactored the Newmark matrix for last-bit step "
         "differences), then 6 to 8 (one variable at a time through pythonfmu's getters and "
         "setters, outputs recomputed after every step and restore, numpy dispatch), then "
         "3.02 (two full Newmark solves per part per step), then 2.42 (the repeated step by "
-        "the linear response, on a busier machine), then the ratio above (the same code). "
-        "Tried and not kept: a body's saved state holding its arrays instead of copies "
-        "(so that a save and a restore copy nothing and the repeat knows its start by "
-        "identity) took 1% off the glued run (2.345 and 2.323 times the monolithic solve "
-        "in CPU seconds, the FMUs built before and after, in turn in one process, the "
-        "same result to the byte), within the noise of a shared machine, and "
-        "ElasticBody.get_state would no longer return a state the caller may change.",
+        "the linear response, on a busier machine), then 2.28, then the ratio above. "
+        + LEVERS,
         "", "Profile of a 0.05 s glued run (sorted by own time):", "", "```",
         profile.strip(), "```", "",
         "## Craig-Bampton (rail_left, forced at its three port edges)", "",

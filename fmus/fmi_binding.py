@@ -106,6 +106,10 @@ def _place_table(references) -> np.ndarray:
     return place
 
 
+#: a batch whose core's reader was not asked for yet
+_UNASKED = object()
+
+
 class CoreBinding:
     """Port variables, output cache and state of one wrapped core.
 
@@ -116,6 +120,10 @@ class CoreBinding:
     batch of forces.  Outputs are computed when they are read, not after every step
     and restore (a trial step whose outputs nobody reads costs nothing extra).
     """
+
+    #: (value references, what :meth:`places` found for them) of the last batch read
+    #: and of the last batch of forces written
+    _last_get = _last_set = (None, None)
 
     def __init__(self, slave, interface, output_names=()):
         self.slave = slave
@@ -133,6 +141,8 @@ class CoreBinding:
         self._stale = [True] * 4
         # readable values: forces, then u, v, a per dof, then the named outputs
         self._values = np.zeros(4 * n + len(self.output_names))
+        #: id of a batch :meth:`places` found -> this core's reader of it (None: none)
+        self._readers: dict[int, object] = {}
         declared = getattr(type(slave), "declared", None)
         if declared is None:  # a wrapper that registers its variables per instance
             references = []
@@ -155,6 +165,11 @@ class CoreBinding:
         """(places of value references in the readable values, the sections they fall
         in), or None when one of them is not a port variable or output (or,
         ``forces_only``, not a force input)."""
+        # a master asks for the same batch call after call: compare it with the last
+        # one of its kind before building and hashing a key
+        last = self._last_set if forces_only else self._last_get
+        if last[0] == vrs:
+            return last[1]
         key = (tuple(vrs), forces_only)
         if key not in self._batches:
             vrs = np.asarray(vrs, dtype=int)
@@ -168,12 +183,36 @@ class CoreBinding:
                                              for p in places if p >= n}))
                     found = (places, sections)
             self._batches[key] = found
-        return self._batches[key]
+        found = self._batches[key]
+        if forces_only:
+            self._last_set = (list(vrs), found)
+        else:
+            self._last_get = (list(vrs), found)
+        return found
 
     def get_reals(self, found) -> list[float]:
-        """Values at the places :meth:`places` found."""
+        """Values at the places :meth:`places` found (a batch of one kinematic kind
+        straight from the core's state, when the core can: no full vector between)."""
         places, sections = found
+        if self.core is not None:
+            # the reader is this instance's core's: a batch (and what places found)
+            # may be shared by every instance of a class that declares its variables
+            reader = self._readers.get(id(found), _UNASKED)
+            if reader is _UNASKED:
+                reader = self._readers[id(found)] = self._reader(places, sections)
+            if reader is not None:
+                return reader().tolist()
         return self._readable(sections)[places].tolist()
+
+    def _reader(self, places, sections):
+        """The core's reader of places that all hold one kinematic kind, else None."""
+        n = len(self.interface)
+        if len(sections) != 1 or sections[0] > 2:
+            return None
+        start = (sections[0] + 1) * n
+        if places.min() < start or places.max() >= start + n:
+            return None
+        return self.core.kinematic_reader(sections[0], places - start)
 
     def set_reals(self, found, values) -> None:
         """Forces at the places :meth:`places` (``forces_only``) found."""
@@ -225,6 +264,7 @@ class CoreBinding:
     def attach(self, core: InterfaceCore, start_time: float) -> None:
         """Take over a freshly built core and initialise it at ``start_time``."""
         self.core = core
+        self._readers = {}
         core.set_interface_forces(self.forces)
         core.initialize(start_time)
         self._stale = [True] * 4

@@ -55,6 +55,13 @@ class InterfaceCore(ABC):
         2 accelerations (a core that can compute one alone overrides this)."""
         return self.interface_kinematics()[kind]
 
+    def kinematic_reader(self, kind: int, rows: np.ndarray):
+        """A function of no arguments that returns entries ``rows`` of
+        :meth:`interface_kinematic` (``kind``) as they are when it is called, the same
+        numbers; None when the core has no cheaper way than computing them all (the
+        default).  The FMU binding answers a batched read of one kind with it."""
+        return None
+
     @abstractmethod
     def get_state(self) -> dict:
         """A deep copy of the complete numerical state (restoring it and

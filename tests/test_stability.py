@@ -63,6 +63,26 @@ def test_the_forces_test_sees_the_force_error_a_small_residual_hides():
     assert CONVERGENCE_TESTS["forces"](residual, tolerance, None, None) == 0.5
 
 
+def test_the_dense_gluing_solve_is_scipys_lu_solve_to_the_bit():
+    """The factored gluing matrix solves through the LAPACK routine lu_solve calls,
+    looked up once: the same bits for vectors and blocks of any scale, and lu_solve
+    itself for what that routine cannot take (integers)."""
+    from scipy.linalg import lu_solve
+
+    from dsim.master.running.couplings.iterative import DenseFactor
+
+    rng = np.random.default_rng(2)
+    for n in (2, 17, 64):
+        factor = DenseFactor(rng.normal(size=(n, n)) + n * np.eye(n))
+        for rhs in (rng.normal(size=n) * 1e-9, rng.normal(size=n) * 1e7,
+                    rng.normal(size=(n, 3))):
+            expected = lu_solve((factor.lu, factor.pivots), rhs, check_finite=False)
+            assert factor.solve(rhs).tobytes() == expected.tobytes()
+        whole = rng.integers(-3, 3, size=n)
+        assert np.array_equal(factor.solve(whole),
+                              lu_solve((factor.lu, factor.pivots), whole, check_finite=False))
+
+
 def test_an_unstable_explicit_run_stops_before_its_values_overflow(built):
     result = dsim.simulate(built["ssp"] / "frame_split.ssp", coupling="explicit", stop=0.05)
     assert result.status == "failed" and result.exit_code == 1

@@ -340,6 +340,13 @@ class SlotBody(InterfaceCore):
         full[self._slots] = self.body.interface_kinematic(kind)
         return full
 
+    def kinematic_reader(self, kind: int, rows: np.ndarray):
+        """The body's reader of these slots, when the body has every one of them."""
+        inner = np.full(len(self.interface), -1)
+        inner[self._slots] = np.arange(len(self._slots))
+        inner = inner[rows]
+        return self.body.kinematic_reader(kind, inner) if np.all(inner >= 0) else None
+
     def get_state(self) -> dict:
         return {"body": self.body.get_state(), "forces": self._forces.copy()}
 

@@ -286,6 +286,32 @@ class ElasticBody(InterfaceCore):
         values = self._interface_map.apply((self._q, self._v, self._a)[kind])
         return self._reference + values if kind == 0 else values
 
+    def kinematic_reader(self, kind: int, rows: np.ndarray):
+        """Entries ``rows`` of :meth:`interface_kinematic`, read straight from the state
+        where B only picks coordinates (each entry the same sum as there), else None."""
+        interface_map = self._interface_map
+        if interface_map.picked is None:
+            return None
+        state = ("_q", "_v", "_a")[kind]
+        if interface_map._every_row:
+            picked = interface_map.picked[rows]
+            if kind == 0:
+                reference = self._reference[rows]
+                return lambda: reference + self._q[picked]
+            return lambda: getattr(self, state)[picked]
+        # some rows pick nothing (a glued node that is clamped): zero there, as in apply()
+        source = np.full(interface_map.rows, -1)
+        source[interface_map.picking] = interface_map.picked
+        source = source[rows]
+        places, picked = np.flatnonzero(source >= 0), source[source >= 0]
+        reference = self._reference[rows] if kind == 0 else None
+
+        def read():
+            values = np.zeros(len(rows))
+            values[places] = getattr(self, state)[picked]
+            return values if reference is None else reference + values
+        return read
+
     def caches(self):
         return self._repeat.snapshot()
 

@@ -18,6 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
+try:  # what np.einsum calls (optimize off), without its argument handling in Python
+    from numpy._core.multiarray import c_einsum as _einsum
+except ImportError:  # another numpy layout: the public function, the same result
+    _einsum = np.einsum
+
 #: the largest Z kept (entries, 8 bytes each: 8 MB): larger bodies always take the full solve
 MAX_ENTRIES = 1_000_000
 
@@ -49,7 +54,7 @@ class RepeatedStep:
                 # einsum's own loop, not BLAS: a threaded BLAS may sum in another order
                 # in another process, and a run must give the same bits wherever its
                 # FMUs live
-                dq = np.einsum("ji,j->i", response, change)
+                dq = _einsum("ji,j->i", response, change)
                 return q1 + dq, v1 + (2.0 / h) * dq, a1 + (4.0 / h ** 2) * dq
         end = full_step()
         if not repeating:
@@ -74,7 +79,8 @@ class RepeatedStep:
     def _same_start(self, time: float, step_size: float, start: tuple) -> bool:
         last_time, h, last_start, _, _ = self._last
         return (time == last_time and self.integrator.same_step(step_size, h)
-                and all(np.array_equal(x, y) for x, y in zip(start, last_start)))
+                and all(x is y or (x.shape == y.shape and bool((x == y).all()))
+                        for x, y in zip(start, last_start)))  # np.array_equal, less dispatch
 
     def _response_for(self, h: float):
         """Z^T for step size ``h`` (single-vector solves, as a step's: the same bits in

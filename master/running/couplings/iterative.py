@@ -23,7 +23,7 @@ from collections import deque
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.linalg import LinAlgWarning, get_lapack_funcs, lu_factor, lu_solve
 from scipy.linalg.lapack import dgecon
 from scipy.sparse.linalg import splu
 
@@ -67,8 +67,16 @@ class DenseFactor:
         self.rcond = 0.0
         if not self.singular:
             self.rcond = float(dgecon(self.lu, np.linalg.norm(matrix, 1), norm="1")[0])
+        # the LAPACK routine lu_solve calls, found once (lu_solve looks it up and checks
+        # for batches on every call, several times the cost of the solve itself)
+        self._getrs = get_lapack_funcs(("getrs",), (self.lu,))[0]
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
+        if (isinstance(rhs, np.ndarray) and rhs.dtype == self.lu.dtype and rhs.size
+                and rhs.ndim in (1, 2) and rhs.shape[0] == self.lu.shape[0]):
+            x, info = self._getrs(self.lu, self.pivots, rhs, trans=0, overwrite_b=False)
+            if info == 0:
+                return x
         return lu_solve((self.lu, self.pivots), rhs, check_finite=False)
 
 
