@@ -52,8 +52,8 @@ def test_a_worker_lands_each_shipped_file_once_and_gives_the_collector_back(
 
 def test_a_worker_process_takes_its_instances_out_of_the_collectors_passes(built,
                                                                            ray_local):
-    # chain_10: ten SpringMass instances on two workers; after instantiating, each
-    # worker's objects (its instances' hundreds of thousands) are frozen
+    # chain_10: ten SpringMass instances on two workers; after instantiating, every
+    # object of each worker process, its instances' among them, is frozen
     plan = dsim.prepare(built["ssp"] / "chain_10.ssp")
     backend = RayBackend.from_specs(plan.specs)
     try:
