@@ -11,6 +11,7 @@ run's; the CPU seconds say what a run costs when other work shares the machine (
 wall seconds then include waiting for a core).
 
     python -m benchmarks.scaling            # writes docs/scaling.md
+    python -m benchmarks.scaling --only ray --calm 1.6   # its Ray section only
 """
 from __future__ import annotations
 
@@ -113,7 +114,9 @@ def ray_lines(n: int, result: dict) -> list[str]:
         f"(Ray {result.get('ray_version', '?')}, {cpus} CPUs: {cpus} workers, each "
         f"instantiating its share of the FMUs at the same time) in turn, {len(local)} "
         "times in one process, after one run of each that is not measured "
-        f"(`python -m benchmarks.scaling --only ray`, {date.today()}). Set-up is the run's "
+        "(`python -m benchmarks.scaling --only ray"
+        + (f" --calm {result['calm']:g}" if result.get("calm") else "")
+        + f"`, {date.today()}). Set-up is the run's "
         "`setup_seconds`, for both backends from the start of the run (the scene read and "
         "planned) to its first row: for Ray that is connecting, choosing the nodes, "
         "starting the worker processes (every measured run starts new ones: Python, Ray, "
@@ -163,7 +166,9 @@ RAY_NOTES = (
     "between). With two cores the workers save at most half of the instantiation "
     "(0.8 s) while their start is added: Ray is ahead when the machine's two cores are "
     "free (a ceiling near 2), and behind when other work holds one (a ceiling near 1, "
-    "where two processes gain nothing over one). With more cores per machine, or more "
+    "where two processes gain nothing over one: in a run of this script on 2026-11-27 "
+    "without `--calm`, ceilings 0.71 to 0.96, Ray was behind in all five pairs, its "
+    "least 2.34 s against 2.17 s). With more cores per machine, or more "
     "machines, the instantiation divides further while the start of the workers does "
     "not grow.")
 
