@@ -11,6 +11,7 @@ run's; the CPU seconds say what a run costs when other work shares the machine (
 wall seconds then include waiting for a core).
 
     python -m benchmarks.scaling            # writes docs/scaling.md
+    python -m benchmarks.scaling --only ray --calm 1.6   # its Ray section only
 """
 from __future__ import annotations
 
@@ -54,70 +55,120 @@ print(json.dumps({"status": s["status"], "steps": s["steps"], "wall": s["wall_se
 """
 
 
-#: set-up of one chain in-process and on a local Ray instance, in turn in one process
+#: set-up of one chain in-process and on a local Ray instance, in turn in one process;
+#: one run of each first, not measured: its processes are those Ray starts with the
+#: instance, and a process's first run loads what later ones find loaded, so that every
+#: measured Ray run starts its worker processes from nothing; before each measured pair,
+#: the machine's ceiling (benchmarks/ray_speedup.py: what two processes gain over one
+#: now), once it has reached the calm asked for
 _RAY = """
 import json, os, sys
 from pathlib import Path
 import ray
 import dsim
 import dsim.master.api
+from benchmarks.ray_speedup import ceiling_now
 ray.init(address="local", num_cpus=os.cpu_count(), include_dashboard=False,
          log_to_driver=False, logging_level="ERROR")
-setup, rows = {"in-process": [], "ray": []}, {}
-for repetition in range(int(sys.argv[2])):
+setup, rows, ceilings = {"in-process": [], "ray": []}, {}, []
+for repetition in range(-1, int(sys.argv[2])):
+    if repetition >= 0:
+        ceilings.append(ceiling_now(float(sys.argv[4])))
     for backend in setup:
         out = Path(sys.argv[3]) / f"{backend}-{repetition}.csv"
         result = dsim.simulate(sys.argv[1], stop=5e-3, backend=backend, out=out,
                                handle_signals=False)
         assert result.statistics["status"] == "completed", result.statistics
-        setup[backend].append(result.statistics["setup_seconds"])
+        if repetition >= 0:
+            setup[backend].append(result.statistics["setup_seconds"])
         rows.setdefault(backend, out.read_bytes())
 print(json.dumps({"setup": setup, "identical": rows["ray"] == rows["in-process"],
-                  "cpus": os.cpu_count()}))
+                  "cpus": os.cpu_count(), "ray_version": ray.__version__,
+                  "ceilings": ceilings, "calm": float(sys.argv[4])}))
 """
 
 
-def ray_setup(n: int, folder: Path, repetitions: int = 3) -> dict:
+def ray_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> dict:
     """Set-up seconds (``setup_seconds``) of chain_n in-process and on a local Ray
-    instance (one worker per CPU), in turn ``repetitions`` times in one fresh process,
-    and whether the two runs' results are the same bytes."""
+    instance (one worker per CPU), in turn ``repetitions`` times in one fresh process
+    (after one run of each that is not measured), whether the two runs' results are
+    the same bytes, and the machine's ceiling before each pair (with ``calm`` > 0,
+    each pair waits until the ceiling reaches it, ten minutes at most)."""
     found = subprocess.run([sys.executable, "-c", _RAY, str(chain_folder(n, folder / "scene")),
-                            str(repetitions), str(folder)],
-                           capture_output=True, text=True, check=True)
+                            str(repetitions), str(folder), str(calm)],
+                           capture_output=True, text=True, check=True, cwd=ROOT)
     return json.loads(found.stdout.strip().splitlines()[-1])
 
 
 def ray_lines(n: int, result: dict) -> list[str]:
-    """The page's paragraph on set-up with Ray."""
+    """The page's paragraphs on set-up with Ray."""
     local, ray = result["setup"]["in-process"], result["setup"]["ray"]
-    each = ", ".join(f"{r / l:.2f}" for l, r in zip(local, ray))
+    ratios = [r / l for l, r in zip(local, ray)]
+    faster = sum(ratio < 1 for ratio in ratios)
+    cpus = result["cpus"]
     return [
         RAY_HEADING, "",
         f"chain_{n}, five macro steps, set up in-process and on a local Ray instance "
-        f"({result['cpus']} CPUs: {result['cpus']} workers, each instantiating its share "
-        f"of the FMUs at the same time) in turn, {len(local)} times in one process "
-        "(`python -m benchmarks.scaling --only ray`). Set-up is the run's "
-        "`setup_seconds`: for Ray, starting the workers, shipping the FMU, instantiating "
-        "and initialising.", "",
+        f"(Ray {result.get('ray_version', '?')}, {cpus} CPUs: {cpus} workers, each "
+        f"instantiating its share of the FMUs at the same time) in turn, {len(local)} "
+        "times in one process, after one run of each that is not measured "
+        "(`python -m benchmarks.scaling --only ray"
+        + (f" --calm {result['calm']:g}" if result.get("calm") else "")
+        + f"`, {date.today()}). Set-up is the run's "
+        "`setup_seconds`, for both backends from the start of the run (the scene read and "
+        "planned) to its first row: for Ray that is connecting, choosing the nodes, "
+        "starting the worker processes (every measured run starts new ones: Python, Ray, "
+        "dsim's worker module), shipping the FMU, instantiating and initialising every "
+        "FMU, and the start forces.", "",
         "| backend | set-up, least (s) | each run (s) |", "|---|---|---|",
         f"| in-process | {min(local):.2f} | {', '.join(f'{x:.2f}' for x in local)} |",
-        f"| Ray | {min(ray):.2f} | {', '.join(f'{x:.2f}' for x in ray)} |", "",
-        f"Ray / in-process, run by run: {each}; least against least: "
+        f"| Ray | {min(ray):.2f} | {', '.join(f'{x:.2f}' for x in ray)} |",
+        "| the machine's ceiling before each pair: 2 busy processes against 1 | | "
+        f"{', '.join(f'{x:.2f}' for x in result['ceilings'])} |", "",
+        f"Ray / in-process, run by run: {', '.join(f'{x:.2f}' for x in ratios)} (Ray "
+        f"faster in {faster} of {len(ratios)}); least against least: "
         f"{min(ray) / min(local):.2f}. Results identical to the byte: "
         f"{'yes' if result['identical'] else 'NO'}.", "",
-        "The workers instantiate their FMUs at the same time, one remote call each, "
-        "sent to every worker before any answer is awaited; a worker pauses Python's "
-        "garbage collector while it instantiates (as the in-process backend does: in one measurement 500 "
-        "SpringMass instances took 1.27 s of CPU with it running, 0.85 s paused) and "
-        "lands the shipped FMU once per file, not once per instance (a read and a "
-        "SHA-256 of the FMU each). With two cores there are two workers, so Ray can "
-        "save at most half of the instantiation (about 0.7 s at chain_1000); starting "
-        "the two worker processes and importing dsim there costs 0.8 to 1.2 s on these "
-        "machines, and each initialisation step is a round trip to the workers. The two "
-        "set-ups are therefore about equal here, and which is ahead in a run depends on "
-        "what else holds the cores; with more cores per machine (or more machines) the "
-        "instantiation divides further while the start of the workers does not grow.",
-        ""]
+        "The machine is shared: the **ceiling** is how much faster two processes do two "
+        "equal pieces of CPU work than one process does them in turn, measured before "
+        "each pair (`benchmarks/ray_speedup.py`; 2.0 on an idle 2-core machine, less "
+        "while other work holds a core): two workers cannot instantiate faster than it "
+        "allows, so read each ratio against its pair's ceiling" + (
+            f"; each pair waited for a ceiling of {result['calm']:g} (`--calm`, ten "
+            "minutes at most)." if result.get("calm") else "."), "",
+        RAY_NOTES, ""]
+
+
+#: where a Ray set-up's time goes, measured on these machines (not by this script)
+RAY_NOTES = (
+    "Where a Ray set-up's time goes (chain_1000, two workers, measured apart on these "
+    "machines): a new worker process takes 0.3 to 1.5 s to start and import dsim's "
+    "worker module, depending on what else holds the cores; most of it is Ray starting "
+    "a Python process (an actor that does nothing takes 0.8 to 1.5 s to answer its "
+    "first call while other work holds the cores), the module itself takes 0.09 s with "
+    "Ray loaded: it no longer imports scipy, whose integrate package alone took 0.4 s "
+    "and only a Model Exchange FMU's step needs. Each worker's 500 SpringMass instances "
+    "take 0.8 s of CPU to instantiate, as in-process (1.6 ms each, most of it in the "
+    "FMU's fmi2Instantiate); the initialisation, six calls answered by every worker, "
+    "about 0.3 s, against 0.45 s in-process. The workers instantiate at the same time, "
+    "one remote call each, sent to every worker before any answer is awaited, with "
+    "Python's garbage collector paused; then a worker freezes its instances out of the "
+    "collector (`gc.freeze`: each collector pass over 500 instances' 440,000 objects "
+    "took 0.1 s of CPU, and the first passes fell on the run's first calls). The FMU "
+    "is put in Ray's object store once per run, and each worker lands it once per "
+    "file (on the driver's machine it uses the driver's file). Not done, measured: "
+    "starting the workers before the scene is read and planned would hide at most "
+    "that, 0.16 to 0.19 s at chain_1000, and would take the workers' start out of "
+    "`setup_seconds`; batching the initialisation's calls into fewer round trips would "
+    "save about 13 ms a round trip (its calls depend on what the driver computes in "
+    "between). With two cores the workers save at most half of the instantiation "
+    "(0.8 s) while their start is added: Ray is ahead when the machine's two cores are "
+    "free (a ceiling near 2), and behind when other work holds one (a ceiling near 1, "
+    "where two processes gain nothing over one: in a run of this script on 2026-11-27 "
+    "without `--calm`, ceilings 0.71 to 0.96, Ray was behind in all five pairs, its "
+    "least 2.34 s against 2.17 s). With more cores per machine, or more "
+    "machines, the instantiation divides further while the start of the workers does "
+    "not grow.")
 
 
 RAY_HEADING = "## Set-up on a local Ray cluster"
@@ -294,6 +345,9 @@ def main(argv=None) -> str:
     parser.add_argument("--ray", type=int, default=1000,
                         help="subsystems of the set-up in-process vs Ray (0: keep the "
                         "page's section)")
+    parser.add_argument("--calm", type=float, default=0.0,
+                        help="before each pair of the Ray set-up, wait until the machine's "
+                        "ceiling (2 processes against 1) reaches this (0: do not wait)")
     parser.add_argument("--only", choices=["ray"],
                         help="measure only this and replace its section of the page")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "scaling.md"))
@@ -301,7 +355,7 @@ def main(argv=None) -> str:
     ray_text: list[str] = []
     if args.ray:
         with tempfile.TemporaryDirectory(prefix="dsim-scaling-") as temp:
-            result = ray_setup(args.ray, Path(temp))
+            result = ray_setup(args.ray, Path(temp), calm=args.calm)
         print(f"ray chain_{args.ray}: {result}", flush=True)
         ray_text = ray_lines(args.ray, result)
     elif Path(args.docs).is_file() and RAY_HEADING in Path(args.docs).read_text():

@@ -10,6 +10,7 @@ tell a crashed FMU from a killed worker."""
 from __future__ import annotations
 
 import faulthandler
+import gc
 import os
 import tempfile
 from dataclasses import replace
@@ -88,6 +89,13 @@ class Host:
                                                               parameters=parameters)))
                 self.written.append({"start": {}, "inputs": {}})
                 self.initialized.append(False)
+        if ray.get_runtime_context().get_actor_id() is not None:
+            # a worker process holds nothing but its instances, which live as long as
+            # it does: out of the collector's passes, each of which walks every object
+            # of hundreds of instances (a tenth of a second and more at 500 SpringMass
+            # instances, on the path of the run's first calls).  Not when a Host is
+            # made in another process (a test's), whose other objects those are not.
+            gc.freeze()
         return {"node": ray.get_runtime_context().get_node_id(), "pid": os.getpid()}
 
     def run(self, calls) -> list:

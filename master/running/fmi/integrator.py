@@ -29,7 +29,6 @@ import ctypes
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 #: scipy.integrate.solve_ivp's methods
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA", "RK23")
@@ -201,6 +200,10 @@ class ScipyIntegrator(Integrator):
         x0 = view.get_x().copy()
         atol = (self.settings.atol if self.settings.atol is not None
                 else self.settings.rtol * np.abs(view.nominals()))
+        # here, not at the top: scipy.integrate takes 0.4 s to import, and every Ray
+        # worker imports this module, also those that run only co-simulation FMUs
+        from scipy.integrate import solve_ivp
+
         solution = solve_ivp(rhs, (time, stop), x0, method=self.settings.method,
                              rtol=self.settings.rtol, atol=atol, events=events or None,
                              max_step=self.settings.max_step or np.inf,
