@@ -136,7 +136,7 @@ def ray_lines(n: int, result: dict) -> list[str]:
         "allows, so read each ratio against its pair's ceiling" + (
             f"; each pair waited for a ceiling of {result['calm']:g} (`--calm`, ten "
             "minutes at most)." if result.get("calm") else "."), "",
-        RAY_NOTES, ""]
+        *RAY_NOTES, ""]
 
 
 #: where a Ray set-up's time goes, measured on these machines (not by this script)
@@ -147,28 +147,34 @@ RAY_NOTES = (
     "a Python process (an actor that does nothing takes 0.8 to 1.5 s to answer its "
     "first call while other work holds the cores), the module itself takes 0.09 s with "
     "Ray loaded: it no longer imports scipy, whose integrate package alone took 0.4 s "
-    "and only a Model Exchange FMU's step needs. Each worker's 500 SpringMass instances "
-    "take 0.8 s of CPU to instantiate, as in-process (1.6 ms each, most of it in the "
-    "FMU's fmi2Instantiate); the initialisation, six calls answered by every worker, "
-    "about 0.3 s, against 0.45 s in-process. The workers instantiate at the same time, "
-    "one remote call each, sent to every worker before any answer is awaited, with "
-    "Python's garbage collector paused; then a worker freezes its instances out of the "
-    "collector (`gc.freeze`: each collector pass over 500 instances' 440,000 objects "
-    "took 0.1 s of CPU, and the first passes fell on the run's first calls). The FMU "
-    "is put in Ray's object store once per run, and each worker lands it once per "
-    "file (on the driver's machine it uses the driver's file). Not done, measured: "
-    "starting the workers before the scene is read and planned would hide at most "
-    "that, 0.16 to 0.19 s at chain_1000, and would take the workers' start out of "
-    "`setup_seconds`; batching the initialisation's calls into fewer round trips would "
-    "save about 13 ms a round trip (its calls depend on what the driver computes in "
-    "between). With two cores the workers save at most half of the instantiation "
-    "(0.8 s) while their start is added: Ray is ahead when the machine's two cores are "
-    "free (a ceiling near 2), and behind when other work holds one (a ceiling near 1, "
-    "where two processes gain nothing over one: in a run of this script on 2026-11-27 "
-    "without `--calm`, ceilings 0.71 to 0.96, Ray was behind in all five pairs, its "
-    "least 2.34 s against 2.17 s). With more cores per machine, or more "
-    "machines, the instantiation divides further while the start of the workers does "
-    "not grow.")
+    "and only a Model Exchange FMU's step needs. The workers instantiate at the same "
+    "time, one remote call each, sent to every worker before any answer is awaited, "
+    "with Python's garbage collector paused; then a worker freezes its instances out "
+    "of the collector (`gc.freeze`), as the in-process backend does. The FMU is put in "
+    "Ray's object store once per run, and each worker lands it once per file (on the "
+    "driver's machine it uses the driver's file); the batches of calls a worker may "
+    "have to repeat after a loss are copied by a pickle round trip (`copy.deepcopy` "
+    "took 0.8 s of a chain_4000's run). Not done, measured: starting the workers "
+    "before the scene is read and planned would hide at most that, 0.16 to 0.19 s at "
+    "chain_1000, and would take the workers' start out of `setup_seconds`; batching "
+    "the initialisation's calls into fewer round trips would save about 13 ms a round "
+    "trip (its calls depend on what the driver computes in between).",
+    "",
+    "**Why Ray is behind, and stays so on two cores.** Before the SpringMass FMU "
+    "declared its variables once per class, an instance took 1.6 ms to make and "
+    "chain_1000 set up in 1.9 s in-process: two workers could save half of that, and "
+    "with both cores free Ray was ahead (1.61 s against 2.29 s, Ray faster in 4 of 5 "
+    "pairs, in a run of this script earlier on 2026-11-27). The whole set-up now "
+    "costs about 0.5 ms per component, and chain_1000 sets up in-process in about "
+    "0.5 s, less than starting one worker process: the table above. At chain_10000 "
+    "too (measured on 2026-11-27 in one process, in turn, two pairs after one of "
+    "each not measured, stop 5 ms): in-process 6.73 and 7.15 s, Ray 9.46 and 9.03 s, the same bytes; "
+    "Ray's share of the instantiation is halved, but each initialisation call now "
+    "carries 5,000 subsystems' values each way through Ray's serialisation, and the "
+    "driver waits for both workers at every call. With more cores per machine, or "
+    "more machines, the instantiation divides further while the start of the workers "
+    "does not grow; on these machines Ray's place is running components apart "
+    "(isolation, placement, node loss: docs/distributed.md), not a faster set-up.")
 
 
 RAY_HEADING = "## Set-up on a local Ray cluster"

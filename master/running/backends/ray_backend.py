@@ -28,6 +28,7 @@ same call end the run as before, with a line that says which it was.
 from __future__ import annotations
 
 import copy
+import pickle
 import threading
 import time as clock
 
@@ -256,7 +257,7 @@ class RayBackend(Recovery, Backend):
             skipped[host] = len(ahead)
             payloads[host] = ahead + batch
             if self._restartable(host):  # the journal must hold the values as sent
-                payloads[host] = copy.deepcopy(payloads[host])
+                payloads[host] = _copied(payloads[host])
             pending[host] = cluster.hosts[host].run.remote(payloads[host])
         answers = {}
         for host, ref in pending.items():
@@ -493,3 +494,14 @@ def _shipped_files(shipment, spec) -> tuple:
     its String parameters name (parameter -> shipped file)."""
     return (shipment.add(spec.path),
             {name: shipment.add(spec.parameters[name][1]) for name in spec.files})
+
+
+def _copied(payload):
+    """A copy of a batch of calls that shares nothing the caller may change after: a
+    pickle round trip, which copies plain data (lists, tuples, numbers, numpy arrays)
+    about ten times faster than ``copy.deepcopy`` walking it object by object (0.8 s of
+    a chain_4000's set-up on Ray); ``deepcopy`` for what pickle cannot take."""
+    try:
+        return pickle.loads(pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL))
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return copy.deepcopy(payload)
