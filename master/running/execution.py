@@ -348,31 +348,39 @@ class Execution:
             record = StepRecord(self.index, end, self._chosen(row), report.iterations,
                                 report.refreshed, report.residual,
                                 self._recorded_texts() if self._text_reads else ())
-            # off the output grid a step is held, and recorded only if the run ends there
-            if self.index % self._record_every and self.index < self.planned_steps:
-                self._held = record
-            else:
-                self._held = None
-                for stepped in self._stepped:
-                    stepped(record)
-        except Terminated as ended:
-            self._end_by(ended)
-            return False
-        except SimulationError as error:
-            self._fail(error.located(index + 1, end))
-            return False
-        except OutputError as error:
-            self._fail(error)
-            return False
-        except KeyboardInterrupt:
-            self._stop_requested = "interrupted by the user"
-            self.signal = signal.SIGINT
-            self.status = "interrupted"
-            return False
+            self._emit(record)
+        except (Terminated, SimulationError, OutputError, KeyboardInterrupt) as stop:
+            return self._stopped(stop, index + 1, end)
         if self.index >= self.planned_steps:
             self.status = "completed"
             return False
         return True
+
+    def _emit(self, record) -> None:
+        """Hand a step's record to the observers; off the output grid it is held, and
+        recorded only if the run ends there."""
+        index = record.index
+        if index % self._record_every and index < self.planned_steps:
+            self._held = record
+        else:
+            self._held = None
+            for stepped in self._stepped:
+                stepped(record)
+
+    def _stopped(self, stop: BaseException, index: int, end: float) -> bool:
+        """What a step that raised ``stop`` in step ``index`` (ending at ``end`` s)
+        leaves: the run ended by an FMU, failed, or interrupted; False (no next step)."""
+        if isinstance(stop, Terminated):
+            self._end_by(stop)
+        elif isinstance(stop, SimulationError):
+            self._fail(stop.located(index, end))
+        elif isinstance(stop, OutputError):
+            self._fail(stop)
+        else:  # KeyboardInterrupt
+            self._stop_requested = "interrupted by the user"
+            self.signal = signal.SIGINT
+            self.status = "interrupted"
+        return False
 
     def _kernel_step(self) -> bool:
         """:meth:`step` of a system whose coupling's kernel takes the whole step (no
@@ -396,26 +404,9 @@ class Execution:
             # a StepRecord made as its own _make makes it, without its Python __new__
             record = _record(StepRecord, (following, end, row if self._selected is None
                                           else row[self._selected], 0, 0, 0.0, ()))
-            if following % self._record_every and following < self.planned_steps:
-                self._held = record
-            else:
-                self._held = None
-                for stepped in self._stepped:
-                    stepped(record)
-        except Terminated as ended:
-            self._end_by(ended)
-            return False
-        except SimulationError as error:
-            self._fail(error.located(following, end))
-            return False
-        except OutputError as error:
-            self._fail(error)
-            return False
-        except KeyboardInterrupt:
-            self._stop_requested = "interrupted by the user"
-            self.signal = signal.SIGINT
-            self.status = "interrupted"
-            return False
+            self._emit(record)
+        except (Terminated, SimulationError, OutputError, KeyboardInterrupt) as stop:
+            return self._stopped(stop, following, end)
         if following >= self.planned_steps:
             self.status = "completed"
             return False

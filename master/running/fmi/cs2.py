@@ -333,8 +333,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
     def exchange_with(self, values, time, step_size):
         """A free subsystem's macro step: ``fmi2SetReal`` of its inputs, ``fmi2DoStep``,
         ``fmi2GetReal`` of its outputs, each counted, timed and checked as every call
-        is, without a Python call between them (the causal path's whole cost in the
-        master is a few of these per FMU and step)."""
+        is, through few Python layers (a causal system in process steps through the
+        backend's kernel instead; this is the path of the others)."""
         writes, reads = self._write_direct, self._reads[0] if self._read_direct else None
         if values is None or writes is None or reads is None or not writes.size \
                 or not reads.size or self._initializing:
@@ -345,11 +345,24 @@ class FmuSubsystem(Checkpoint, Subsystem):
             self._step_size = ctypes.c_double(step_size)
         writes.array[:] = values
         t0 = clock.perf_counter()
+        t2 = self._put_and_step(put, step, writes, time, t0)
+        status = get.function(handle, reads.vrs, reads.count, reads.values)
+        get.seconds += clock.perf_counter() - t2
+        get.calls += 1
+        if status > 1:
+            get.check(status)
+        return reads.array.copy()
+
+    def _put_and_step(self, put, step, writes, time: float, t0: float) -> float:
+        """``fmi2SetReal`` of ``writes`` then ``fmi2DoStep`` from ``time`` (s), each
+        counted, timed from ``t0`` (a clock reading) on and its status checked (not
+        initializing: a status is all there is to check); the clock after the step."""
+        handle = self.handle
         status = put.function(handle, writes.vrs, writes.count, writes.values)
         t1 = clock.perf_counter()
         put.calls += 1
         put.seconds += t1 - t0
-        if status > 1:  # (not initializing: a status is all there is to check)
+        if status > 1:
             put.check(status)
         status = step.function(handle, ctypes.c_double(time), self._step_size, 1)
         t2 = clock.perf_counter()
@@ -357,12 +370,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
         step.seconds += t2 - t1
         if status > 1:
             step.check(status, time + self._step_size.value)
-        status = get.function(handle, reads.vrs, reads.count, reads.values)
-        get.seconds += clock.perf_counter() - t2
-        get.calls += 1
-        if status > 1:
-            get.check(status)
-        return reads.array.copy()
+        return t2
 
     def fused_step(self, inputs, outputs, time, step_size, kernel):
         """This FMU's causal macro step for a kernel that runs many FMUs in one loop
@@ -425,18 +433,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
             if status > 1:
                 restore.check(status)
             t0 = t1
-        status = put.function(handle, writes.vrs, writes.count, writes.values)
-        t1 = clock.perf_counter()
-        put.calls += 1
-        put.seconds += t1 - t0
-        if status > 1:
-            put.check(status)
-        status = step.function(handle, ctypes.c_double(time), self._step_size, 1)
-        t2 = clock.perf_counter()
-        step.calls += 1
-        step.seconds += t2 - t1
-        if status > 1:
-            step.check(status, time + self._step_size.value)
+        t2 = self._put_and_step(put, step, writes, time, t0)
         if reads.size:
             status = get.function(handle, reads.vrs, reads.count, reads.values)
             get.seconds += clock.perf_counter() - t2
