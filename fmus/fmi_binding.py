@@ -4,7 +4,8 @@ pythonfmu before 0.7 found the model class by a regular expression that wants
 ``class Name(Fmi2Slave):`` verbatim, so the shared part is not a base class; it is
 this binding object, which a wrapper creates in ``__init__`` and calls from its FMI
 callbacks.  A wrapper may declare its variables once for its class
-(:class:`Variable`, :func:`port_variables`) instead of registering them per instance.  It registers the port variables of DESIGN.md (``P.f_x`` input,
+(:class:`Variable`, :func:`port_variables`) instead of registering them per
+instance.  It registers the port variables of DESIGN.md (``P.f_x`` input,
 ``P.u_x``/``P.v_x``/``P.a_x`` outputs), answers batched reads and writes of them,
 computes outputs when they are read, and implements the complete FMU state (the
 core's numerical state plus inputs).

@@ -339,25 +339,30 @@ class FmuSubsystem(Checkpoint, Subsystem):
         if values is None or writes is None or reads is None or not writes.size \
                 or not reads.size or self._initializing:
             return super().exchange_with(values, time, step_size)
-        handle, put, step, get = self.handle, writes.set, self._do_step, reads.get
+        self._read_after(reads, self._put_and_step(writes, values, time, step_size))
+        return reads.array.copy()
+
+    def _put_and_step(self, writes, values, time: float, step_size: float,
+                      restore: bool = False) -> float:
+        """A fused step's calls up to the step: ``fmi2SetFMUstate`` (``restore``),
+        ``fmi2SetReal`` of ``values`` into ``writes``, ``fmi2DoStep`` from ``time`` by
+        ``step_size`` (s), each counted, timed and its status checked (not initializing:
+        a status is all there is to check); the clock reading after the step."""
+        handle, put, step = self.handle, writes.set, self._do_step
         self.time = time
         if step_size != self._step_size.value:
             self._step_size = ctypes.c_double(step_size)
         writes.array[:] = values
         t0 = clock.perf_counter()
-        t2 = self._put_and_step(put, step, writes, time, t0)
-        status = get.function(handle, reads.vrs, reads.count, reads.values)
-        get.seconds += clock.perf_counter() - t2
-        get.calls += 1
-        if status > 1:
-            get.check(status)
-        return reads.array.copy()
-
-    def _put_and_step(self, put, step, writes, time: float, t0: float) -> float:
-        """``fmi2SetReal`` of ``writes`` then ``fmi2DoStep`` from ``time`` (s), each
-        counted, timed from ``t0`` (a clock reading) on and its status checked (not
-        initializing: a status is all there is to check); the clock after the step."""
-        handle = self.handle
+        if restore:
+            call = self._set_state
+            status = call.function(handle, self._state)
+            t1 = clock.perf_counter()
+            call.calls += 1
+            call.seconds += t1 - t0
+            if status > 1:
+                call.check(status)
+            t0 = t1
         status = put.function(handle, writes.vrs, writes.count, writes.values)
         t1 = clock.perf_counter()
         put.calls += 1
@@ -371,6 +376,16 @@ class FmuSubsystem(Checkpoint, Subsystem):
         if status > 1:
             step.check(status, time + self._step_size.value)
         return t2
+
+    def _read_after(self, reads, t0: float) -> None:
+        """``fmi2GetReal`` of ``reads`` into its array, counted, timed from ``t0`` (the
+        clock reading after the step) and its status checked."""
+        get = reads.get
+        status = get.function(self.handle, reads.vrs, reads.count, reads.values)
+        get.seconds += clock.perf_counter() - t0
+        get.calls += 1
+        if status > 1:
+            get.check(status)
 
     def fused_step(self, inputs, outputs, time, step_size, kernel):
         """This FMU's causal macro step for a kernel that runs many FMUs in one loop
@@ -418,28 +433,9 @@ class FmuSubsystem(Checkpoint, Subsystem):
             return super().trial_step(forces, time, step_size)
         self._stepped = True
         reads, kinds = self._kinematics_needed
-        handle, put, step, get = self.handle, writes.set, self._do_step, reads.get
-        self.time = time
-        if step_size != self._step_size.value:
-            self._step_size = ctypes.c_double(step_size)
-        writes.array[:] = forces
-        t0 = clock.perf_counter()
-        if self._dirty:
-            restore = self._set_state
-            status = restore.function(handle, self._state)
-            t1 = clock.perf_counter()
-            restore.calls += 1
-            restore.seconds += t1 - t0
-            if status > 1:
-                restore.check(status)
-            t0 = t1
-        t2 = self._put_and_step(put, step, writes, time, t0)
+        t2 = self._put_and_step(writes, forces, time, step_size, restore=self._dirty)
         if reads.size:
-            status = get.function(handle, reads.vrs, reads.count, reads.values)
-            get.seconds += clock.perf_counter() - t2
-            get.calls += 1
-            if status > 1:
-                get.check(status)
+            self._read_after(reads, t2)
         self._dirty = True
         values, n = reads.array.copy(), len(self.interface)
         result, start = [], 0
