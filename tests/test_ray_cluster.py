@@ -39,6 +39,29 @@ def start_node(arguments, env, log: Path) -> subprocess.Popen:
     return process
 
 
+# What the head's GCS logs when the port it was given was taken between free_port()
+# closing its probe and the GCS binding it (other Ray nodes of the suite, run beside
+# these tests, take ephemeral ports of their own).
+PORT_TAKEN = re.compile(r"Failed to start the grpc server|Address already in use")
+
+
+def start_head(arguments, env, folder: Path, attempts: int = 3) -> tuple[subprocess.Popen, int]:
+    """A head node on a free port, `arguments` beside `--head --port`: its process and its
+    port. A port taken in the meantime is a race of the test machine, not of dsim: the
+    head is tried again on another port; any other failure fails the test."""
+    for attempt in range(attempts):
+        port = free_port()
+        log = folder / f"head{attempt}.log"
+        try:
+            return start_node(["--head", f"--port={port}", *arguments], env, log), port
+        except pytest.fail.Exception:
+            logs = [log.read_text()] + [f.read_text(errors="replace")
+                                        for f in folder.glob("session_*/logs/gcs_server.*")]
+            if attempt == attempts - 1 or not any(PORT_TAKEN.search(t) for t in logs):
+                raise
+    raise AssertionError("unreachable")
+
+
 def stop_node(process: subprocess.Popen) -> None:
     """End the node's process group (only the processes this test started), gently
     first: `ray stop` would end every Ray process of the machine."""
@@ -61,14 +84,13 @@ def cluster():
     folder = Path(tempfile.mkdtemp(prefix="dsimray", dir="/tmp"))  # short: socket paths
     env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
            "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
-    port = free_port()
-    address = f"127.0.0.1:{port}"
     nodes = []
     try:
-        nodes.append(start_node(["--head", f"--port={port}", "--num-cpus=1",
-                                 '--resources={"head_node": 1}', "--include-dashboard=false",
-                                 f"--temp-dir={folder}", "--object-store-memory=100000000"],
-                                env, folder / "head.log"))
+        head, port = start_head(["--num-cpus=1", '--resources={"head_node": 1}',
+                                 "--include-dashboard=false", f"--temp-dir={folder}",
+                                 "--object-store-memory=100000000"], env, folder)
+        nodes.append(head)
+        address = f"127.0.0.1:{port}"
         nodes.append(start_node([f"--address={address}", "--num-cpus=1",
                                  '--resources={"right_node": 1}',
                                  "--object-store-memory=100000000"], env, folder / "node.log"))
@@ -142,10 +164,9 @@ def own_head(cpus: int = 1):
     folder = Path(tempfile.mkdtemp(prefix="dsimhead", dir="/tmp"))  # short: socket paths
     env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
            "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
-    port = free_port()
-    head = start_node(["--head", f"--port={port}", f"--num-cpus={cpus}",
-                       "--include-dashboard=false", f"--temp-dir={folder}",
-                       "--object-store-memory=80000000"], env, folder / "head.log")
+    head, port = start_head([f"--num-cpus={cpus}", "--include-dashboard=false",
+                             f"--temp-dir={folder}", "--object-store-memory=80000000"],
+                            env, folder)
     try:
         yield {"address": f"127.0.0.1:{port}", "env": env, "head": head}
     finally:
@@ -286,10 +307,9 @@ def test_a_lost_head_ends_the_run_within_seconds_with_everything_kept(built, tmp
     folder = Path(tempfile.mkdtemp(prefix="dsimhead", dir="/tmp"))  # short: socket paths
     env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
            "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1"}
-    port = free_port()
-    head = start_node(["--head", f"--port={port}", "--num-cpus=1", "--include-dashboard=false",
-                       f"--temp-dir={folder}", "--object-store-memory=80000000"],
-                      env, folder / "head.log")
+    head, port = start_head(["--num-cpus=1", "--include-dashboard=false",
+                             f"--temp-dir={folder}", "--object-store-memory=80000000"],
+                            env, folder)
     target = tmp_path / "run.csv"
     try:
         process = subprocess.Popen(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
