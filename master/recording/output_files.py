@@ -52,9 +52,10 @@ def check_not_input(target: Path, inputs) -> None:
     """Refuse a target that is one of the run's inputs (or inside an input archive's
     place): InputError naming both."""
     target = Path(target)
-    for source in inputs:
-        source = Path(source)
-        if target.resolve() == source.resolve() or _same_file(target, source):
+    resolved = target.resolve()
+    # each input once: every component of a large scene names the same FMU file
+    for source in dict.fromkeys(Path(source) for source in inputs):
+        if resolved == source.resolve() or _same_file(target, source):
             raise InputError(f"{target}: this output would overwrite an input of the run "
                              f"({source}); choose another output file")
 
