@@ -158,7 +158,12 @@ RAY_NOTES = (
     "before the scene is read and planned would hide at most that, 0.16 to 0.19 s at "
     "chain_1000, and would take the workers' start out of `setup_seconds`; batching "
     "the initialisation's calls into fewer round trips would save about 13 ms a round "
-    "trip (its calls depend on what the driver computes in between).",
+    "trip (its calls depend on what the driver computes in between); keeping a run's "
+    "workers for the next run of the same driver process (a pool) would take their "
+    "start out of later set-ups, but the FMU code of one run (a pythonfmu FMU runs its "
+    "Python in the worker's interpreter) would live on in the process that hosts the "
+    "next run's FMUs, and separate processes per run are what the Ray and isolated "
+    "backends are for.",
     "",
     "**Why Ray is behind, and stays so on two cores.** Before the SpringMass FMU "
     "declared its variables once per class, an instance took 1.6 ms to make and "
@@ -193,7 +198,11 @@ NOTES = (
     "(`gc.freeze`: at chain_10000 its full passes over a million objects took about "
     "15% of the steps' time). Every instance of one FMU file shares one binding of its library's "
     "functions (`dsim.master.running.fmi.library`: fmpy bound them again for each "
-    "instance, 6 ms apiece).",
+    "instance, 6 ms apiece). Two quadratic pieces of set-up found by profiling "
+    "chain_10000 on 2026-11-27 and removed: the coupling looked up each subsystem in a "
+    "set of the glued ones made again per subsystem (0.8 s at 10,000), and the check "
+    "that no output overwrites an input resolved the FMU path of every component "
+    "(0.16 s at 1,000: one file, resolved once now).",
     "",
     "The SpringMass instances were most of a large chain's memory and set-up (166 kB "
     "each; 1.86 GB and 25 s of CPU to set up chain_10000): pythonfmu 0.7 runs the FMU's "
@@ -206,7 +215,12 @@ NOTES = (
     "for the class (`fmus/fmi_binding.py`, `Variable`: pythonfmu's C side only calls the "
     "slave's get and set methods, which answer from that table). A component now costs "
     "about 33 kB, its FMU instance, dsim's handle of it and the scene's objects for it "
-    "together (the resident size over 2,000 components; tracemalloc agrees).",
+    "together (the resident size over 2,000 components; tracemalloc agrees). pythonfmu "
+    "also puts the FMU's resources folder at the front of `sys.path` for every instance "
+    "and never takes it out (10,000 copies at chain_10000, and more with every run of a "
+    "process that runs several scenes): dsim keeps each such entry once while an "
+    "instance that added it lives and removes it with the last one "
+    "(`dsim.master.running.fmi.python_path`).",
     "",
     "The time per step per subsystem still grows with the chain, although a step's work "
     "is linear: profiles of steps of chain_1000 and chain_10000 show the same calls per "
@@ -220,6 +234,21 @@ NOTES = (
     "is shared (two cores, one 32 MB cache): a step of chain_10000 touches hundreds of "
     "megabytes, and whatever runs beside it empties that cache, so the large chains' "
     "times vary more from run to run than the small ones'.",
+    "",
+    "Measured on 2026-11-27 (one run each, the run's own statistics, microseconds per "
+    "FMI call from chain_100 to chain_10000): fmi2DoStep 10.2 to 13.3 (1.30x, as the "
+    "cores alone), fmi2GetReal 3.4 to 6.6, fmi2SetReal 2.4 to 4.3, fmi2SetFMUstate 2.8 "
+    "to 7.0, fmi2GetFMUstate 1.5 to 4.0, fmi2FreeFMUstate 0.5 to 2.0, and the master's "
+    "Python per step and subsystem 11.7 to 27.4: the small calls, whose work is "
+    "reaching their objects, grow most. A step visits every subsystem four times (the "
+    "state save, two Newton trials, the output read); one visit less, the save made in "
+    "the first trial's visit of each FMU, changed nothing measurable (CPU per step per "
+    "subsystem at chain_10000 0.0867 and 0.0849 ms before, 0.0840 and 0.0865 after, "
+    "interleaved; at chain_100 0.0433/0.0435 against 0.0444/0.0445) and was not kept: "
+    "what grows is the memory each call reaches, not the number of sweeps. Reaching "
+    "1.2 times chain_100's per step and subsystem would need a subsystem's objects to "
+    "fit a few kilobytes of cache each (32 MB over 10,000), far below what a Python FMU "
+    "behind pythonfmu and its handles in the master take.",
 )
 
 

@@ -62,7 +62,7 @@ class FmpyAdapter(Checkpoint, Subsystem):
         except Exception as error:  # fmpy raises plain Exceptions for a missing library
             raise InputError(f"{self._location}: FMU {spec.path.name} cannot be loaded: "
                              f"{error}") from None
-        self._checked("instantiate", self._instantiate)
+        self._checked("instantiate", self._instantiating, self._instantiate)
         self._checked("enter initialization mode", self._enter_initialization)
         for name, (_, value) in spec.parameters.items():
             self._checked(f"set {name}", self._set_values, [self.variables[name]], [value])
@@ -203,6 +203,7 @@ class FmpyAdapter(Checkpoint, Subsystem):
         """Terminate and free the instance (nothing after Fatal); a failure here is the
         caller's to report."""
         if self.fmu is None or not self.fmu.component or self.fatal:
+            self._gone()
             return
         forget(self.name)
         try:
@@ -216,6 +217,7 @@ class FmpyAdapter(Checkpoint, Subsystem):
         finally:
             self.fmu.freeInstance()
             self.fmu.component = None
+            self._gone()
 
     def _terminate(self) -> None:
         self.fmu.terminate()

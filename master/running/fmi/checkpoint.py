@@ -5,6 +5,7 @@ and the instance is freed at once; after Fatal no call may follow."""
 from __future__ import annotations
 
 from dsim.master.errors import InputError, SimulationError, StepFailure, Terminated
+from dsim.master.running.fmi import python_path
 from dsim.master.running.fmi.messages import logged_error
 
 
@@ -17,6 +18,24 @@ class Checkpoint:
     #: the time (s) this FMU reached when it ended the simulation itself, its step
     #: complete: the next step raises :class:`Terminated` (the run keeps this step)
     ended_at = None
+    #: what this instance's instantiation added to ``sys.path`` (an FMU that embeds
+    #: Python), held until it is freed (:mod:`~dsim.master.running.fmi.python_path`)
+    _python_path: tuple = ()
+
+    def _instantiating(self, instantiate):
+        """Call ``instantiate`` (fmpy's), holding what it adds to ``sys.path``, also
+        when it fails (the instance is then released)."""
+        before = python_path.watch()
+        try:
+            return instantiate()
+        finally:
+            self._python_path = python_path.adopt(before)
+
+    def _gone(self) -> None:
+        """The instance is freed or may not be called any more: its ``sys.path``
+        entries go when no other instance holds them."""
+        held, self._python_path = self._python_path, ()
+        python_path.release(held)
 
     def _termination(self) -> float | None:
         """After a discarded step: the time the FMU reached if it says it has ended the
@@ -83,3 +102,4 @@ class Checkpoint:
             except Exception:  # the refusal being reported matters more than a leak
                 pass
         self.fmu.component = None
+        self._gone()

@@ -191,8 +191,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
         # until finish_initialization() the instance is in initialization mode, where a
         # failing call means the model refused the scene's parameters: bad input
         self._initializing = True
-        self._call("fmi2Instantiate", lambda: self.fmu.instantiate(
-            callbacks=CALLBACKS2, loggingOn=True))
+        self._call("fmi2Instantiate", lambda: self._instantiating(
+            lambda: self.fmu.instantiate(callbacks=CALLBACKS2, loggingOn=True)))
         self.handle = ctypes.c_void_p(self.fmu.component)
         self._forces = _Batch(self, "Real", [p.force for p in port_dofs])
         # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
@@ -521,6 +521,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
         after fmi2Fatal nothing); a failure here is the caller's to report, never to
         replace the error that ended the run."""
         if self.fmu.component is None or self.fatal:
+            self._gone()
             return
         forget(self.name)  # what it logs now is about the cleanup
         try:
@@ -535,3 +536,4 @@ class FmuSubsystem(Checkpoint, Subsystem):
                                   + (f" ({reason})" if reason else "")) from None
         finally:
             self.fmu.freeInstance()
+            self._gone()
