@@ -84,6 +84,11 @@ class Observer:
     def started(self, info: RunInfo) -> None:
         """The run is about to start (raise InputError to refuse it)."""
 
+    def preparing(self, what: str, done: int, total: int) -> None:
+        """The set-up goes on: ``done`` of ``total`` ``what`` (``"FMUs instantiated"``;
+        ``total`` 0: no count, ``"initialising"``); between :meth:`started` and the
+        first :meth:`stepped`, a few times a second at most."""
+
     def stepped(self, record: StepRecord) -> None:
         """A step converged (index 0: the start)."""
 
@@ -447,10 +452,20 @@ class ProgressBar(Observer):
                                  transient=True, console=Console(file=stream))
         self.progress.start()
         self.iterations = 0
-        self.task = self.progress.add_task(self.label or info.scene, total=info.planned_steps,
+        self.task_label = self.label or info.scene
+        self.task = self.progress.add_task(self.task_label, total=info.planned_steps,
                                            t=info.start_time, it=0.0)
 
+    def preparing(self, what: str, done: int, total: int) -> None:
+        # a set-up of thousands of FMUs takes seconds: the line says how far it is
+        if self.progress:
+            counted = f" {done:,}/{total:,}" if total else ""
+            self.progress.update(self.task, refresh=True,
+                                 description=f"{self.task_label} · {what}{counted}")
+
     def stepped(self, record: StepRecord) -> None:
+        if self.progress and not record.index:
+            self.progress.update(self.task, description=self.task_label)
         if self.progress and record.index:
             self.iterations += record.iterations
             self.progress.update(self.task, completed=record.index, t=record.time,

@@ -112,9 +112,23 @@ class Execution:
         start = clock.perf_counter()
         try:
             for observer in self.observers:
-                getattr(observer, hook)(*args)
+                method = getattr(observer, hook, None)  # an observer made before a hook
+                if method is not None:
+                    method(*args)
         finally:
             self._phases["observers"] += clock.perf_counter() - start
+
+    #: seconds between two set-up progress notices (the last is always passed on)
+    PREPARING_EVERY = 0.2
+
+    def _instantiated(self, done: int, total: int) -> None:
+        """The backend's progress: ``done`` of ``total`` FMUs instantiated, passed to
+        the observers a few times a second."""
+        now = clock.perf_counter()
+        if done < total and now - getattr(self, "_told", -math.inf) < self.PREPARING_EVERY:
+            return
+        self._told = now
+        self._notify("preparing", "FMUs instantiated", done, total)
 
     def warn(self, message: str) -> None:
         """Record a warning and pass it to the observers."""
@@ -153,8 +167,9 @@ class Execution:
             for observer in self.observers:
                 observer.started(info)
                 started.append(observer)
-            self.backend = BACKENDS[plan.backend].from_specs(plan.specs,
-                                                             **(plan.backend_options or {}))
+            self.backend = BACKENDS[plan.backend].from_specs(
+                plan.specs, progress=self._instantiated, **(plan.backend_options or {}))
+            self._notify("preparing", "initialising", 0, 0)
             self._initialize(layout, joints)
         except BaseException as error:
             for observer in started:

@@ -36,9 +36,11 @@ class Backend(ABC):
 
     @classmethod
     @abstractmethod
-    def from_specs(cls, specs, **options) -> "Backend":
+    def from_specs(cls, specs, progress=None, **options) -> "Backend":
         """Create every subsystem of a run from its
-        :class:`~dsim.master.running.fmi.SubsystemSpec` (instantiated, in initialization mode)."""
+        :class:`~dsim.master.running.fmi.SubsystemSpec` (instantiated, in initialization mode);
+        ``progress(done, total)``, if given, is told how many are instantiated as they
+        are."""
 
     @abstractmethod
     def subset(self, indices) -> "Backend":

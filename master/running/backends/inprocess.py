@@ -22,12 +22,14 @@ class InProcessBackend(Backend):
         self._frozen = False
 
     @classmethod
-    def from_specs(cls, specs, **options) -> "InProcessBackend":
-        subsystems = []
+    def from_specs(cls, specs, progress=None, **options) -> "InProcessBackend":
+        subsystems, specs = [], list(specs)
         try:
             with collector_paused():  # thousands of instances: see collector.py
                 for spec in specs:
                     subsystems.append(open_subsystem(spec))
+                    if progress is not None:
+                        progress(len(subsystems), len(specs))
         except BaseException:
             cls(subsystems).close()
             raise

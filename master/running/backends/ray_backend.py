@@ -123,10 +123,13 @@ class RayBackend(Recovery, Backend):
 
     @classmethod
     def from_specs(cls, specs, address=None, call_timeout=None, restarts=None,
-                   **options) -> "RayBackend":
+                   progress=None, **options) -> "RayBackend":
         connection = connect(address)
+        specs = list(specs)
         try:
-            backend = cls._start(connection, list(specs))
+            backend = cls._start(connection, specs)
+            if progress is not None:  # the workers instantiate at once: all or none
+                progress(len(specs), len(specs))
             backend._cluster.call_timeout = call_timeout
             backend._cluster.restarts = RESTARTS if restarts is None else restarts
             backend._cluster.restarts_left = backend._cluster.restarts
