@@ -159,6 +159,41 @@ def test_the_first_signal_ends_a_run_stuck_in_an_fmu_after_the_grace_period(hung
                                        f"finish within {GRACE:g} s, then ended at once")
 
 
+def test_the_first_signal_ends_a_set_up_stuck_in_an_fmu_after_the_grace_period(tmp_path):
+    """An FMU that never leaves its initialization: the run never starts stepping, and
+    one Ctrl-C still ends it GRACE seconds later, with the statistics and an empty CSV
+    (before, only a second signal did)."""
+    from dsim.master.running.interrupts import GRACE
+
+    if shutil.which("gcc") is None:
+        pytest.skip("no C compiler")
+    fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES,
+                defines=("HANG_INITIALIZATION",))
+    text = ssd("stuck", [component("osc", "resources/oscillator.fmu",
+                                   {"m": 1.0, "k": 100.0, "s0": 0.01}, outputs=["s"])],
+               stop=1.0, master='step="0.001"')
+    scene = scene_folder(tmp_path / "scene", text, {"oscillator.fmu": fmu})
+    target = tmp_path / "out" / "run.csv"
+    process = start(scene, target)
+    try:
+        time.sleep(2.0)  # instantiated and stuck (no row: the start is never reached)
+        assert process.poll() is None and rows_on_disk(target) == -1
+        process.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        _, err = process.communicate(timeout=60)
+        took = time.monotonic() - sent
+    finally:
+        process.kill()
+        process.wait()
+    assert process.returncode == 130, err
+    assert GRACE <= took < GRACE + 5.0, took
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert (stats["status"], stats["steps"]) == ("interrupted", 0)
+    assert stats["message"].startswith(f"interrupted by SIGINT; the set-up did not finish "
+                                       f"within {GRACE:g} s, then ended at once")
+    assert read_csv(target)[0] == ["time", "osc.s"]
+
+
 def test_rows_are_on_disk_when_the_process_is_killed_outright(hung_scene, tmp_path):
     """The 50 steps take a few milliseconds, less than the 50 ms between two writes:
     the rows still reach the file while the step hangs, so SIGKILL keeps them (under

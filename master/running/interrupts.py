@@ -3,8 +3,9 @@
 The first signal asks the run to stop after the current step
 (:meth:`~dsim.master.running.execution.Execution.stop`): the step ends, the subsystems are
 released, every file is finished, and the command exits with 128 + the signal.  A step
-that has not finished :data:`GRACE` seconds later (a hung FMU, a frozen worker) is not
-waited for: the run ends as on a second signal.
+that has not finished :data:`GRACE` seconds later (a hung FMU, a frozen worker), or a
+set-up (a first signal stops the run at its start), is not waited for: the run ends as
+on a second signal.
 
 A second signal ends the process at once.  A Python signal handler runs only in the
 main thread, between two bytecodes: while the main thread is inside an FMU's
@@ -115,12 +116,16 @@ class SignalWatch:
 
 
     def _graced(self, index: int, number: int) -> None:
-        """The grace after the first signal is over: a run still in the step it was in
-        ends at once (see :data:`GRACE`)."""
+        """The grace after the first signal is over: a run still in the step it was in,
+        or still setting up (instantiating thousands of FMUs, or an FMU stuck in its
+        initialization), ends at once (see :data:`GRACE`)."""
         execution = self.execution
-        if self.count == 1 and execution.status == "running" and execution.index == index:
-            execution.stop(f"interrupted by {signal.Signals(number).name}; the step under "
-                           f"way did not finish within {GRACE:g} s", number)
+        setting_up = execution.status == "created"
+        if self.count == 1 and (setting_up or (execution.status == "running"
+                                               and execution.index == index)):
+            what = "the set-up" if setting_up else "the step under way"
+            execution.stop(f"interrupted by {signal.Signals(number).name}; {what} did not "
+                           f"finish within {GRACE:g} s", number)
             end_at_once(execution, number)
 
 

@@ -10,7 +10,8 @@
  * it would.  With -DCRASH_TIME=t its process ends abruptly (_exit) in the first
  * step that reaches t (t < 0: when it is instantiated), as a crashing FMU takes down
  * whatever process loads it.  With -DHANG_TIME=t the first step that reaches t never
- * returns, as an FMU stuck in its own solver. */
+ * returns, as an FMU stuck in its own solver; with -DHANG_INITIALIZATION
+ * fmi2ExitInitializationMode never returns. */
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -61,6 +62,9 @@ FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 }
 FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Model *m = c;
+#ifdef HANG_INITIALIZATION
+    for (;;) pause();
+#endif
     m->x[VR_S] = m->x[VR_S0]; m->x[VR_V] = 0.0;
     update_acceleration(m);
     m->initializing = 0;
