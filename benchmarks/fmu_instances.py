@@ -32,7 +32,8 @@ from pathlib import Path
 from pythonfmu import Fmi2Slave
 from dsim.master.running.fmi import SubsystemSpec, open_subsystem
 
-path, small, large, trace = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4] == "1"
+path, small, large = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+trace = sys.argv[4] == "1"
 model = path.stem
 page = os.sysconf("SC_PAGE_SIZE")
 
