@@ -1,7 +1,8 @@
 """Linear elastic finite-element bodies (scikit-fem) as glueable cores.
 
 ``ElasticBody`` implements :class:`dsim.fmus.interface.InterfaceCore`; ``frame`` builds the
-ladder-frame scenes of SCENES.md. See docs/elastic_body.md.
+ladder-frame scenes of SCENES.md; ``slave`` holds the ElasticBody FMU's model class, which its
+script ``elastic_body_fmu`` imports. See docs/elastic_body.md.
 """
 from .assembly import STEEL, Material
 from .core import ElasticBody, PointLoad

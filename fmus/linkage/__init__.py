@@ -1,5 +1,6 @@
 """Planar rigid multibody core (:mod:`.core`), its parts list (:mod:`.elements`),
-motion laws (:mod:`.laws`) and the shipped mechanisms (:mod:`.scenes`)."""
+motion laws (:mod:`.laws`), the shipped mechanisms (:mod:`.scenes`) and the Linkage2D FMU's
+model class (:mod:`.slave`, imported by its script :mod:`.linkage_fmu`)."""
 from .core import Linkage, LinkageConvergenceError
 from .elements import (AngleDriver, Body, Bushing, Mechanism, Port, Prismatic, Revolute,
                        SpringDamper)

@@ -1,16 +1,13 @@
-"""FMI 2.0 co-simulation wrapper of a planar linkage
-(:class:`fmus.linkage.parts.PartCore` over :class:`fmus.linkage.core.Linkage`).
+"""The Linkage2D FMU's script (what pythonfmu builds and loads): the model class is
+:class:`fmus.linkage.slave.Linkage2D`, imported here.
 
-The String parameter ``mechanism`` describes it (JSON text or a file of the
-resources folder: bodies, pins, sliders, drivers, springs, bushings, ports,
-gravity; :mod:`fmus.linkage.description`), so one FMU serves any planar linkage
-(by default a pendulum, so that it runs alone).  The constraint stabilisation (``formulation``,
-``baumgarte_frequency`` w rad/s, ``baumgarte_damping`` xi) is a parameter too, and so is
-the integrator's ``spectral_radius`` rho_inf (1, the default: the trapezoidal rule;
-below 1: generalized-alpha, which damps the modes above 1/h).  Ports A, B, P (dofs x y)
-follow DESIGN.md; a port the part lacks takes no force and reports zero motion.
-Outputs: the part's body ``x y theta vx vy omega ax ay alpha``, the driver
-``torque``, ``constraint_violation``, ``newton_iterations`` and ``newton_roundoff_steps``.
+pythonfmu 0.7 runs this script again for every instance it makes (to find the model
+class among the names it defines), in this module's namespace, and keeps what that run
+makes (the classes' method resolution lists it reads are never released): a class
+defined here would be made again, with its methods and variables, for each of 10,000
+instances.  Imported, it is made once.  pythonfmu also releases one reference to this
+module's namespace per instance that it never took: the script holds one for it
+(``_HELD``), or the namespace would be freed under the module after a few instances.
 """
 import os
 import sys
@@ -21,42 +18,6 @@ _OWN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fmus")
 if "fmus" in sys.modules and os.path.isdir(_OWN) and _OWN not in sys.modules["fmus"].__path__:
     sys.modules["fmus"].__path__.insert(0, _OWN)
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
+globals().setdefault("_HELD", []).append(globals())
 
-from fmus.fmi_binding import CoreBinding, glued_slave
-from fmus.linkage.parts import PART_OUTPUTS, PartCore, PartParameters, build_part
-
-DESCRIPTIONS = {
-    "mechanism": "the mechanism: a description (JSON text, docs/linkages.md) or the name of "
-                 "a file holding one in the FMU's resources folder (default: a pendulum)",
-    "formulation": "constraint rows: baumgarte or index3",
-    "baumgarte_frequency": "Baumgarte w, rad/s", "baumgarte_damping": "Baumgarte xi",
-    "spectral_radius": "rho_inf of the generalized-alpha rule, 0..1: numerical damping of "
-                       "the modes above 1/h (1: the trapezoidal rule, no damping)",
-}
-
-
-@glued_slave
-class Linkage2D(Fmi2Slave):
-    """A planar rigid mechanism from its description, glueable at A, B, P."""
-
-    author = "dsim"
-    description = ("Planar rigid multibody part (trapezoidal or generalized-alpha rule, "
-                   "Baumgarte rows)")
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.params = PartParameters()
-        parameter = dict(causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
-        for name, value in vars(self.params).items():
-            kind = String if isinstance(value, str) else Real
-            self.register_variable(kind(
-                name, description=DESCRIPTIONS[name],
-                getter=lambda name=name: getattr(self.params, name),
-                setter=lambda value, name=name, kind=kind: setattr(
-                    self.params, name, str(value) if kind is String else float(value)),
-                **parameter), nested=False)
-        self.binding = CoreBinding(self, PartCore.interface, PART_OUTPUTS)
-
-    def build_core(self):
-        return PartCore(build_part(self.params, self.resources))
+from fmus.linkage.slave import Linkage2D  # noqa: E402,F401 (the model class)
