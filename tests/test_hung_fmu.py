@@ -68,6 +68,25 @@ def wait_for_the_hang(process, target: Path, seconds: float = 60) -> None:
     assert rows_on_disk(partial) == ROWS and process.poll() is None
 
 
+def ended_by_one_signal(process, target: Path, stuck) -> dict:
+    """``stuck()`` returns once the run is stuck; then one SIGINT: the process must end
+    GRACE to GRACE + 5 s later with exit code 130.  The run's statistics."""
+    from dsim.master.running.interrupts import GRACE
+
+    try:
+        stuck()
+        process.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        _, err = process.communicate(timeout=60)
+        took = time.monotonic() - sent
+    finally:
+        process.kill()
+        process.wait()
+    assert process.returncode == 130, err
+    assert GRACE <= took < GRACE + 5.0, took
+    return json.loads(target.with_suffix(".stats.json").read_text())
+
+
 def alive(pid: int) -> bool:
     """Whether a process runs (a zombie has ended: only its exit status waits for a
     parent that may be gone too)."""
@@ -141,19 +160,8 @@ def test_the_first_signal_ends_a_run_stuck_in_an_fmu_after_the_grace_period(hung
 
     target = tmp_path / "out" / "run.csv"
     process = start(hung_scene, target)
-    try:
-        wait_for_the_hang(process, target)
-        process.send_signal(signal.SIGINT)
-        sent = time.monotonic()
-        _, err = process.communicate(timeout=60)
-        took = time.monotonic() - sent
-    finally:
-        process.kill()
-        process.wait()
-    assert process.returncode == 130, err
-    assert GRACE <= took < GRACE + 5.0, took
+    stats = ended_by_one_signal(process, target, lambda: wait_for_the_hang(process, target))
     assert read_csv(target)[1].shape[0] == ROWS
-    stats = json.loads(target.with_suffix(".stats.json").read_text())
     assert (stats["status"], stats["steps"]) == ("interrupted", CONVERGED)
     assert stats["message"].startswith(f"interrupted by SIGINT; the step under way did not "
                                        f"finish within {GRACE:g} s, then ended at once")
@@ -175,19 +183,12 @@ def test_the_first_signal_ends_a_set_up_stuck_in_an_fmu_after_the_grace_period(t
     scene = scene_folder(tmp_path / "scene", text, {"oscillator.fmu": fmu})
     target = tmp_path / "out" / "run.csv"
     process = start(scene, target)
-    try:
+
+    def stuck():
         time.sleep(2.0)  # instantiated and stuck (no row: the start is never reached)
         assert process.poll() is None and rows_on_disk(target) == -1
-        process.send_signal(signal.SIGINT)
-        sent = time.monotonic()
-        _, err = process.communicate(timeout=60)
-        took = time.monotonic() - sent
-    finally:
-        process.kill()
-        process.wait()
-    assert process.returncode == 130, err
-    assert GRACE <= took < GRACE + 5.0, took
-    stats = json.loads(target.with_suffix(".stats.json").read_text())
+
+    stats = ended_by_one_signal(process, target, stuck)
     assert (stats["status"], stats["steps"]) == ("interrupted", 0)
     assert stats["message"].startswith(f"interrupted by SIGINT; the set-up did not finish "
                                        f"within {GRACE:g} s, then ended at once")

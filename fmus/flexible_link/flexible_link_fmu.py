@@ -1,13 +1,9 @@
 """The FlexibleLink2D FMU's script (what pythonfmu builds and loads): the model class is
 :class:`fmus.flexible_link.slave.FlexibleLink2D`, imported here.
 
-pythonfmu 0.7 runs this script again for every instance it makes (to find the model
-class among the names it defines), in this module's namespace, and keeps what that run
-makes (the classes' method resolution lists it reads are never released): a class
-defined here would be made again, with its methods and variables, for each of 10,000
-instances.  Imported, it is made once.  pythonfmu also releases one reference to this
-module's namespace per instance that it never took: the script holds one for it
-(``_HELD``), or the namespace would be freed under the module after a few instances.
+Why it imports its model class instead of defining it, and holds ``_HELD``:
+fmus/spring_mass/spring_mass_fmu.py.  The lines below are the same in every dsim FMU's
+script: each runs alone, before its own ``fmus`` package can be imported.
 """
 import os
 import sys

@@ -8,6 +8,7 @@ defined here would be made again, with its methods and variables, for each of 10
 instances.  Imported, it is made once.  pythonfmu also releases one reference to this
 module's namespace per instance that it never took: the script holds one for it
 (``_HELD``), or the namespace would be freed under the module after a few instances.
+The ElasticBody, Linkage2D and FlexibleLink2D scripts do the same, with the same lines.
 """
 import os
 import sys
