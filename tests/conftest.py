@@ -123,6 +123,7 @@ NODE_MARKERS = {
     "tests/test_doe.py::test_a_terminated_serial_sweep_finishes_on_the_same_command": ("slow",),
     # slow: 3 to 4 s each (out of `make quick`, to keep it well under 3 minutes)
     "tests/test_hung_fmu.py::test_the_first_signal_ends_a_run_stuck_in_an_fmu_after_the_grace_period": ("slow",),
+    "tests/test_hung_fmu.py::test_the_first_signal_ends_a_set_up_stuck_in_an_fmu_after_the_grace_period": ("slow",),
     "tests/test_stability.py::test_undamped_energy_drifts_no_more_than_the_twins": ("slow",),
     "tests/test_files_security.py::test_a_scene_of_many_components_is_checked_in_linear_time": ("slow",),
     "tests/test_flexible_link_core.py::test_glued_crank_slider_with_flexible_coupler": ("slow",),
