@@ -79,6 +79,7 @@ class Execution:
         self.error: Exception | None = None
         self.signal: int | None = None
         self._stop_requested: str | None = None
+        self._told = -math.inf  # when the observers last heard of the set-up's progress
         #: the component that ended the simulation itself and the time it reached
         #: (:class:`~dsim.master.errors.Terminated`), or None
         self.ended_by: dict | None = None
@@ -125,7 +126,7 @@ class Execution:
         """The backend's progress: ``done`` of ``total`` FMUs instantiated, passed to
         the observers a few times a second."""
         now = clock.perf_counter()
-        if done < total and now - getattr(self, "_told", -math.inf) < self.PREPARING_EVERY:
+        if done < total and now - self._told < self.PREPARING_EVERY:
             return
         self._told = now
         self._notify("preparing", "FMUs instantiated", done, total)
