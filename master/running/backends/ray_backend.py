@@ -38,7 +38,7 @@ from dsim.master.running.backends.ray_recovery import (RESTARTS, Recovery, _caus
                                                        _first_line, _quoted, _unrestartable,
                                                        _who)
 from dsim.master.running.backends.ray_placement import Placement
-from dsim.master.running.backends.ray_worker import CHECKPOINT, Host, deal, unpack_steps
+from dsim.master.running.backends.ray_worker import CHECKPOINT, Host, deal, unpack_answers
 from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
 
 #: seconds to wait for the workers to start and instantiate their FMUs
@@ -236,7 +236,7 @@ class RayBackend(Recovery, Backend):
         return places
 
     # --- the batched calls -------------------------------------------------------
-    def _run(self, steps, time=None, answer: bool = True, stepped: bool = False) -> list:
+    def _run(self, steps, time=None, answer: bool = True) -> list:
         """``steps[i]``: the (method, arguments) calls of subsystem i, in order; one
         remote call per worker, all launched before any answer is awaited.  The results
         of each subsystem's calls (a list; empty for one given no call).  Without
@@ -261,17 +261,14 @@ class RayBackend(Recovery, Backend):
             payloads[host] = ahead + batch
             if self._restartable(host):  # the journal must hold the values as sent
                 payloads[host] = _copied(payloads[host])
-            if stepped:  # each entry of the batch a step and a read: packed answers
-                pending[host] = cluster.hosts[host].run_steps.remote(payloads[host],
-                                                                     skipped[host])
-            else:
-                pending[host] = cluster.hosts[host].run.remote(payloads[host])
+            # the answers of thousands of subsystems come back packed (pack_answers)
+            pending[host] = cluster.hosts[host].run_packed.remote(payloads[host],
+                                                                  skipped[host])
         answers = {}
         for host, ref in pending.items():
             cluster.waiting = (host, clock.monotonic())  # for the progress line
             try:
-                results = self._answer(host, ref, payloads[host],
-                                       _unpacked if stepped else None)
+                results = self._answer(host, ref, payloads[host], _unpacked)
             finally:
                 cluster.waiting = None
             self._journal(host, payloads[host], results)
@@ -319,7 +316,7 @@ class RayBackend(Recovery, Backend):
         after the step that converges, the couplings read the outputs next, so that
         round trip is saved (reading changes nothing in an FMU)."""
         answers = self._run([[(method, tuple(c[i] for c in columns)), ("read_outputs", ())]
-                             for i in range(len(self.members))], time, stepped=True)
+                             for i in range(len(self.members))], time)
         for member, (_, outputs) in zip(self.members, answers):
             self._cluster.outputs[member] = outputs
         return [kinematics for kinematics, _ in answers]
@@ -501,10 +498,10 @@ class IsolatedBackend(RayBackend):
 
 
 def _unpacked(answer) -> list:
-    """A worker's :meth:`~dsim.master.running.backends.ray_worker.Host.run_steps`
+    """A worker's :meth:`~dsim.master.running.backends.ray_worker.Host.run_packed`
     answer as :meth:`~dsim.master.running.backends.ray_worker.Host.run` gives it."""
     head, packed, rest = answer
-    return head + (unpack_steps(*packed) if packed is not None else rest)
+    return head + (unpack_answers(*packed) if packed is not None else rest)
 
 
 def _shipped_files(shipment, spec) -> tuple:

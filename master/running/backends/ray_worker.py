@@ -116,13 +116,12 @@ class Host:
             results.append(done)
         return results
 
-    def run_steps(self, calls, first: int) -> tuple:
-        """:meth:`run`, for a batch whose entries from ``first`` on are steps with a
-        read of the outputs (each answering [kinematics, outputs]): the results before
-        ``first`` as they are, and those from it on as :func:`pack_steps` packs them
-        (or as they are, when one is not of that shape)."""
+    def run_packed(self, calls, first: int) -> tuple:
+        """:meth:`run`, the results of the entries from ``first`` on packed by
+        :func:`pack_answers` when they can be (else as they are), those before as they
+        are (calls sent ahead, whose answers are other things)."""
         results = self.run(calls)
-        packed = pack_steps(results[first:])
+        packed = pack_answers(results[first:])
         return results[:first], packed, None if packed is not None else results[first:]
 
     def _call(self, slot: int, method: str, arguments):
@@ -177,42 +176,77 @@ class Host:
         return errors
 
 
-def pack_steps(entries) -> tuple | None:
-    """Thousands of subsystems' answers to a step, each ``[(u, v, a), outputs]`` of
-    float64 vectors (a kind the FMU lacks: None), as two arrays: every value in order,
-    and each vector's length (-1: None); None when an answer is of another shape.  Ray
-    serializes each numpy array on its own, and unpacking 10,000 subsystems' arrays was
-    most of what the driver did in a step of chain_10000 (2.09 to 2.35 s a step before,
-    1.68 to 1.75 s packed: docs/distributed.md).  Written by hand: Ray has no packing of
-    many small arrays."""
-    arrays, sizes = [], []
-    for done in entries:
-        if len(done) != 2 or type(done[0]) is not tuple or len(done[0]) != 3:
-            return None
-        for item in (*done[0], done[1]):
-            if item is None:
-                sizes.append(-1)
-            elif type(item) is np.ndarray and item.dtype == np.float64 and item.ndim == 1:
-                sizes.append(item.size)
-                arrays.append(item)
-            else:
+class _Unpackable(Exception):
+    """An answer :func:`pack_answers` does not pack."""
+
+
+def _vector(item, sizes: list, arrays: list) -> None:
+    if item is None:
+        sizes.append(-1)
+    elif type(item) is np.ndarray and item.dtype == np.float64 and item.ndim == 1:
+        sizes.append(item.size)
+        arrays.append(item)
+    else:
+        raise _Unpackable
+
+
+def pack_answers(entries) -> tuple | None:
+    """Thousands of subsystems' answers of one form, each a list of float64 vectors
+    (``v``) and (u, v, a) kinematics (``k``), a missing one None (a kind the FMU lacks),
+    as the form (``"kv"`` for a step and its outputs) and two arrays: every value in
+    order, and each vector's length (-1: None); None when the answers are not all of
+    one such form.  Ray serializes each numpy array on its own, and unpacking 10,000
+    subsystems' arrays was most of what the driver did in a step of chain_10000 (2.13
+    to 2.46 s a step before, 1.73 to 1.95 s packed; set-up 4.92 to 5.94 s before, 4.17
+    to 4.88 s: docs/distributed.md).  Written by hand: Ray has no packing of many small
+    arrays."""
+    if not entries:
+        return None
+    form = "".join("k" if type(item) is tuple else "v" for item in entries[0])
+    arrays: list = []
+    sizes: list = []
+    try:
+        for done in entries:
+            if len(done) != len(form):
                 return None
-    return (np.concatenate(arrays) if arrays else np.zeros(0),
+            for code, item in zip(form, done):
+                if code == "v":
+                    _vector(item, sizes, arrays)
+                elif type(item) is tuple and len(item) == 3:
+                    for vector in item:
+                        _vector(vector, sizes, arrays)
+                else:
+                    return None
+    except _Unpackable:
+        return None
+    return (form, np.concatenate(arrays) if arrays else np.zeros(0),
             np.array(sizes, dtype=np.int64))
 
 
-def unpack_steps(values: np.ndarray, sizes: np.ndarray) -> list:
-    """The answers :func:`pack_steps` packed, each vector a view of one writable copy
-    of ``values`` (the same bits)."""
+def unpack_answers(form: str, values: np.ndarray, sizes: np.ndarray) -> list:
+    """The answers :func:`pack_answers` packed, each vector a view of one writable
+    copy of ``values`` (the same bits)."""
     values = np.array(values, dtype=np.float64)
-    items, start = [], 0
+    vectors, start = [], 0
     for size in sizes.tolist():
         if size < 0:
-            items.append(None)
+            vectors.append(None)
         else:
-            items.append(values[start:start + size])
+            vectors.append(values[start:start + size])
             start += size
-    return [[tuple(items[k:k + 3]), items[k + 3]] for k in range(0, len(items), 4)]
+    answers, k = [], 0
+    width = sum(3 if code == "k" else 1 for code in form)
+    for k in range(0, len(vectors), width):
+        done, at = [], k
+        for code in form:
+            if code == "k":
+                done.append(tuple(vectors[at:at + 3]))
+                at += 3
+            else:
+                done.append(vectors[at])
+                at += 1
+        answers.append(done)
+    return answers
 
 
 def deal(count: int, workers: int) -> list[list[int]]:

@@ -1,0 +1,49 @@
+"""A Ray worker's answers for thousands of subsystems travel as two arrays
+(master/running/backends/ray_worker.py, pack_answers): every vector back to the bit,
+None where an FMU lacks a kind, answers of another kind sent as they were."""
+import pickle
+
+import numpy as np
+
+from dsim.master.running.backends.ray_worker import pack_answers, unpack_answers
+
+
+def round_trip(answers):
+    packed = pack_answers(answers)
+    return None if packed is None else unpack_answers(*pickle.loads(pickle.dumps(packed)))
+
+
+def same(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    if isinstance(a, tuple):
+        return isinstance(b, tuple) and len(a) == len(b) and all(map(same, a, b))
+    return b.dtype == np.float64 and a.tobytes() == b.tobytes()
+
+
+def test_steps_and_reads_come_back_to_the_bit_with_their_gaps():
+    rng = np.random.default_rng(3)
+    odd = np.array([np.nan, -0.0, 5e-324, np.inf])
+    steps = [[(rng.standard_normal(2), None, rng.standard_normal(2)), rng.random(3)],
+             [(odd, odd[:2].copy(), None), np.zeros(0)],
+             [(None, None, None), rng.random(1)]]
+    back = round_trip(steps)
+    assert len(back) == 3 and all(same(x, y) for s, b in zip(steps, back)
+                                  for x, y in zip(s, b))
+    back[0][1][0] = 7.0  # writable, and no other vector moves
+    assert back[1][0][0].tobytes() == odd.tobytes()
+    reads = [[rng.random(2)], [None], [odd]]  # read_outputs, set_forces (None) and the like
+    assert all(same(s[0], b[0]) for s, b in zip(reads, round_trip(reads)))
+    kinematics = [[(rng.random(1), rng.random(1), None)] for _ in range(4)]
+    assert all(same(s[0], b[0]) for s, b in zip(kinematics, round_trip(kinematics)))
+
+
+def test_answers_of_other_kinds_or_forms_are_not_packed():
+    kinematics = (np.zeros(2), None, None)
+    assert pack_answers([]) is None
+    assert pack_answers([[kinematics, np.zeros(1)], [kinematics]]) is None  # two forms
+    assert pack_answers([[kinematics], [np.zeros(2)]]) is None
+    assert pack_answers([[np.arange(2)]]) is None  # not float64
+    assert pack_answers([[np.zeros((2, 2))]]) is None
+    assert pack_answers([[{"fmi2DoStep": [3, 0.1]}]]) is None  # statistics
+    assert pack_answers([[["text"]]]) is None and pack_answers([[(1, 2)]]) is None
