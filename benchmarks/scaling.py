@@ -163,42 +163,31 @@ RAY_NOTES = (
     "start out of later set-ups, but the FMU code of one run (a pythonfmu FMU runs its "
     "Python in the worker's interpreter) would live on in the process that hosts the "
     "next run's FMUs, and separate processes per run are what the Ray and isolated "
-    "backends are for; sending a batch's float arrays as one array (a walk over the "
-    "batch on each side) made chain_10000 on Ray slower, not faster (set-up 7.9 and "
-    "8.7 s against 7.3 and 8.1 s, a step 3.1 and 3.2 s against 2.7 and 2.9 s, "
-    "interleaved on 2026-11-27): at 5,000 subsystems a worker, walking the batch in "
-    "Python costs as much per object as Ray's own serialization of each array.",
+    "backends are for; sending every batch's float arrays as one array, found by a "
+    "walk over the whole batch on each side, made chain_10000 on Ray slower, not faster "
+    "(set-up 7.9 and 8.7 s against 7.3 and 8.1 s, a step 3.1 and 3.2 s against 2.7 and "
+    "2.9 s, interleaved on 2026-11-27, under other load): a generic walk in Python costs "
+    "as much per object as Ray's own serialization of each array. What was kept packs "
+    "only the answers, whose forms are known (a step's kinematics and outputs, a read), "
+    "in one pass (`ray_worker.pack_answers`).",
     "",
-    "**Why Ray is behind, and stays so on two cores.** Before the SpringMass FMU "
-    "declared its variables once per class, an instance took 1.6 ms to make and "
-    "chain_1000 set up in 1.9 s in-process: two workers could save half of that, and "
-    "with both cores free Ray was ahead (1.61 s against 2.29 s, Ray faster in 4 of 5 "
-    "pairs, in a run of this script earlier on 2026-11-27). The whole set-up now "
-    "costs about 0.5 ms per component, and chain_1000 sets up in-process in about "
-    "0.5 s, less than starting one worker process: the table above. At chain_10000 "
-    "too (measured on 2026-11-27 in one process, in turn, two pairs after one of "
-    "each not measured, stop 5 ms): in-process 6.73 and 7.15 s, Ray 9.46 and 9.03 s, "
-    "the same bytes; "
-    "Ray's share of the instantiation is halved, but each initialisation call now "
-    "carries 5,000 subsystems' values each way through Ray's serialisation, and the "
-    "driver waits for both workers at every call. With more cores per machine, or "
-    "more machines, the instantiation divides further while the start of the workers "
-    "does not grow; on these machines Ray's place is running components apart "
-    "(isolation, placement, node loss: docs/distributed.md), not a faster set-up.")
-
-
-#: the page's advice for a user with a large scene (its numbers measured as it says)
-GUIDE = (
-    '## Running a large scene',
-    '',
-    'What to expect, and what helps, with thousands of components (numbers from the tables above and from runs of chain_10000 on these machines on 2026-11-27):',
-    '',
-    "- **Set-up** costs about half a millisecond and 35 to 50 kB per component besides what its model holds (an ElasticBody's mesh and matrices: docs/elastic_body.md); chain_10000 sets up in about 5 s and runs in about 0.5 GB. On a terminal the progress line counts the FMUs as they are instantiated (`chain_10000 · FMUs instantiated 1,282/10,000`), then says `initialising`; Observer.preparing tells a script the same (docs/api.md).",
-    '- **Ctrl-C during the set-up** ends the run within 5 s with its statistics, as during a step; a second Ctrl-C ends it at once (docs/results.md).',
-    '- **Look before running**: `dsim validate` and `dsim info` stay linear (the table above); `dsim info` prints counts and one line per distinct FMU, `dsim info --all` every variable (810,000 lines at 10,000 components).',
-    '- **Record what you need**: a run records every output it is given and every joint force by default, 20,000 columns at chain_10000; `--outputs` and `--output-interval` choose columns and rows (docs/parameters.md). The statistics JSON holds a table of FMI calls per component, about 1.4 kB each (14 MB at 10,000).',
-    '- **In-process or Ray**: on one 2-core machine the in-process backend sets up and steps faster (below); Ray is for running components apart: on other machines, isolated from each other, surviving a lost node (docs/distributed.md).',
-    '- **Many scenes in one Python process** (a script, a sweep in-process): each run frees its instances, and what pythonfmu FMUs add to `sys.path` goes with the last of them.',
+    "**Ray behind at 1,000, ahead at 10,000.** Before the SpringMass FMU declared its "
+    "variables once per class, an instance took 1.6 ms to make and chain_1000 set up in "
+    "1.9 s in-process: two workers could save half of that, and with both cores free Ray "
+    "was ahead (1.61 s against 2.29 s, Ray faster in 4 of 5 pairs, in a run of this "
+    "script earlier on 2026-11-27). The whole set-up now costs about 0.5 ms per "
+    "component, and chain_1000 sets up in-process in about 0.5 s, less than starting one "
+    "worker process: the table above. At chain_10000 the instantiation outweighs the "
+    "workers' start: measured on 2026-11-27, each run the first of a fresh process (as "
+    "`dsim run` is), in turn, two rounds, stop 6 ms: in-process 5.04 and 4.95 s, Ray "
+    "4.24 and 4.25 s, the same bytes; since a worker answers for its thousands of "
+    "subsystems with two arrays instead of one per vector (4.92 to 5.94 s before). A "
+    "step of chain_10000 takes longer on Ray (1.9 s against 1.0 s in-process: the "
+    "driver sends and reads every subsystem's forces and kinematics at each Newton "
+    "iteration, and about a third of it is keeping what a fresh worker would need: "
+    "docs/distributed.md). "
+    "With more cores per machine, or more machines, the instantiation divides further "
+    "while the start of the workers does not grow.",
 )
 
 
