@@ -277,8 +277,8 @@ class RayBackend(Recovery, Backend):
                 for (host, _), calls in zip(self.members, steps)]
 
     def _answer(self, host: int, ref, payload=None, answered=None):
-        """The answer of worker ``host`` to ``ref`` (``answered`` of it, if given: the
-        packed answers of a batch of steps), or what its loss leaves."""
+        """The answer of worker ``host`` to ``ref`` (``answered`` of it, if given: a
+        batch's packed answers made plain), or what its loss leaves."""
         ray = self._cluster.connection.ray
         who = _who(self._cluster.owners[host])
         try:

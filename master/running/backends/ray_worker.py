@@ -234,10 +234,9 @@ def unpack_answers(form: str, values: np.ndarray, sizes: np.ndarray) -> list:
         else:
             vectors.append(values[start:start + size])
             start += size
-    answers, k = [], 0
-    width = sum(3 if code == "k" else 1 for code in form)
-    for k in range(0, len(vectors), width):
-        done, at = [], k
+    answers, at = [], 0
+    while at < len(vectors):
+        done = []
         for code in form:
             if code == "k":
                 done.append(tuple(vectors[at:at + 3]))

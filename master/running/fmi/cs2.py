@@ -140,6 +140,20 @@ class _Strings:
             self.set(self.vrs, self.count, self.values)
 
 
+def _by_kind(values: np.ndarray, kinds, n: int) -> tuple:
+    """(u, v, a) of ``n`` glued dofs from one batched read ``values`` that holds the
+    kinds ``kinds`` says are present, in that order: views of ``values``, None for a
+    kind the FMU lacks."""
+    result, start = [], 0
+    for present in kinds:
+        if present:
+            result.append(values[start:start + n])
+            start += n
+        else:
+            result.append(None)
+    return tuple(result)
+
+
 def _batches(owner, variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
     """Group variables by FMI type: one batch per type, and for each batch where its
     values go in (or come from) the caller's flat vector."""
@@ -437,15 +451,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
         if reads.size:
             self._read_after(reads, t2)
         self._dirty = True
-        values, n = reads.array.copy(), len(self.interface)
-        result, start = [], 0
-        for present in kinds:  # views of the one copy
-            if present:
-                result.append(values[start:start + n])
-                start += n
-            else:
-                result.append(None)
-        return tuple(result)
+        return _by_kind(reads.array.copy(), kinds, len(self.interface))
 
     def kinematics(self):
         n = len(self.interface)
@@ -453,15 +459,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
             return (np.zeros(0),) * 3
         # until the first step (initialization, the start check) every kind is read
         batch, kinds = self._kinematics_needed if self._stepped else self._kinematics_all
-        values = batch.read()
-        result, start = [], 0
-        for present in kinds:
-            if present:
-                result.append(values[start:start + n].copy())
-                start += n
-            else:
-                result.append(None)
-        return tuple(result)
+        return _by_kind(batch.read().copy(), kinds, n)
 
     def read_outputs(self) -> np.ndarray:
         if self._read_direct:
