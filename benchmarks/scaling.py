@@ -57,32 +57,40 @@ print(json.dumps({"status": s["status"], "steps": s["steps"], "wall": s["wall_se
 
 #: set-up of one chain in-process and on a local Ray instance, in turn in one process;
 #: one run of each first, not measured: its processes are those Ray starts with the
-#: instance, and a process's first run loads what later ones find loaded, so that every
-#: measured Ray run starts its worker processes from nothing; before each measured pair,
-#: the machine's ceiling (benchmarks/ray_speedup.py: what two processes gain over one
-#: now), once it has reached the calm asked for
+#: instance, and a process's first run loads what later ones find loaded.  Ray three
+#: ways: its workers started by the run (no spare: the first run of a driver), the next
+#: run at once (the spares the run before left, still starting), and once those spares
+#: are ready (ray_spares.py); before each measured round, the machine's ceiling
+#: (benchmarks/ray_speedup.py: what two processes gain over one now), once it has
+#: reached the calm asked for
 _RAY = """
 import json, os, sys
 from pathlib import Path
 import ray
 import dsim
 import dsim.master.api
+from dsim.master.running.backends import ray_spares
 from benchmarks.ray_speedup import ceiling_now
 ray.init(address="local", num_cpus=os.cpu_count(), include_dashboard=False,
          log_to_driver=False, logging_level="ERROR")
-setup, rows, ceilings = {"in-process": [], "ray": []}, {}, []
+kinds = ("in-process", "ray", "ray-next", "ray-ready")
+setup, rows, ceilings = {kind: [] for kind in kinds}, {}, []
 for repetition in range(-1, int(sys.argv[2])):
+    ray_spares.drop()
     if repetition >= 0:
         ceilings.append(ceiling_now(float(sys.argv[4])))
-    for backend in setup:
-        out = Path(sys.argv[3]) / f"{backend}-{repetition}.csv"
-        result = dsim.simulate(sys.argv[1], stop=5e-3, backend=backend, out=out,
+    for kind in kinds:
+        if kind == "ray-ready":
+            ray_spares.settle()
+        out = Path(sys.argv[3]) / f"{kind}-{repetition}.csv"
+        result = dsim.simulate(sys.argv[1], stop=5e-3, backend=kind.split("-")[0]
+                               if kind != "in-process" else kind, out=out,
                                handle_signals=False)
         assert result.statistics["status"] == "completed", result.statistics
         if repetition >= 0:
-            setup[backend].append(result.statistics["setup_seconds"])
-        rows.setdefault(backend, out.read_bytes())
-print(json.dumps({"setup": setup, "identical": rows["ray"] == rows["in-process"],
+            setup[kind].append(result.statistics["setup_seconds"])
+        rows.setdefault(kind, out.read_bytes())
+print(json.dumps({"setup": setup, "identical": len(set(rows.values())) == 1,
                   "cpus": os.cpu_count(), "ray_version": ray.__version__,
                   "ceilings": ceilings, "calm": float(sys.argv[4])}))
 """
@@ -100,41 +108,55 @@ def ray_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> 
     return json.loads(found.stdout.strip().splitlines()[-1])
 
 
+#: the Ray set-ups measured, as the page names them
+RAY_KINDS = {"ray": "Ray, workers started by the run (no spare)",
+             "ray-next": "Ray, the next run at once (spares still starting)",
+             "ray-ready": "Ray, spares ready"}
+
+
 def ray_lines(n: int, result: dict) -> list[str]:
     """The page's paragraphs on set-up with Ray."""
-    local, ray = result["setup"]["in-process"], result["setup"]["ray"]
-    ratios = [r / l for l, r in zip(local, ray)]
-    faster = sum(ratio < 1 for ratio in ratios)
+    local = result["setup"]["in-process"]
     cpus = result["cpus"]
+    table, ratios = [], []
+    for kind, name in RAY_KINDS.items():
+        ray = result["setup"][kind]
+        ratio = [r / l for l, r in zip(local, ray)]
+        table.append(f"| {name} | {min(ray):.2f} | {', '.join(f'{x:.2f}' for x in ray)} |")
+        ratios.append(f"{name}: {', '.join(f'{x:.2f}' for x in ratio)} (Ray faster in "
+                      f"{sum(x < 1 for x in ratio)} of {len(ratio)}; least against least "
+                      f"{min(ray) / min(local):.2f})")
     return [
         RAY_HEADING, "",
         f"chain_{n}, five macro steps, set up in-process and on a local Ray instance "
         f"(Ray {result.get('ray_version', '?')}, {cpus} CPUs: {cpus} workers, each "
         f"instantiating its share of the FMUs at the same time) in turn, {len(local)} "
-        "times in one process, after one run of each that is not measured "
+        "rounds in one process, after one round that is not measured "
         "(`python -m benchmarks.scaling --only ray"
         + (f" --calm {result['calm']:g}" if result.get("calm") else "")
         + f"`, {date.today()}). Set-up is the run's "
         "`setup_seconds`, for both backends from the start of the run (the scene read and "
         "planned) to its first row: for Ray that is connecting, choosing the nodes, "
-        "starting the worker processes (every measured run starts new ones: Python, Ray, "
-        "dsim's worker module), shipping the FMU, instantiating and initialising every "
-        "FMU, and the start forces.", "",
-        "| backend | set-up, least (s) | each run (s) |", "|---|---|---|",
+        "taking or starting the worker processes, shipping the FMU, instantiating and "
+        "initialising every FMU, and the start forces. Each round runs in-process, then "
+        "on Ray three times: with no spare worker (every worker a new process: Python, "
+        "Ray, dsim's worker module, as in the first run of a driver, or `dsim run "
+        "--backend ray`), then at once again (taking the spares the run before started "
+        "as it ended: docs/distributed.md, \"Spare workers\"), then once the spares the "
+        "second run left have started.", "",
+        "| backend | set-up, least (s) | each round (s) |", "|---|---|---|",
         f"| in-process | {min(local):.2f} | {', '.join(f'{x:.2f}' for x in local)} |",
-        f"| Ray | {min(ray):.2f} | {', '.join(f'{x:.2f}' for x in ray)} |",
-        "| the machine's ceiling before each pair: 2 busy processes against 1 | | "
+        *table,
+        "| the machine's ceiling before each round: 2 busy processes against 1 | | "
         f"{', '.join(f'{x:.2f}' for x in result['ceilings'])} |", "",
-        f"Ray / in-process, run by run: {', '.join(f'{x:.2f}' for x in ratios)} (Ray "
-        f"faster in {faster} of {len(ratios)}); least against least: "
-        f"{min(ray) / min(local):.2f}. Results identical to the byte: "
-        f"{'yes' if result['identical'] else 'NO'}.", "",
+        "Ray / in-process, round by round: " + "; ".join(ratios) + ". Results identical "
+        f"to the byte: {'yes' if result['identical'] else 'NO'}.", "",
         "The machine is shared: the **ceiling** is how much faster two processes do two "
         "equal pieces of CPU work than one process does them in turn, measured before "
-        "each pair (`benchmarks/ray_speedup.py`; 2.0 on an idle 2-core machine, less "
+        "each round (`benchmarks/ray_speedup.py`; 2.0 on an idle 2-core machine, less "
         "while other work holds a core): two workers cannot instantiate faster than it "
-        "allows, so read each ratio against its pair's ceiling" + (
-            f"; each pair waited for a ceiling of {result['calm']:g} (`--calm`, ten "
+        "allows, so read each ratio against its round's ceiling" + (
+            f"; each round waited for a ceiling of {result['calm']:g} (`--calm`, ten "
             "minutes at most)." if result.get("calm") else "."), "",
         *RAY_NOTES, ""]
 
@@ -159,11 +181,13 @@ RAY_NOTES = (
     "chain_1000, and would take the workers' start out of `setup_seconds`; batching "
     "the initialisation's calls into fewer round trips would save about 13 ms a round "
     "trip (its calls depend on what the driver computes in between); keeping a run's "
-    "workers for the next run of the same driver process (a pool) would take their "
-    "start out of later set-ups, but the FMU code of one run (a pythonfmu FMU runs its "
-    "Python in the worker's interpreter) would live on in the process that hosts the "
-    "next run's FMUs, and separate processes per run are what the Ray and isolated "
-    "backends are for; sending every batch's float arrays as one array, found by a "
+    "workers for the next run of the same driver process would take their start out of "
+    "later set-ups, but the FMU code of one run (a pythonfmu FMU runs its Python in the "
+    "worker's interpreter) would live on in the process that hosts the next run's FMUs, "
+    "and separate processes per run are what the Ray and isolated backends are for: "
+    "what was done instead starts new processes for the next run as a run ends (spare "
+    "workers, `ray_spares.py`), which take the start out of a later set-up and have "
+    "hosted nothing; sending every batch's float arrays as one array, found by a "
     "walk over the whole batch on each side, made chain_10000 on Ray slower, not faster "
     "(set-up 7.9 and 8.7 s against 7.3 and 8.1 s, a step 3.1 and 3.2 s against 2.7 and "
     "2.9 s, interleaved on 2026-11-27, under other load): a generic walk in Python costs "
@@ -171,23 +195,41 @@ RAY_NOTES = (
     "only the answers, whose forms are known (a step's kinematics and outputs, a read), "
     "in one pass (`ray_worker.pack_answers`).",
     "",
-    "**Ray behind at 1,000, ahead at 10,000.** Before the SpringMass FMU declared its "
-    "variables once per class, an instance took 1.6 ms to make and chain_1000 set up in "
-    "1.9 s in-process: two workers could save half of that, and with both cores free Ray "
-    "was ahead (1.61 s against 2.29 s, Ray faster in 4 of 5 pairs, in a run of this "
-    "script earlier on 2026-11-27). The whole set-up now costs about 0.5 ms per "
-    "component, and chain_1000 sets up in-process in about 0.5 s, less than starting one "
-    "worker process: the table above. At chain_10000 the instantiation outweighs the "
-    "workers' start: measured on 2026-11-27, each run the first of a fresh process (as "
-    "`dsim run` is), in turn, two rounds, stop 6 ms: in-process 5.04 and 4.95 s, Ray "
-    "4.24 and 4.25 s, the same bytes; since a worker answers for its thousands of "
-    "subsystems with two arrays instead of one per vector (4.92 to 5.94 s before). A "
-    "step of chain_10000 takes longer on Ray (1.9 s against 1.0 s in-process: the "
-    "driver sends and reads every subsystem's forces and kinematics at each Newton "
-    "iteration, and about a third of it is keeping what a fresh worker would need: "
-    "docs/distributed.md). "
+    "**Ray ahead at 1,000 with spares, and at 10,000 in any case.** Before the "
+    "SpringMass FMU declared its variables once per class, an instance took 1.6 ms to "
+    "make and chain_1000 set up in 1.9 s in-process: two workers could save half of "
+    "that, and with both cores free Ray was ahead even starting its own workers (1.61 s "
+    "against 2.29 s, in a run of this script earlier on 2026-11-27). The whole set-up "
+    "now costs about 0.5 ms per component, and chain_1000 sets up in-process in about "
+    "0.45 s, about what starting one worker process costs: a run that starts its own "
+    "workers is behind at chain_1000 (the table's first Ray row; 0.75 s least, Ray "
+    "faster in 0 of 5, before spare workers, when every measured run started its own), "
+    "one that takes spares ahead when they are ready. At chain_10000 the instantiation "
+    "outweighs the workers' start: measured on 2026-11-27, each run the first of a "
+    "fresh process (as `dsim run` is, with no spare), in turn, two rounds, stop 6 ms: "
+    "in-process 5.04 and 4.95 s, Ray 4.24 and 4.25 s, the same bytes; since a worker "
+    "answers for its thousands of subsystems with two arrays instead of one per vector "
+    "(4.92 to 5.94 s before). A step of chain_10000 takes longer on Ray (1.9 s against "
+    "1.0 s in-process: the driver sends and reads every subsystem's forces and "
+    "kinematics at each Newton iteration, and about a third of it is keeping what a "
+    "fresh worker would need: docs/distributed.md). "
     "With more cores per machine, or more machines, the instantiation divides further "
     "while the start of the workers does not grow.",
+)
+
+
+#: what a user running a large scene should know, after the tables
+GUIDE = (
+    '## Running a large scene',
+    '',
+    'What to expect, and what helps, with thousands of components (numbers from the tables above and from runs of chain_10000 on these machines on 2026-11-27):',
+    '',
+    "- **Set-up** costs about half a millisecond and 35 to 50 kB per component besides what its model holds (an ElasticBody's mesh and matrices: docs/elastic_body.md); chain_10000 sets up in about 5 s and runs in about 0.5 GB. On a terminal the progress line counts the FMUs as they are instantiated (`chain_10000 · FMUs instantiated 1,282/10,000`), then says `initialising`; Observer.preparing tells a script the same (docs/api.md).",
+    '- **Ctrl-C during the set-up** ends the run within 5 s with its statistics, as during a step; a second Ctrl-C ends it at once (docs/results.md).',
+    '- **Look before running**: `dsim validate` and `dsim info` stay linear (the table above); `dsim info` prints counts and one line per distinct FMU, `dsim info --all` every variable (810,000 lines at 10,000 components).',
+    '- **Record what you need**: a run records every output it is given and every joint force by default, 20,000 columns at chain_10000; `--outputs` and `--output-interval` choose columns and rows (docs/parameters.md). The statistics JSON holds a table of FMI calls per component, about 1.4 kB each (14 MB at 10,000).',
+    '- **In-process or Ray**: on one 2-core machine the in-process backend steps faster (1.0 s a step of chain_10000 against 1.9 s on Ray); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
+    '- **Many scenes in one Python process** (a script, a sweep in-process): each run frees its instances, and what pythonfmu FMUs add to `sys.path` goes with the last of them.',
 )
 
 

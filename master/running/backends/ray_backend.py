@@ -24,6 +24,10 @@ that was lost: the numbers are those of an undisturbed run, bit for bit.  At mos
 ``restarts`` workers are started again in a run; an FMU that cannot serialize its
 state, an FMU that crashed (it left a crash report) and a worker lost again on the
 same call end the run as before, with a line that says which it was.
+
+A run of a driver that joined a Ray instance it did not start takes the spare workers
+the run before left and, as it ends, starts new ones for the next (ray_spares.py):
+never a process that hosted FMUs, only the start of a process taken out of a set-up.
 """
 from __future__ import annotations
 
@@ -37,6 +41,7 @@ from dsim.master.running.backends.base import Backend
 from dsim.master.running.backends.ray_recovery import (RESTARTS, Recovery, _cause,
                                                        _first_line, _quoted, _unrestartable,
                                                        _who)
+from dsim.master.running.backends import ray_spares
 from dsim.master.running.backends.ray_placement import Placement
 from dsim.master.running.backends.ray_worker import CHECKPOINT, Host, deal, unpack_answers
 from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
@@ -144,6 +149,7 @@ class RayBackend(Recovery, Backend):
         shipment = Shipment(ray)
         remote = ray.remote(Host)
         hosts, assigned, members, worker_options = [], [], [None] * len(specs), []
+        spared = []  # the workers that were started ahead (ray_spares.py)
         groups = [(placement, indices, cls._workers(connection, placement, len(indices)))
                   for placement, indices in cls._groups(connection, specs)]
         # each worker pinned to its node, chosen here (ray_placement.py)
@@ -158,7 +164,10 @@ class RayBackend(Recovery, Backend):
                 for slot, index in enumerate(chosen):
                     members[index] = (len(hosts), slot)
                 placed = {**options, **nodes.options(placement, number)}
-                hosts.append(remote.options(**placed).remote())
+                host, spare = cls._worker(connection, remote, placed)
+                hosts.append(host)
+                if spare:
+                    spared.append(len(hosts) - 1)
                 assigned.append(chosen)
                 worker_options.append(placed)
                 if not placement:
@@ -180,7 +189,7 @@ class RayBackend(Recovery, Backend):
                 cluster.journal[(h, slot)] = []
         backend = cls(cluster, members, [s.name for s in specs])
         try:
-            backend._cluster.places = backend._open(opened)
+            backend._cluster.places = backend._open(opened, spared)
         except BaseException:
             backend.close()
             raise
@@ -208,32 +217,71 @@ class RayBackend(Recovery, Backend):
             return count
         return max(1, min(count, connection.cpus(placement)))
 
-    def _open(self, opened) -> list[dict]:
-        """Wait for every worker to instantiate its FMUs: their places."""
+    @classmethod
+    def _spares(cls, connection) -> bool:
+        """Whether this run takes and leaves spare workers (ray_spares.py): not when it
+        started Ray itself (Ray ends with it), nor one worker per instance, nor inside
+        a Ray worker (a sweep's point)."""
+        return (not connection.owned and not cls.one_per_instance
+                and ray_spares.in_driver(connection.ray))
+
+    @classmethod
+    def _worker(cls, connection, remote, options: dict) -> tuple[object, bool]:
+        """A worker with ``options``, and whether it is a spare started ahead."""
+        if cls._spares(connection):
+            return ray_spares.take(connection.ray, remote, options)
+        return remote.options(**options).remote(), False
+
+    def _open(self, opened, spared=()) -> list[dict]:
+        """Wait for every worker to instantiate its FMUs: their places.  A spare worker
+        (``spared``: their numbers) found dead is replaced by a new one, once."""
         ray = self._cluster.connection.ray
-        ready, waiting = ray.wait(opened, num_returns=len(opened), timeout=START_SECONDS)
+        self._started(dict(enumerate(opened)))
+        places = []
+        for h, ref in enumerate(opened):
+            try:
+                places.append(self._place(h, ref, last=h not in spared))
+            except ray.exceptions.RayActorError:
+                # a spare that died while it waited for a run, before it held anything
+                worker = ray.remote(Host).options(**self._cluster.options[h]).remote()
+                self._cluster.hosts[h] = worker
+                again = worker.open.remote(self._cluster.specs[h], self._cluster.files[h])
+                self._started({h: again})
+                places.append(self._place(h, again, last=True))
+        return places
+
+    def _started(self, opened: dict) -> None:
+        """Wait at most START_SECONDS for the ``opened`` calls (worker number -> its
+        call), else say whose are late."""
+        ray = self._cluster.connection.ray
+        ready, waiting = ray.wait(list(opened.values()), num_returns=len(opened),
+                                  timeout=START_SECONDS)
         if waiting:
-            late = [name for h, ref in enumerate(opened) if ref in waiting
+            late = [name for h, ref in opened.items() if ref in waiting
                     for name in self._cluster.owners[h]]
             raise InputError(f"the Ray workers of components {_quoted(late)} did not start "
                              f"in {START_SECONDS:g} s (is the cluster short of memory, or "
                              "are its nodes gone?)")
-        places = []
-        for h, ref in enumerate(opened):
-            try:
-                places.append(ray.get(ref))
-            except ray.exceptions.RayTaskError as error:
-                raise _cause(error) from None
-            except ray.exceptions.RayActorError:
-                self._cluster.dead.add(h)
-                raise InputError(f"{_who(self._cluster.owners[h])}: the worker process "
-                                 "died while the FMU was instantiated (it crashed or was "
-                                 "killed)") from None
-            except ray.exceptions.RayError as error:
-                self._cluster.dead.add(h)
-                raise InputError(f"{_who(self._cluster.owners[h])}: Ray could not start "
-                                 f"its worker: {_first_line(error)}") from None
-        return places
+
+    def _place(self, h: int, ref, last: bool = False) -> dict:
+        """Where worker ``h`` runs, from its answer ``ref`` to ``open``; a dead worker
+        raises RayActorError unless ``last`` (then the run's InputError)."""
+        ray = self._cluster.connection.ray
+        try:
+            return ray.get(ref)
+        except ray.exceptions.RayTaskError as error:
+            raise _cause(error) from None
+        except ray.exceptions.RayActorError:
+            if not last:
+                raise
+            self._cluster.dead.add(h)
+            raise InputError(f"{_who(self._cluster.owners[h])}: the worker process "
+                             "died while the FMU was instantiated (it crashed or was "
+                             "killed)") from None
+        except ray.exceptions.RayError as error:
+            self._cluster.dead.add(h)
+            raise InputError(f"{_who(self._cluster.owners[h])}: Ray could not start "
+                             f"its worker: {_first_line(error)}") from None
 
     # --- the batched calls -------------------------------------------------------
     def _run(self, steps, time=None, answer: bool = True) -> list:
@@ -434,6 +482,8 @@ class RayBackend(Recovery, Backend):
                     pass  # a worker gone (or frozen) while closing: it is killed below
             for host in cluster.hosts:
                 ray.kill(host)
+            if self._spares(cluster.connection):  # for the next run of this driver
+                ray_spares.stock(ray, ray.remote(Host), cluster.options)
         finally:
             cluster.closed = True
             cluster.connection.close()

@@ -67,6 +67,10 @@ class Host:
         self._faults = open(path, "w")
         faulthandler.enable(self._faults)
 
+    def ready(self) -> int:
+        """This worker's process id, once it has started (ray_spares.py)."""
+        return os.getpid()
+
     def open(self, specs, files) -> dict:
         """Instantiate the FMUs of ``specs`` from the shipped ``files`` (for each, its
         FMU and its scene files by parameter, :class:`~dsim.master.running.ray_cluster.Shipment`);

@@ -1,0 +1,139 @@
+"""Worker processes started ahead for the next run of this driver (docs/distributed.md,
+"Spare workers").
+
+Starting a worker process (Python, Ray, dsim's worker module) costs 0.3 to 1.5 s on
+these machines, more than setting up chain_1000 in-process.  A process that runs
+several scenes on one Ray instance (a script with its own ``ray.init``, a study) pays
+it again for every run: a run's workers end with it, because a worker that held one
+run's FMUs (their Python, their libraries, whatever they left behind) must not host
+the next run's.  So when such a run ends, dsim starts as many *new* workers as it
+used, on the same nodes with the same options, and the next run takes them instead
+of starting its own: fresh processes that have hosted nothing, ready by the time the
+next scene is read and planned.  A run that started Ray itself (``dsim run
+--backend ray``) ends Ray with it, and leaves no spare.
+
+Only a driver keeps spares (a sweep's point runs inside a Ray worker, and leaves
+none).  Spares are kept per Ray session (a new ``ray.init`` forgets the old ones), take no
+CPU of Ray's (``num_cpus=0``, as every worker of dsim's), and end with the driver or
+with :func:`drop`.  A spare found dead (its ready call failed) is not used; one that
+dies between being taken and being used is replaced by a new worker
+(ray_backend.RayBackend._open).
+"""
+from __future__ import annotations
+
+from collections import Counter
+
+#: session -> {options key -> [(actor, its ready call), ...]}; one session at a time
+_pool: dict[tuple, dict[tuple, list]] = {}
+
+
+def _session(ray) -> tuple:
+    """Which Ray session this driver is in: a spare of an earlier one is gone."""
+    context = ray.get_runtime_context()
+    return context.get_job_id(), context.get_node_id()
+
+
+def in_driver(ray) -> bool:
+    """Whether this process is a Ray driver (a script, ``dsim``), not a Ray worker
+    running a task (a sweep's point): spares are a driver's, ended with it."""
+    return ray.get_runtime_context().get_task_id() is None
+
+
+def settle(ray=None, timeout: float = 60.0) -> int:
+    """Wait until every spare worker has started (at most ``timeout`` s): how many are
+    ready.  A script that times its runs calls it first, so that the spares' start does
+    not slow what it times."""
+    if ray is None:
+        from dsim.master.running.ray_cluster import ray_module
+
+        ray = ray_module()
+    calls = [ready for spares in _pool.values() for kept in spares.values()
+             for _, ready in kept]
+    done, _ = ray.wait(calls, num_returns=len(calls), timeout=timeout) if calls else ([], [])
+    return len(done)
+
+
+def key(options: dict) -> tuple:
+    """What makes two workers interchangeable: their node, resources and Ray options."""
+    strategy = options.get("scheduling_strategy")
+    where = (getattr(strategy, "node_id", None), getattr(strategy, "soft", None)) \
+        if strategy is not None and not isinstance(strategy, str) else strategy
+    return (where, tuple(sorted(options.get("resources", {}).items())),
+            options.get("num_cpus"), options.get("max_restarts"))
+
+
+def _spares(ray) -> dict[tuple, list]:
+    session = _session(ray)
+    if session not in _pool:
+        _pool.clear()  # an earlier session's actors went with it: nothing to end
+        _pool[session] = {}
+    return _pool[session]
+
+
+def take(ray, remote, options: dict) -> tuple[object, bool]:
+    """A worker with ``options``: a spare started ahead when there is a live one (and
+    True), else a new one (and False).  ``remote``: ``ray.remote(Host)``."""
+    kept = _spares(ray).get(key(options), [])
+    while kept:
+        actor, ready = kept.pop()
+        done, _ = ray.wait([ready], timeout=0)
+        if not done:  # still starting: it will be ready sooner than a new one
+            return actor, True
+        try:
+            ray.get(ready, timeout=0)
+            return actor, True
+        except ray.exceptions.RayError:  # gone while it waited: never used
+            _kill(ray, actor)
+    return remote.options(**options).remote(), False
+
+
+def stock(ray, remote, options: list[dict]) -> None:
+    """Start new workers, one per entry of ``options`` (those of a run that ended), for
+    the next run: the pool holds at most that many of each kind."""
+    spares = _spares(ray)
+    wanted = Counter(key(o) for o in options)
+    examples = {key(o): o for o in options}
+    for kind, count in wanted.items():
+        kept = spares.setdefault(kind, [])
+        for _ in range(count - len(kept)):
+            actor = remote.options(**examples[kind]).remote()
+            kept.append((actor, actor.ready.remote()))
+
+
+def pids(ray) -> set[int]:
+    """The process ids of the spare workers that have started (see :func:`settle`)."""
+    calls = [ready for spares in _pool.values() for kept in spares.values()
+             for _, ready in kept]
+    done, _ = ray.wait(calls, num_returns=len(calls), timeout=0) if calls else ([], [])
+    found = set()
+    for ready in done:
+        try:
+            found.add(ray.get(ready, timeout=0))
+        except ray.exceptions.RayError:  # it died before it started
+            pass
+    return found
+
+
+def count() -> int:
+    """How many spare workers this driver keeps now."""
+    return sum(len(kept) for spares in _pool.values() for kept in spares.values())
+
+
+def drop(ray=None) -> None:
+    """End every spare worker (they end with the driver anyway)."""
+    if ray is None:
+        from dsim.master.running.ray_cluster import ray_module
+
+        ray = ray_module()
+    for spares in _pool.values():
+        for kept in spares.values():
+            for actor, _ in kept:
+                _kill(ray, actor)
+    _pool.clear()
+
+
+def _kill(ray, actor) -> None:
+    try:
+        ray.kill(actor)
+    except Exception:  # gone already, or Ray itself is
+        pass

@@ -1,0 +1,71 @@
+"""Spare workers (master/running/backends/ray_spares.py) on the session's local Ray
+instance: a run of a driver that joined Ray leaves as many fresh workers as it used,
+the next run takes them with its numbers unchanged to the last bit, a spare that died
+while it waited is replaced, and the isolated backend leaves none."""
+import os
+import signal
+import time
+
+import dsim
+from dsim.master.running.backends import ray_spares
+from tests.test_ray_backend import same_run, workers
+
+
+def stop_after(scene, steps: int) -> float:
+    found = dsim.prepare(scene).scene
+    return found.start_time + steps * found.master.step
+
+
+def gone(pid: int, within: float = 30.0) -> bool:
+    """Whether process ``pid`` has ended (waiting ``within`` s at most)."""
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def test_a_run_leaves_fresh_spares_and_the_next_run_takes_them(built, ray_local):
+    scene = built["ssp"] / "frame_split.ssp"  # five elastic bodies on two workers
+    stop = stop_after(scene, 5)
+    here = dsim.simulate(scene, stop=stop)
+    ray_spares.drop(ray_local)
+    first = dsim.simulate(scene, stop=stop, backend="ray")
+    used = workers(first)
+    assert len(used) == 2 and ray_spares.count() == 2
+    assert ray_spares.settle(ray_local) == 2
+    spares = ray_spares.pids(ray_local)
+    assert len(spares) == 2 and not spares & used  # new processes, not the run's own
+    second = dsim.simulate(scene, stop=stop, backend="ray")
+    assert workers(second) == spares  # taken, not started anew
+    same_run(here, first)
+    same_run(here, second)
+    ray_spares.settle(ray_local)
+    assert not ray_spares.pids(ray_local) & (used | spares)  # never a process twice
+    ray_spares.drop(ray_local)
+    assert ray_spares.count() == 0
+
+
+def test_a_spare_that_died_while_it_waited_is_replaced(built, ray_local):
+    scene = built["ssp"] / "frame_split.ssp"
+    stop = stop_after(scene, 5)
+    ray_spares.drop(ray_local)
+    here = dsim.simulate(scene, stop=stop, backend="ray")
+    ray_spares.settle(ray_local)
+    victim = min(ray_spares.pids(ray_local))
+    os.kill(victim, signal.SIGKILL)
+    assert gone(victim)
+    there = dsim.simulate(scene, stop=stop, backend="ray")
+    assert there.ok and victim not in workers(there) and len(workers(there)) == 2
+    same_run(here, there)
+    ray_spares.drop(ray_local)
+
+
+def test_the_isolated_backend_leaves_no_spare(built, ray_local):
+    scene = built["ssp"] / "spring_mass_linear.ssp"
+    ray_spares.drop(ray_local)
+    result = dsim.simulate(scene, stop=stop_after(scene, 5), backend="isolated")
+    assert result.ok and ray_spares.count() == 0
