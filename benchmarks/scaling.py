@@ -174,9 +174,11 @@ RAY_NOTES = (
     "with Python's garbage collector paused; then a worker freezes its instances out "
     "of the collector (`gc.freeze`), as the in-process backend does. The FMU is put in "
     "Ray's object store once per run, and each worker lands it once per file (on the "
-    "driver's machine it uses the driver's file); the batches of calls a worker may "
-    "have to repeat after a loss are copied by a pickle round trip (`copy.deepcopy` "
-    "took 0.8 s of a chain_4000's run). Not done, measured: starting the workers "
+    "driver's machine it uses the driver's file); a batch of calls travels as one "
+    "pickle of Python's C pickler and its answer comes back the same way (Ray's own "
+    "serialization dispatches each of thousands of arrays in Python), and what the "
+    "driver keeps of it for a lost worker is what that pickle loads back into "
+    "(`copy.deepcopy` took 0.8 s of a chain_4000's run). Not done, measured: starting the workers "
     "before the scene is read and planned would hide at most that, 0.16 to 0.19 s at "
     "chain_1000, and would take the workers' start out of `setup_seconds`; batching "
     "the initialisation's calls into fewer round trips would save about 13 ms a round "
@@ -209,10 +211,10 @@ RAY_NOTES = (
     "fresh process (as `dsim run` is, with no spare), in turn, two rounds, stop 6 ms: "
     "in-process 5.04 and 4.95 s, Ray 4.24 and 4.25 s, the same bytes; since a worker "
     "answers for its thousands of subsystems with two arrays instead of one per vector "
-    "(4.92 to 5.94 s before). A step of chain_10000 takes longer on Ray (1.9 s against "
-    "1.0 s in-process: the driver sends and reads every subsystem's forces and "
-    "kinematics at each Newton iteration, and about a third of it is keeping what a "
-    "fresh worker would need: docs/distributed.md). "
+    "(4.92 to 5.94 s before). A step of chain_10000 takes longer on Ray (1.23 and 1.43 s "
+    "against 0.83 s in-process, 0.87 and 0.98 s with `--restarts 0`: the driver sends "
+    "and reads every subsystem's forces and kinematics at each Newton iteration, and "
+    "keeps every subsystem's saved state for a fresh worker: docs/distributed.md). "
     "With more cores per machine, or more machines, the instantiation divides further "
     "while the start of the workers does not grow.",
 )
@@ -228,7 +230,7 @@ GUIDE = (
     '- **Ctrl-C during the set-up** ends the run within 5 s with its statistics, as during a step; a second Ctrl-C ends it at once (docs/results.md).',
     '- **Look before running**: `dsim validate` and `dsim info` stay linear (the table above); `dsim info` prints counts and one line per distinct FMU, `dsim info --all` every variable (810,000 lines at 10,000 components).',
     '- **Record what you need**: a run records every output it is given and every joint force by default, 20,000 columns at chain_10000; `--outputs` and `--output-interval` choose columns and rows (docs/parameters.md). The statistics JSON holds a table of FMI calls per component, about 1.4 kB each (14 MB at 10,000).',
-    '- **In-process or Ray**: on one 2-core machine the in-process backend steps faster (1.0 s a step of chain_10000 against 1.9 s on Ray); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
+    '- **In-process or Ray**: on one 2-core machine the in-process backend steps faster (0.83 s a step of chain_10000 against 1.2 to 1.4 s on Ray, 0.9 to 1.0 s with `--restarts 0`); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
     '- **Many scenes in one Python process** (a script, a sweep in-process): each run frees its instances, and what pythonfmu FMUs add to `sys.path` goes with the last of them.',
 )
 

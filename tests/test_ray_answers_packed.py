@@ -1,6 +1,8 @@
-"""A Ray worker's answers for thousands of subsystems travel as two arrays
-(master/running/backends/ray_worker.py, pack_answers): every vector back to the bit,
-None where an FMU lacks a kind, answers of another kind sent as they were."""
+"""What travels between the Ray driver and a worker with thousands of subsystems: the
+answers as two arrays (master/running/backends/ray_worker.py, pack_answers: every vector
+back to the bit, None where an FMU lacks a kind, answers of another kind sent as they
+were), a batch of calls as one pickle whose loaded copy the driver keeps, and each
+checkpoint as the worker pickled it."""
 import pickle
 
 import numpy as np
@@ -47,3 +49,39 @@ def test_answers_of_other_kinds_or_forms_are_not_packed():
     assert pack_answers([[np.zeros((2, 2))]]) is None
     assert pack_answers([[{"fmi2DoStep": [3, 0.1]}]]) is None  # statistics
     assert pack_answers([[["text"]]]) is None and pack_answers([[(1, 2)]]) is None
+
+
+def test_a_batch_travels_as_one_pickle_and_the_driver_keeps_the_values_sent():
+    from dsim.master.running.backends.ray_backend import _pickled, _unpacked
+
+    forces = np.array([1.5, -0.0, np.nan])
+    batch = [(0, [("trial_step", (forces, 0.25, 1e-3))]), (1, [("@checkpoint", ())])]
+    sent = _pickled(batch)
+    kept = pickle.loads(sent)
+    forces[0] = 99.0  # the coupling reuses its vectors: what was sent must not move
+    assert kept[0][1][0][1][0].tobytes() == np.array([1.5, -0.0, np.nan]).tobytes()
+    assert kept[1] == (1, [("@checkpoint", ())])
+    assert _pickled([(0, [("call", (lambda: 1,))])]) is None  # sent as it is, by Ray
+    # a worker's answer, as bytes (run_pickled) or as it is, reads the same
+    answer = ([["ahead"]], pack_answers([[np.arange(3.0)]]), None)
+    assert str(_unpacked(pickle.dumps(answer))) == str(_unpacked(answer)) == \
+        "[['ahead'], [array([0., 1., 2.])]]"
+
+
+def test_the_driver_keeps_a_checkpoint_as_the_worker_pickled_it_and_marks_a_failed_one():
+    from dsim.master.running.backends.ray_backend import RayBackend, _Cluster
+
+    cluster = _Cluster(None, [None], [["a", "b"]])
+    cluster.unrestartable, cluster.restarts_left = [None], 1
+    cluster.checkpoints = {(0, 0): None, (0, 1): None}
+    cluster.journal = {(0, 0): [("set_forces", (np.zeros(1),))], (0, 1): []}
+    backend = RayBackend(cluster, [(0, 0), (0, 1)], ["a", "b"])
+    saved = pickle.dumps({"state": {"fmu": b"\x00"}, "start": [], "inputs": []})
+    backend._journal(0, [(0, [("@checkpoint", ()), ("trial_step", (np.ones(1), 0.0, 1e-3))])],
+                     [[saved, None]])
+    assert cluster.checkpoints[(0, 0)] is saved  # bytes, not loaded in the driver
+    assert [call[0] for call in cluster.journal[(0, 0)]] == ["trial_step"]
+    assert cluster.unrestartable == [None]
+    backend._journal(0, [(1, [("@checkpoint", ())])], [[{"error": "OSError: no room"}]])
+    assert cluster.unrestartable[0] == ("component 'b' could not serialize its state "
+                                        "(OSError: no room)")

@@ -50,7 +50,7 @@ class Recovery:
             for call, result in zip(calls, answered):
                 if call[0] != CHECKPOINT:
                     journal.append(call)
-                elif "error" in result:  # the FMU said it could, and cannot
+                elif type(result) is dict:  # {"error": ...}: it said it could, and cannot
                     cluster.unrestartable[host] = (
                         f"component '{cluster.owners[host][slot]}' could not serialize "
                         f"its state ({result['error']})")

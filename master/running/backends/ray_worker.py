@@ -12,6 +12,7 @@ from __future__ import annotations
 import faulthandler
 import gc
 import os
+import pickle
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -128,6 +129,19 @@ class Host:
         packed = pack_answers(results[first:])
         return results[:first], packed, None if packed is not None else results[first:]
 
+    def run_pickled(self, calls: bytes, first: int) -> bytes | tuple:
+        """:meth:`run_packed` of a batch the driver sent as one pickle
+        (ray_backend._pickled: Ray's own serialization of thousands of arrays costs
+        the driver more).  Loaded here, in a worker that trusts its driver as Ray's
+        own calls do (Ray pickles every call's arguments).  The answer goes back the
+        same way, as bytes (checkpoints are a dict per subsystem), or as it is when
+        pickle cannot take it."""
+        answer = self.run_packed(pickle.loads(calls), first)
+        try:
+            return pickle.dumps(answer, protocol=5)
+        except (pickle.PicklingError, TypeError, AttributeError):
+            return answer
+
     def _call(self, slot: int, method: str, arguments):
         if method == FAILED:  # taken again: it failed the first time, and may again
             try:
@@ -146,21 +160,24 @@ class Host:
             self.initialized[slot] = True
         return getattr(self.subsystems[slot], method)(*arguments)
 
-    def _checkpoint(self, slot: int) -> dict:
-        """What a fresh worker needs to go on from subsystem ``slot``'s saved state,
-        or {"error": why not} (an FMU that says it can serialize and cannot)."""
+    def _checkpoint(self, slot: int) -> bytes | dict:
+        """What a fresh worker needs to go on from subsystem ``slot``'s saved state, as
+        one pickle (the driver only keeps it: loading each subsystem's arrays there
+        cost a quarter of a second a step at chain_10000), or {"error": why not} (an
+        FMU that says it can serialize and cannot)."""
         try:
             state = self.subsystems[slot].checkpoint()
         except Exception as error:  # the run goes on; only a restart is not possible
             return {"error": f"{type(error).__name__}: {error}"}
         written = self.written[slot]
-        return {"state": state, "start": list(written["start"].items()),
-                "inputs": list(written["inputs"].items())}
+        return pickle.dumps({"state": state, "start": list(written["start"].items()),
+                             "inputs": list(written["inputs"].items())}, protocol=5)
 
-    def _resume(self, slot: int, checkpoint: dict) -> None:
+    def _resume(self, slot: int, checkpoint: bytes) -> None:
         """Bring the fresh subsystem ``slot`` to a :meth:`_checkpoint` of another
         worker's: the start inputs in initialization mode, the inputs written last,
         then the saved FMU state."""
+        checkpoint = pickle.loads(checkpoint)
         for method, arguments in checkpoint["start"]:
             self._call(slot, method, arguments)
         self._call(slot, "finish_initialization", ())
