@@ -143,7 +143,9 @@ def ray_lines(n: int, result: dict) -> list[str]:
         "Ray, dsim's worker module, as in the first run of a driver, or `dsim run "
         "--backend ray`), then at once again (taking the spares the run before started "
         "as it ended: docs/distributed.md, \"Spare workers\"), then once the spares the "
-        "second run left have started.", "",
+        "second run left have started. The second run's set-up shares the two cores with "
+        "the end of the run before (its workers freeing their 500 FMU instances each) and "
+        "with its spares' start: what a script that runs scenes back to back meets.", "",
         "| backend | set-up, least (s) | each round (s) |", "|---|---|---|",
         f"| in-process | {min(local):.2f} | {', '.join(f'{x:.2f}' for x in local)} |",
         *table,
