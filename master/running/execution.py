@@ -34,6 +34,7 @@ from dsim.master.recording.results import RunResult
 from dsim.master.recording.statistics import run_statistics
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.couplings import COUPLINGS
+from dsim.master.running.collector import collector_paused
 from dsim.master.running.loops import LoopSolver
 from dsim.master.running.interrupts import SignalWatch, end_lost
 from dsim.master.running.start import check_start, start_forces
@@ -346,8 +347,12 @@ class Execution:
         try:
             if self._text_reads:
                 self._write_texts()
-            report = self.coupling.step(time, size, index + 1)
-            self.coupling.solve_loops(end)
+            # a step makes tens of thousands of short-lived objects at 10,000 components
+            # and few cycles: the collector's passes over them (two full ones a step of
+            # chain_10000 on Ray) wait for the step's end (collector.py)
+            with collector_paused():
+                report = self.coupling.step(time, size, index + 1)
+                self.coupling.solve_loops(end)
             if report.cuts:
                 self._warn_cut(index + 1, end, size / 2 ** report.cuts)
             if report.lost and self.coupling.least_squares_steps <= CUTS_SAID:

@@ -42,6 +42,7 @@ from dsim.master.running.backends.ray_recovery import (RESTARTS, Recovery, _caus
                                                        _first_line, _quoted, _unrestartable,
                                                        _who)
 from dsim.master.running.backends import ray_spares
+from dsim.master.running.collector import freeze, thaw
 from dsim.master.running.backends.ray_placement import Placement
 from dsim.master.running.backends.ray_worker import CHECKPOINT, Host, deal, unpack_answers
 from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
@@ -99,6 +100,8 @@ class _Cluster:
         self.waiting: tuple[int, float] | None = None
         #: what a user should know of where the workers run (a placement that cannot hold)
         self.notes: list[str] = []
+        #: whether the set-up's objects are frozen out of the collector's passes
+        self.frozen = False
 
 
 class RayBackend(Recovery, Backend):
@@ -139,6 +142,11 @@ class RayBackend(Recovery, Backend):
             backend._cluster.call_timeout = call_timeout
             backend._cluster.restarts = RESTARTS if restarts is None else restarts
             backend._cluster.restarts_left = backend._cluster.restarts
+            # the scene, its plan and the driver's side of the workers live as long as
+            # the run: out of the collector's passes until it ends (collector.py; at
+            # chain_10000 the full passes took 0.35 to 0.4 s of a 1.4 s step)
+            freeze()
+            backend._cluster.frozen = True
             return backend
         except BaseException:
             connection.close()
@@ -490,6 +498,9 @@ class RayBackend(Recovery, Backend):
                 ray_spares.stock(ray, ray.remote(Host), cluster.options)
         finally:
             cluster.closed = True
+            if cluster.frozen:
+                cluster.frozen = False
+                thaw()
             cluster.connection.close()
         return errors
 
