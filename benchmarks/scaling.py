@@ -208,17 +208,19 @@ RAY_NOTES = (
     "against 2.29 s, in a run of this script earlier on 2026-11-27). The whole set-up "
     "now costs about 0.5 ms per component, and chain_1000 sets up in-process in about "
     "0.45 s, about what starting one worker process costs: a run that starts its own "
-    "workers is behind at chain_1000 (the table's first Ray row; 0.75 s least, Ray "
-    "faster in 0 of 5, before spare workers, when every measured run started its own), "
-    "one that takes spares ahead when they are ready. At chain_10000 the instantiation "
+    "workers is about level with in-process at chain_1000 (the table's first Ray row; "
+    "the rows of this script's earlier runs on 2026-11-27, before spare workers and the "
+    "pickled batches, gave 0.75 s least, Ray faster in 0 of 5), and varies most with "
+    "what else holds the cores; one that takes spares is ahead when they are ready. At chain_10000 the instantiation "
     "outweighs the workers' start: measured on 2026-11-27, each run the first of a "
     "fresh process (as `dsim run` is, with no spare), in turn, two rounds, stop 6 ms: "
     "in-process 5.04 and 4.95 s, Ray 4.24 and 4.25 s, the same bytes; since a worker "
     "answers for its thousands of subsystems with two arrays instead of one per vector "
-    "(4.92 to 5.94 s before). A step of chain_10000 takes longer on Ray (1.23 and 1.43 s "
-    "against 0.83 s in-process, 0.87 and 0.98 s with `--restarts 0`: the driver sends "
-    "and reads every subsystem's forces and kinematics at each Newton iteration, and "
-    "keeps every subsystem's saved state for a fresh worker: docs/distributed.md). "
+    "(4.92 to 5.94 s before). A step of chain_10000 takes longer on Ray (0.97 and 1.04 s "
+    "against 0.83 and 0.88 s in-process, measured in turn on 2026-11-27: the driver "
+    "keeps every subsystem's saved state and the calls since for a fresh worker; with "
+    "`--restarts 0`, 0.76 and 0.77 s, a little faster than in-process: "
+    "docs/distributed.md). "
     "With more cores per machine, or more machines, the instantiation divides further "
     "while the start of the workers does not grow.",
 )
@@ -234,7 +236,7 @@ GUIDE = (
     '- **Ctrl-C during the set-up** ends the run within 5 s with its statistics, as during a step; a second Ctrl-C ends it at once (docs/results.md).',
     '- **Look before running**: `dsim validate` and `dsim info` stay linear (the table above); `dsim info` prints counts and one line per distinct FMU, `dsim info --all` every variable (810,000 lines at 10,000 components).',
     '- **Record what you need**: a run records every output it is given and every joint force by default, 20,000 columns at chain_10000; `--outputs` and `--output-interval` choose columns and rows (docs/parameters.md). The statistics JSON holds a table of FMI calls per component, about 1.4 kB each (14 MB at 10,000).',
-    '- **In-process or Ray**: on one 2-core machine the in-process backend steps faster (0.83 s a step of chain_10000 against 1.2 to 1.4 s on Ray, 0.9 to 1.0 s with `--restarts 0`); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
+    '- **In-process or Ray**: on one 2-core machine the in-process backend steps faster than Ray with its default restarts (0.83 to 0.88 s a step of chain_10000 against 0.97 to 1.04 s; 0.76 to 0.77 s on Ray with `--restarts 0`, which gives up surviving a lost worker); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
     '- **Many scenes in one Python process** (a script, a sweep in-process): each run frees its instances, and what pythonfmu FMUs add to `sys.path` goes with the last of them.',
 )
 
