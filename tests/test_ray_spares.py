@@ -69,3 +69,30 @@ def test_the_isolated_backend_leaves_no_spare(built, ray_local):
     ray_spares.drop(ray_local)
     result = dsim.simulate(scene, stop=stop_after(scene, 5), backend="isolated")
     assert result.ok and ray_spares.count() == 0
+
+
+def test_spares_turned_off_are_neither_left_nor_taken(built, ray_local):
+    scene = built["ssp"] / "spring_mass_linear.ssp"
+    stop = stop_after(scene, 5)
+    ray_spares.drop(ray_local)
+    dsim.simulate(scene, stop=stop, backend="ray")
+    assert ray_spares.count() == 2
+    try:
+        ray_spares.keep(False)  # also what DSIM_RAY_SPARES=0 does
+        assert ray_spares.count() == 0 and not ray_spares.keeping()
+        result = dsim.simulate(scene, stop=stop, backend="ray")
+        assert result.ok and ray_spares.count() == 0
+    finally:
+        ray_spares.keep(True)
+
+
+def test_the_environment_turns_spares_off_for_a_process():
+    import subprocess
+    import sys
+
+    code = "from dsim.master.running.backends import ray_spares; print(ray_spares.keeping())"
+    said = {value: subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                                  env={**os.environ, "DSIM_RAY_SPARES": value},
+                                  check=True).stdout.strip()
+            for value in ("0", "1", "")}
+    assert said == {"0": "False", "1": "True", "": "True"}

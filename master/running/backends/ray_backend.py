@@ -230,8 +230,8 @@ class RayBackend(Recovery, Backend):
     def _spares(cls, connection) -> bool:
         """Whether this run takes and leaves spare workers (ray_spares.py): not when it
         started Ray itself (Ray ends with it), nor one worker per instance, nor inside
-        a Ray worker (a sweep's point)."""
-        return (not connection.owned and not cls.one_per_instance
+        a Ray worker (a sweep's point), nor when they are turned off (ray_spares.keep)."""
+        return (ray_spares.keeping() and not connection.owned and not cls.one_per_instance
                 and ray_spares.in_driver(connection.ray))
 
     @classmethod

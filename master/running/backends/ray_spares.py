@@ -21,10 +21,27 @@ dies between being taken and being used is replaced by a new worker
 """
 from __future__ import annotations
 
+import os
 from collections import Counter
 
 #: session -> {options key -> [(actor, its ready call), ...]}; one session at a time
 _pool: dict[tuple, dict[tuple, list]] = {}
+#: whether runs leave spares: ``DSIM_RAY_SPARES=0`` in the environment, or :func:`keep`,
+#: turns them off (a shared cluster whose idle processes others need)
+_keeping = [os.environ.get("DSIM_RAY_SPARES", "1").strip() != "0"]
+
+
+def keep(on: bool = True) -> None:
+    """Whether the runs of this driver leave spare workers from now on (off: the spares
+    kept now are ended too)."""
+    _keeping[0] = bool(on)
+    if not on:
+        drop()
+
+
+def keeping() -> bool:
+    """Whether runs leave spare workers (:func:`keep`, ``DSIM_RAY_SPARES``)."""
+    return _keeping[0]
 
 
 def _session(ray) -> tuple:
