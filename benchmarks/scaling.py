@@ -58,23 +58,32 @@ print(json.dumps({"status": s["status"], "steps": s["steps"], "wall": s["wall_se
 #: set-up of one chain in-process and on a local Ray instance, in turn in one process;
 #: one run of each first, not measured: its processes are those Ray starts with the
 #: instance, and a process's first run loads what later ones find loaded.  Ray three
-#: ways: its workers started by the run (no spare: the first run of a driver), the next
-#: run at once (the spares the run before left, still starting), and once those spares
-#: are ready (ray_spares.py); before each measured round, the machine's ceiling
-#: (benchmarks/ray_speedup.py: what two processes gain over one now), once it has
-#: reached the calm asked for
+#: ways: no spare kept (the workers started as the run begins: the first run of a
+#: script on its Ray instance), the next run at once (the spares the run before left,
+#: still starting), and once those spares are ready (ray_spares.py); each run's
+#: ``setup_seconds`` and the wall time from the call of dsim.simulate to the first row
+#: (reading and planning included, and whatever Ray starts meanwhile); before each
+#: measured round, the machine's ceiling (benchmarks/ray_speedup.py: what two processes
+#: gain over one now), once it has reached the calm asked for
 _RAY = """
-import json, os, sys
+import json, os, sys, time
 from pathlib import Path
 import ray
 import dsim
 import dsim.master.api
+from dsim.master.recording.observers import Observer
 from dsim.master.running.backends import ray_spares
 from benchmarks.ray_speedup import ceiling_now
 ray.init(address="local", num_cpus=os.cpu_count(), include_dashboard=False,
          log_to_driver=False, logging_level="ERROR")
+
+class FirstRow(Observer):
+    at = None
+    def stepped(self, record):
+        self.at = self.at or time.perf_counter()
+
 kinds = ("in-process", "ray", "ray-next", "ray-ready")
-setup, rows, ceilings = {kind: [] for kind in kinds}, {}, []
+setup, call, rows, ceilings = {k: [] for k in kinds}, {k: [] for k in kinds}, {}, []
 for repetition in range(-1, int(sys.argv[2])):
     ray_spares.drop()
     if repetition >= 0:
@@ -83,14 +92,16 @@ for repetition in range(-1, int(sys.argv[2])):
         if kind == "ray-ready":
             ray_spares.settle()
         out = Path(sys.argv[3]) / f"{kind}-{repetition}.csv"
+        first, began = FirstRow(), time.perf_counter()
         result = dsim.simulate(sys.argv[1], stop=5e-3, backend=kind.split("-")[0]
                                if kind != "in-process" else kind, out=out,
-                               handle_signals=False)
+                               handle_signals=False, observers=[first])
         assert result.statistics["status"] == "completed", result.statistics
         if repetition >= 0:
             setup[kind].append(result.statistics["setup_seconds"])
+            call[kind].append(first.at - began)
         rows.setdefault(kind, out.read_bytes())
-print(json.dumps({"setup": setup, "identical": len(set(rows.values())) == 1,
+print(json.dumps({"setup": setup, "call": call, "identical": len(set(rows.values())) == 1,
                   "cpus": os.cpu_count(), "ray_version": ray.__version__,
                   "ceilings": ceilings, "calm": float(sys.argv[4])}))
 """
@@ -109,23 +120,44 @@ def ray_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> 
 
 
 #: the Ray set-ups measured, as the page names them
-RAY_KINDS = {"ray": "Ray, workers started by the run (no spare)",
+RAY_KINDS = {"ray": "Ray, no spare kept (workers started as the run begins)",
              "ray-next": "Ray, the next run at once (spares still starting)",
              "ray-ready": "Ray, spares ready"}
 
 
 def ray_lines(n: int, result: dict) -> list[str]:
     """The page's paragraphs on set-up with Ray."""
-    local = result["setup"]["in-process"]
+    local, local_call = result["setup"]["in-process"], result.get("call", {}).get("in-process")
     cpus = result["cpus"]
+
+    def cells(values) -> str:
+        return f"{min(values):.2f} | {', '.join(f'{x:.2f}' for x in values)}"
+
     table, ratios = [], []
     for kind, name in RAY_KINDS.items():
         ray = result["setup"][kind]
         ratio = [r / l for l, r in zip(local, ray)]
-        table.append(f"| {name} | {min(ray):.2f} | {', '.join(f'{x:.2f}' for x in ray)} |")
-        ratios.append(f"{name}: {', '.join(f'{x:.2f}' for x in ratio)} (Ray faster in "
-                      f"{sum(x < 1 for x in ratio)} of {len(ratio)}; least against least "
-                      f"{min(ray) / min(local):.2f})")
+        row = f"| {name} | {cells(ray)} |"
+        said = (f"{name}: {', '.join(f'{x:.2f}' for x in ratio)} (Ray faster in "
+                f"{sum(x < 1 for x in ratio)} of {len(ratio)}; least against least "
+                f"{min(ray) / min(local):.2f}")
+        if local_call:
+            ray_call = result["call"][kind]
+            row += f" {cells(ray_call)} |"
+            said += (f"; from the call, Ray faster in "
+                     f"{sum(r < l for l, r in zip(local_call, ray_call))} of "
+                     f"{len(ray_call)}, least against least "
+                     f"{min(ray_call) / min(local_call):.2f}")
+        table.append(row)
+        ratios.append(said + ")")
+    head = "| backend | set-up, least (s) | each round (s) |"
+    rule = "|---|---|---|"
+    first = f"| in-process | {cells(local)} |"
+    ceiling = "| the machine's ceiling before each round: 2 busy processes against 1 | | "
+    if local_call:
+        head += " from the call to the first row, least (s) | each round (s) |"
+        rule += "---|---|"
+        first += f" {cells(local_call)} |"
     return [
         RAY_HEADING, "",
         f"chain_{n}, five macro steps, set up in-process and on a local Ray instance "
@@ -138,21 +170,22 @@ def ray_lines(n: int, result: dict) -> list[str]:
         "`setup_seconds`, for both backends from the start of the run (the scene read and "
         "planned) to its first row: for Ray that is connecting, choosing the nodes, "
         "taking or starting the worker processes, shipping the FMU, instantiating and "
-        "initialising every FMU, and the start forces. Each round runs in-process, then "
-        "on Ray three times: with no spare worker (every worker a new process: Python, "
-        "Ray, dsim's worker module, as in the first run of a driver, or `dsim run "
-        "--backend ray`), then at once again (taking the spares the run before started "
+        "initialising every FMU, and the start forces; from the call is the wall time "
+        "from calling `dsim.simulate` to the first row, the reading and planning "
+        "included, and with them whatever Ray starts meanwhile. Each round runs "
+        "in-process, then "
+        "on Ray three times: with no spare worker kept (every worker a new process: "
+        "Python, Ray, dsim's worker module, started as the run begins, before the scene "
+        "is read and planned, as in the first run of a script on its Ray instance), then at once again (taking the spares the run before started "
         "as it ended: docs/distributed.md, \"Spare workers\"), then once the spares the "
         "second run left have started. The second run's set-up shares the two cores with "
         "the end of the run before (its workers freeing their 500 FMU instances each) and "
         "with its spares' start: what a script that runs scenes back to back meets (measured "
         "apart on 2026-11-27, 5 pairs in turn, each after a pause: such a run set up in "
         "0.64 to 0.71 s with spares and 0.72 to 0.81 s with them switched off).", "",
-        "| backend | set-up, least (s) | each round (s) |", "|---|---|---|",
-        f"| in-process | {min(local):.2f} | {', '.join(f'{x:.2f}' for x in local)} |",
-        *table,
-        "| the machine's ceiling before each round: 2 busy processes against 1 | | "
-        f"{', '.join(f'{x:.2f}' for x in result['ceilings'])} |", "",
+        head, rule, first, *table,
+        ceiling + f"{', '.join(f'{x:.2f}' for x in result['ceilings'])} |"
+        + (" | |" if local_call else ""), "",
         "Ray / in-process, round by round: " + "; ".join(ratios) + ". Results identical "
         f"to the byte: {'yes' if result['identical'] else 'NO'}.", "",
         "The machine is shared: the **ceiling** is how much faster two processes do two "
@@ -182,9 +215,11 @@ RAY_NOTES = (
     "pickle of Python's C pickler and its answer comes back the same way (Ray's own "
     "serialization dispatches each of thousands of arrays in Python), and what the "
     "driver keeps of it for a lost worker is what that pickle loads back into "
-    "(`copy.deepcopy` took 0.8 s of a chain_4000's run). Not done, measured: starting the workers "
-    "before the scene is read and planned would hide at most that, 0.16 to 0.19 s at "
-    "chain_1000, and would take the workers' start out of `setup_seconds`; batching "
+    "(`copy.deepcopy` took 0.8 s of a chain_4000's run). Starting the workers before the scene is read "
+    "and planned (a script's run on its own Ray instance, `ray_spares.ahead`) hides "
+    "part of their start behind that, 0.16 to 0.19 s at chain_1000, and out of "
+    "`setup_seconds`, which begins after the plan: hence the table's second pair of "
+    "columns, from the call. Not done, measured: batching "
     "the initialisation's calls into fewer round trips would save about 13 ms a round "
     "trip (its calls depend on what the driver computes in between); keeping a run's "
     "workers for the next run of the same driver process would take their start out of "
@@ -207,11 +242,12 @@ RAY_NOTES = (
     "that, and with both cores free Ray was ahead even starting its own workers (1.61 s "
     "against 2.29 s, in a run of this script earlier on 2026-11-27). The whole set-up "
     "now costs about 0.5 ms per component, and chain_1000 sets up in-process in about "
-    "0.45 s, about what starting one worker process costs: a run that starts its own "
-    "workers is about level with in-process at chain_1000 (the table's first Ray row; "
-    "the rows of this script's earlier runs on 2026-11-27, before spare workers and the "
-    "pickled batches, gave 0.75 s least, Ray faster in 0 of 5), and varies most with "
-    "what else holds the cores; one that takes spares is ahead when they are ready. At chain_10000 the instantiation "
+    "0.45 s, about what starting one worker process costs: a run whose workers start "
+    "as it begins is ahead at chain_1000 only because their start overlaps the reading "
+    "and planning of the scene (the table's first Ray row; this script's earlier runs "
+    "on 2026-11-27, when every measured Ray run started its workers once the scene was "
+    "planned, gave 0.75 s least, Ray faster in 0 of 5), and one that takes spares that "
+    "are ready is further ahead; one right after another run is behind. At chain_10000 the instantiation "
     "outweighs the workers' start: measured on 2026-11-27, each run the first of a "
     "fresh process (as `dsim run` is, with no spare), in turn, two rounds, stop 6 ms: "
     "in-process 5.04 and 4.95 s, Ray 4.24 and 4.25 s, the same bytes; since a worker "

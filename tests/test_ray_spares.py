@@ -96,3 +96,17 @@ def test_the_environment_turns_spares_off_for_a_process():
                                   check=True).stdout.strip()
             for value in ("0", "1", "")}
     assert said == {"0": "False", "1": "True", "": "True"}
+
+
+def test_workers_started_ahead_of_a_first_run_are_the_ones_it_takes(built, ray_local):
+    """dsim.simulate(..., backend="ray") on a Ray instance the script joined starts the
+    workers (ray_spares.ahead) before it reads and plans the scene."""
+    scene = built["ssp"] / "frame_split.ssp"
+    stop = stop_after(scene, 5)
+    ray_spares.drop(ray_local)
+    assert ray_spares.ahead(ray_local) == 2 and ray_spares.ahead(ray_local) == 0  # topped up
+    ray_spares.settle(ray_local)
+    started = ray_spares.pids(ray_local)
+    result = dsim.simulate(scene, stop=stop, backend="ray")
+    assert result.ok and workers(result) == started
+    ray_spares.drop(ray_local)

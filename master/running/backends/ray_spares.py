@@ -9,12 +9,14 @@ run's FMUs (their Python, their libraries, whatever they left behind) must not h
 the next run's.  So when such a run ends, dsim starts as many *new* workers as it
 used, on the same nodes with the same options, and the next run takes them instead
 of starting its own: fresh processes that have hosted nothing, ready by the time the
-next scene is read and planned.  A run that started Ray itself (``dsim run
---backend ray``) ends Ray with it, and leaves no spare.
+next scene is read and planned; a run with none kept (the first) starts its workers
+before its scene is read and planned (:func:`ahead`, from ``dsim.simulate``).  A run
+that started Ray itself (``dsim run --backend ray``) ends Ray with it, and leaves no
+spare.
 
 Only a driver keeps spares (a sweep's point runs inside a Ray worker, and leaves
-none).  Spares are kept per Ray session (a new ``ray.init`` forgets the old ones), take no
-CPU of Ray's (``num_cpus=0``, as every worker of dsim's), and end with the driver or
+none).  Spares are kept per Ray session (a new ``ray.init`` forgets the old ones), take
+no CPU of Ray's (``num_cpus=0``, as every worker of dsim's), and end with the driver or
 with :func:`drop`.  A spare found dead (its ready call failed) is not used; one that
 dies between being taken and being used is replaced by a new worker
 (ray_backend.RayBackend._open).
@@ -22,6 +24,7 @@ dies between being taken and being used is replaced by a new worker
 from __future__ import annotations
 
 import os
+import sys
 from collections import Counter
 
 #: session -> {options key -> [(actor, its ready call), ...]}; one session at a time
@@ -115,6 +118,32 @@ def stock(ray, remote, options: list[dict]) -> None:
         for _ in range(count - len(kept)):
             actor = remote.options(**examples[kind]).remote()
             kept.append((actor, actor.ready.remote()))
+
+
+def ahead(ray=None) -> int:
+    """Start spare workers for the run about to begin, while its scene is read and
+    planned: as many as the cluster has CPUs (the most workers a run of components
+    without a placement uses), on the nodes such a run chooses, less those already
+    kept; only in a driver connected to Ray that keeps spares.  How many it started."""
+    from dsim.master.running.ray_cluster import Connection
+
+    if ray is None:  # a process that never imported Ray is connected to none
+        ray = sys.modules.get("ray")
+    if ray is None or not ray.is_initialized() or not keeping() or not in_driver(ray):
+        return 0
+    from dsim.master.running.backends.ray_placement import Placement
+    from dsim.master.running.backends.ray_worker import Host
+
+    connection = Connection(ray, owned=False)
+    workers = connection.cpus("")
+    if workers < 1:
+        return 0
+    nodes = Placement(connection, [("", workers)])
+    before = count()
+    # the options RayBackend._start gives the workers of components without a placement
+    stock(ray, ray.remote(Host), [{"num_cpus": 0, "max_restarts": 0, **nodes.options("", n)}
+                                  for n in range(workers)])
+    return count() - before
 
 
 def pids(ray) -> set[int]:
