@@ -222,17 +222,35 @@ def test_fewer_nodes_than_workers_to_spread_is_said_in_one_line(built, tmp_path)
 
 
 # --- what survives what (docs/distributed.md) ---------------------------------------
-def processes_of(process: subprocess.Popen, name: str) -> list[int]:
-    """The processes named ``name`` (in their command line) among those a node started."""
+def wait_for_cpus(address: str, count: float, env) -> None:
+    """Until the cluster at ``address`` counts ``count`` CPUs: a node that says it is up
+    (`ray start`'s "block forever") is known to the cluster's scheduler a moment later,
+    and a sweep started before then keeps one point fewer in flight."""
+    deadline = time.monotonic() + 60
+    while True:
+        said = subprocess.run([RAY, "status", f"--address={address}"], env=env, cwd=ROOT,
+                              capture_output=True, text=True, timeout=60).stdout
+        cpus = [float(n) for n in re.findall(r"/(\d+(?:\.\d+)?) CPU", said)]
+        if cpus and max(cpus) >= count:
+            return
+        assert time.monotonic() < deadline, said
+        time.sleep(0.5)
+
+
+def processes_of(process: subprocess.Popen, name: str, program: bool = False) -> list[int]:
+    """The processes named ``name`` (in their command line; with ``program``, the name
+    of the program they run: a worker still starting names the raylet in its arguments,
+    ``--raylet-name``) among those a node started."""
     from dsim.master.running.interrupts import descendants
 
     found = []
     for pid in descendants(process.pid):
         try:
-            command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
         except OSError:
             continue
-        if name.encode() in command:
+        if (Path(argv[0].decode(errors="replace")).name == name if program
+                else name.encode() in b" ".join(argv)):
             found.append(pid)
     return found
 
@@ -269,7 +287,7 @@ def test_a_lost_node_does_not_end_the_run_its_component_goes_on_elsewhere(built,
         process = subprocess.Popen(run + ["--out", str(target)], cwd=ROOT, env=cluster["env"],
                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         wait_for_rows(target, process)
-        raylet = processes_of(spare, "raylet")
+        raylet = processes_of(spare, "raylet", program=True)
         assert len(raylet) == 1
         # the node goes down as a machine does: its raylet and its workers at once (a
         # worker whose raylet alone was killed answered calls for a while, and a short
@@ -318,7 +336,7 @@ def test_a_lost_head_ends_the_run_within_seconds_with_everything_kept(built, tmp
                                    cwd=ROOT, env=env, stdout=subprocess.PIPE,
                                    stderr=subprocess.PIPE, text=True)
         wait_for_rows(target, process)
-        [gcs] = processes_of(head, "gcs_server")
+        [gcs] = processes_of(head, "gcs_server", program=True)
         os.kill(gcs, signal.SIGKILL)
         killed = time.monotonic()
         out, err = process.communicate(timeout=120)
@@ -348,6 +366,7 @@ def sweep_losing_a_node(built, cluster, folder: Path, *options) -> tuple[list, d
     rows of sweep.csv by point number."""
     spare = start_node([f"--address={cluster['address']}", "--num-cpus=1",
                         "--object-store-memory=80000000"], cluster["env"], folder / "spare.log")
+    wait_for_cpus(cluster["address"], 3, cluster["env"])
     out = folder / "sweep"
     command = DSIM + ["sweep", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "60",
                       "--step", "0.01,0.011,0.012", "--backend", "ray", "--address",
@@ -361,7 +380,7 @@ def sweep_losing_a_node(built, cluster, folder: Path, *options) -> tuple[list, d
             assert time.monotonic() < deadline
             time.sleep(0.1)
         time.sleep(1.0)  # the point under way on it
-        [raylet] = processes_of(spare, "raylet")
+        [raylet] = processes_of(spare, "raylet", program=True)
         os.kill(raylet, signal.SIGKILL)
         out_text, err = process.communicate(timeout=300)
     finally:
@@ -415,7 +434,7 @@ def test_a_lost_head_ends_a_sweep_within_seconds_its_lost_points_run_again(built
             assert process.poll() is None, process.communicate()
             assert time.monotonic() < deadline
             time.sleep(0.1)
-        [gcs] = processes_of(head["head"], "gcs_server")
+        [gcs] = processes_of(head["head"], "gcs_server", program=True)
         os.kill(gcs, signal.SIGKILL)
         killed = time.monotonic()
         out_text, err = process.communicate(timeout=120)
