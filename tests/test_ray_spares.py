@@ -110,3 +110,16 @@ def test_workers_started_ahead_of_a_first_run_are_the_ones_it_takes(built, ray_l
     result = dsim.simulate(scene, stop=stop, backend="ray")
     assert result.ok and workers(result) == started
     ray_spares.drop(ray_local)
+
+
+def test_workers_started_ahead_of_a_refused_scene_stay_as_spares(ray_local, tmp_path):
+    import pytest
+
+    from dsim.master.errors import InputError
+
+    missing = tmp_path / "nothing_here.ssp"
+    ray_spares.drop(ray_local)
+    with pytest.raises(InputError):
+        dsim.simulate(missing, stop=0.1, backend="ray")
+    assert ray_spares.count() == 2  # one per CPU of the session's instance, for the next run
+    ray_spares.drop(ray_local)
