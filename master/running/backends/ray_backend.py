@@ -44,7 +44,8 @@ from dsim.master.running.backends.ray_recovery import (RESTARTS, Recovery, _caus
 from dsim.master.running.backends import ray_spares
 from dsim.master.running.collector import freeze, thaw
 from dsim.master.running.backends.ray_placement import Placement
-from dsim.master.running.backends.ray_worker import CHECKPOINT, Host, deal, unpack_answers
+from dsim.master.running.backends.ray_worker import (CHECKPOINT, WORKER_OPTIONS, Host, deal,
+                                                     unpack_answers)
 from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
 
 #: seconds to wait for the workers to start and instantiate their FMUs
@@ -165,7 +166,7 @@ class RayBackend(Recovery, Backend):
         nodes = Placement(connection, [(placement, n) for placement, _, n in groups])
         spread = {}  # worker number in the group without a placement -> its components
         for placement, indices, count in groups:
-            options = {"num_cpus": 0, "max_restarts": 0}
+            options = dict(WORKER_OPTIONS)
             if placement:
                 options["resources"] = {placement: PLACEMENT_SHARE}
             for number, dealt in enumerate(deal(len(indices), count)):

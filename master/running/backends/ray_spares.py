@@ -67,10 +67,14 @@ def settle(ray=None, timeout: float = 60.0) -> int:
         from dsim.master.running.ray_cluster import ray_module
 
         ray = ray_module()
+    return len(_started(ray, timeout))
+
+
+def _started(ray, timeout: float) -> list:
+    """The ready calls of the spares that have answered (waiting ``timeout`` s at most)."""
     calls = [ready for spares in _pool.values() for kept in spares.values()
              for _, ready in kept]
-    done, _ = ray.wait(calls, num_returns=len(calls), timeout=timeout) if calls else ([], [])
-    return len(done)
+    return ray.wait(calls, num_returns=len(calls), timeout=timeout)[0] if calls else []
 
 
 def key(options: dict) -> tuple:
@@ -132,7 +136,7 @@ def ahead(ray=None) -> int:
     if ray is None or not ray.is_initialized() or not keeping() or not in_driver(ray):
         return 0
     from dsim.master.running.backends.ray_placement import Placement
-    from dsim.master.running.backends.ray_worker import Host
+    from dsim.master.running.backends.ray_worker import WORKER_OPTIONS, Host
 
     connection = Connection(ray, owned=False)
     workers = connection.cpus("")
@@ -141,18 +145,15 @@ def ahead(ray=None) -> int:
     nodes = Placement(connection, [("", workers)])
     before = count()
     # the options RayBackend._start gives the workers of components without a placement
-    stock(ray, ray.remote(Host), [{"num_cpus": 0, "max_restarts": 0, **nodes.options("", n)}
+    stock(ray, ray.remote(Host), [{**WORKER_OPTIONS, **nodes.options("", n)}
                                   for n in range(workers)])
     return count() - before
 
 
 def pids(ray) -> set[int]:
     """The process ids of the spare workers that have started (see :func:`settle`)."""
-    calls = [ready for spares in _pool.values() for kept in spares.values()
-             for _, ready in kept]
-    done, _ = ray.wait(calls, num_returns=len(calls), timeout=0) if calls else ([], [])
     found = set()
-    for ready in done:
+    for ready in _started(ray, 0):
         try:
             found.add(ray.get(ready, timeout=0))
         except ray.exceptions.RayError:  # it died before it started

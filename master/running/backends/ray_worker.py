@@ -27,6 +27,9 @@ from dsim.master.running.ray_cluster import landed
 #: the pseudo-methods of :meth:`Host.run` that take or restore a checkpoint, and that
 #: take a call again that raised an error the first time (a step an FMU discarded)
 CHECKPOINT, RESUME, FAILED = "@checkpoint", "@resume", "@failed"
+#: the Ray options of every worker (placement and node added per run): no CPU of Ray's,
+#: so that any number share a node; never restarted by Ray (dsim starts a lost one again)
+WORKER_OPTIONS = {"num_cpus": 0, "max_restarts": 0}
 #: the calls whose last arguments a checkpoint keeps: inputs an FMU state need not hold
 #: (a restored state brings back its own, others keep what was written last)
 REMEMBERED = ("write_start_inputs", "write_inputs", "write_texts", "set_forces",
@@ -216,11 +219,12 @@ def pack_answers(entries) -> tuple | None:
     (``v``) and (u, v, a) kinematics (``k``), a missing one None (a kind the FMU lacks),
     as the form (``"kv"`` for a step and its outputs) and two arrays: every value in
     order, and each vector's length (-1: None); None when the answers are not all of
-    one such form.  Ray serializes each numpy array on its own, and unpacking 10,000
-    subsystems' arrays was most of what the driver did in a step of chain_10000 (2.13
-    to 2.46 s a step before, 1.73 to 1.95 s packed; set-up 4.92 to 5.94 s before, 4.17
-    to 4.88 s: docs/distributed.md).  Written by hand: Ray has no packing of many small
-    arrays."""
+    one such form (inside the one pickle of :meth:`Host.run_pickled`, two arrays
+    instead of one per vector).  Ray serialized each numpy array on its own, and
+    unpacking 10,000 subsystems' arrays was most of what the driver did in a step of
+    chain_10000 (2.13 to 2.46 s a step before, 1.73 to 1.95 s packed; set-up 4.92 to
+    5.94 s before, 4.17 to 4.88 s: docs/distributed.md).  Written by hand: Ray has no
+    packing of many small arrays."""
     if not entries:
         return None
     form = "".join("k" if type(item) is tuple else "v" for item in entries[0])
