@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -119,14 +121,120 @@ def ray_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> 
     return json.loads(found.stdout.strip().splitlines()[-1])
 
 
+#: the ways `dsim run` is timed from the command line, as the page names them
+CLI_KINDS = {"in-process": ("in-process", []),
+             "cluster": ("`--backend ray --address` a running one-node cluster",
+                         ["--backend", "ray", "--address", "{address}"]),
+             "own": ("`--backend ray`, Ray started by the run", ["--backend", "ray"])}
+
+
+def cli_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> dict:
+    """``dsim run`` of chain_n from the command line, five macro steps, each way of
+    :data:`CLI_KINDS` in turn ``repetitions`` times after one round not measured: the
+    run's ``setup_seconds`` and the command's wall time (Python's start, reading,
+    planning, set-up, the steps and the end, Ray's included), on a one-node cluster
+    this function starts (`ray start --head`, one CPU per core) and ends."""
+    import secrets
+    import socket
+
+    from benchmarks.ray_speedup import ceiling_now
+
+    scene = chain_folder(n, folder / "scene")
+    dsim = str(Path(sys.executable).parent / "dsim")
+    ray_cli = str(Path(sys.executable).parent / "ray")
+    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0", "OMP_NUM_THREADS": "1",
+           "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32)}
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    temp = Path(tempfile.mkdtemp(prefix="dsimh", dir="/tmp"))  # short: socket paths
+    log = temp / "head.log"
+    head = subprocess.Popen([ray_cli, "start", "--head", f"--port={port}", "--block",
+                             f"--num-cpus={os.cpu_count()}", "--include-dashboard=false",
+                             f"--temp-dir={temp}"], env=env, stdout=open(log, "w"),
+                            stderr=subprocess.STDOUT, start_new_session=True)
+    setup = {kind: [] for kind in CLI_KINDS}
+    wall = {kind: [] for kind in CLI_KINDS}
+    ceilings, rows = [], {}
+    try:
+        address = f"127.0.0.1:{port}"
+        deadline = time.monotonic() + 120
+        while "block forever" not in log.read_text():
+            if time.monotonic() > deadline or head.poll() is not None:
+                raise RuntimeError(f"the benchmark's Ray head did not start: "
+                                   f"{log.read_text()}")
+            time.sleep(0.2)
+        for repetition in range(-1, repetitions):
+            if repetition >= 0:
+                ceilings.append(ceiling_now(calm))
+            for kind, (_, options) in CLI_KINDS.items():
+                out = folder / f"cli-{kind}-{repetition}.csv"
+                began = time.perf_counter()
+                subprocess.run([dsim, "run", str(scene), "--stop", "5e-3", "--quiet",
+                                "--out", str(out),
+                                *(o.format(address=address) for o in options)],
+                               env=env, check=True, stderr=subprocess.DEVNULL, cwd=folder)
+                took = time.perf_counter() - began
+                if repetition >= 0:
+                    said = json.loads(out.with_suffix(".stats.json").read_text())
+                    setup[kind].append(said["setup_seconds"])
+                    wall[kind].append(took)
+                rows.setdefault(kind, out.read_bytes())
+    finally:
+        for number in (signal.SIGTERM, signal.SIGKILL):  # the head's process group
+            try:
+                os.killpg(head.pid, number)
+                head.wait(10)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+            except ProcessLookupError:
+                break
+        shutil.rmtree(temp, ignore_errors=True)
+    return {"setup": setup, "wall": wall, "ceilings": ceilings,
+            "identical": len(set(rows.values())) == 1}
+
+
+def cli_lines(n: int, result: dict) -> list[str]:
+    """The page's paragraph and table on `dsim run` with Ray from the command line."""
+    def cells(values) -> str:
+        return f"{min(values):.2f} | {', '.join(f'{x:.2f}' for x in values)}"
+
+    local = result["setup"]["in-process"]
+    rounds = len(local)
+    lines = [
+        "### `dsim run` from the command line", "",
+        f"chain_{n}, five macro steps, `dsim run` from the command line each way in turn, "
+        f"{rounds} rounds after one not measured (`python -m benchmarks.scaling --only "
+        "ray`). Each command is a new process, with no spare worker to take: given a "
+        "running cluster's address, it joins the cluster and starts its workers before "
+        "it reads and plans the scene (`ray_cluster.connect_ahead`); without one it "
+        "starts a Ray instance of its own, and ends it as it ends. The command's wall "
+        "time includes Python's start, reading and planning, the five steps and the end "
+        "(Ray's shutdown included).", "",
+        "| `dsim run` | set-up, least (s) | each round (s) | the command's wall time, least "
+        "(s) | each round (s) |", "|---|---|---|---|---|"]
+    for kind, (name, _) in CLI_KINDS.items():
+        lines.append(f"| {name} | {cells(result['setup'][kind])} | "
+                     f"{cells(result['wall'][kind])} |")
+    cluster = result["setup"]["cluster"]
+    lines += ["", f"The cluster's set-up against in-process, round by round: "
+              f"{', '.join(f'{c / l:.2f}' for l, c in zip(local, cluster))} (faster in "
+              f"{sum(c < l for l, c in zip(local, cluster))} of {rounds}); the machine's "
+              f"ceiling before each round: {', '.join(f'{x:.2f}' for x in result['ceilings'])}. "
+              f"Results identical to the byte: {'yes' if result['identical'] else 'NO'}.",
+              ""]
+    return lines
+
+
 #: the Ray set-ups measured, as the page names them
 RAY_KINDS = {"ray": "Ray, no spare kept (workers started as the run begins)",
              "ray-next": "Ray, the next run at once (spares still starting)",
              "ray-ready": "Ray, spares ready"}
 
 
-def ray_lines(n: int, result: dict) -> list[str]:
-    """The page's paragraphs on set-up with Ray."""
+def ray_lines(n: int, result: dict, commands: dict | None = None) -> list[str]:
+    """The page's paragraphs on set-up with Ray (``commands``: :func:`cli_setup`'s)."""
     local, local_call = result["setup"]["in-process"], result.get("call", {}).get("in-process")
     cpus = result["cpus"]
 
@@ -195,6 +303,7 @@ def ray_lines(n: int, result: dict) -> list[str]:
         "allows, so read each ratio against its round's ceiling" + (
             f"; each round waited for a ceiling of {result['calm']:g} (`--calm`, ten "
             "minutes at most)." if result.get("calm") else "."), "",
+        *(cli_lines(n, commands) if commands else []),
         *RAY_NOTES, ""]
 
 
@@ -504,8 +613,10 @@ def main(argv=None) -> str:
     if args.ray:
         with tempfile.TemporaryDirectory(prefix="dsim-scaling-") as temp:
             result = ray_setup(args.ray, Path(temp), calm=args.calm)
-        print(f"ray chain_{args.ray}: {result}", flush=True)
-        ray_text = ray_lines(args.ray, result)
+            print(f"ray chain_{args.ray}: {result}", flush=True)
+            commands = cli_setup(args.ray, Path(temp) / "cli", calm=args.calm)
+            print(f"dsim run chain_{args.ray}: {commands}", flush=True)
+        ray_text = ray_lines(args.ray, result, commands)
     elif Path(args.docs).is_file() and RAY_HEADING in Path(args.docs).read_text():
         # not measured this time: the page's section is kept as it is
         ray_text = [RAY_HEADING + Path(args.docs).read_text().split(RAY_HEADING, 1)[1]]

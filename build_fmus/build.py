@@ -22,7 +22,6 @@ import zipfile
 from pathlib import Path
 
 from lxml import etree
-from dsim.build_fmus.twins import TWINS, twin_csv
 from dsim.build_fmus.units import add_units
 
 #: the folder that holds fmus/ and ssp/: the checkout, or the installed dsim package
@@ -207,6 +206,10 @@ def pack_scenes(root: Path = ROOT, force: bool = False, log=print,
 def write_twin(scene: str, out: Path) -> None:
     """Write the scene's monolithic twin (:mod:`dsim.build_fmus.twins`) as
     ``out/SCENE.csv``, where it has one."""
+    # here, not at the top: every `dsim` command reads this module to register
+    # `dsim build-fmus`, and the twins' finite-element imports take a quarter second
+    from dsim.build_fmus.twins import TWINS, twin_csv
+
     if scene in TWINS:
         out.mkdir(parents=True, exist_ok=True)
         (out / f"{scene}.csv").write_bytes(twin_csv(scene))

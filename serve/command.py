@@ -9,7 +9,6 @@ import secrets
 import socket
 
 from dsim import InputError
-from dsim.serve.app import accepted_hosts, create_app
 
 #: the packages of the ``serve`` extra, by import name
 NEEDED = ("fastapi", "uvicorn", "jinja2", "multipart")
@@ -59,6 +58,10 @@ def serve(args) -> int:
     if not loopback(args.host) and not token:
         token = secrets.token_urlsafe(24)
     import uvicorn
+
+    # here, not at the top: every `dsim` command reads this module to register
+    # `dsim serve`, and the web application's imports take a third of a second
+    from dsim.serve.app import accepted_hosts, create_app
 
     listening = _bind(args.host, args.port)
     port = listening.getsockname()[1]  # the one the system chose for --port 0

@@ -202,15 +202,64 @@ def test_components_without_a_placement_each_run_on_a_node_of_their_own(built, c
     assert where == {"left": nodes["right_node"], "right": nodes["head_node"]}
 
 
+#: a script's run of scene argv[2] on the cluster at argv[1]: which workers dsim started
+#: ahead of it (ray_spares.ahead, waited for here), which ran its components, and what
+#: is left after it (one run per process: Ray can end a process that shuts down its
+#: second connection, docs/distributed.md)
+AHEAD_SCRIPT = """
+import json, sys
+import ray
+import dsim
+from dsim.master.errors import InputError
+from dsim.master.running.backends import ray_spares
+
+started = []
+first = ray_spares.ahead
+def ahead(ray=None):
+    count = first(ray)
+    ray_spares.settle()
+    started.extend(ray_spares.pids(sys.modules["ray"]))
+    return count
+ray_spares.ahead = ahead
+try:
+    result = dsim.simulate(sys.argv[2], stop=0.05, backend="ray", address=sys.argv[1])
+    used = sorted({c["worker"]["pid"] for c in result.statistics["components"].values()})
+except InputError:
+    used = "refused"
+print(json.dumps({"started": sorted(started), "used": used,
+                  "after": [ray.is_initialized(), ray_spares.count()]}))
+"""
+
+
 def test_fewer_nodes_than_workers_to_spread_is_said_in_one_line(built, tmp_path):
-    """One node of two CPUs: the two workers share it, and one line says so."""
+    """One node of two CPUs: the two workers share it, and one line says so, naming five
+    components at most; a run given the cluster's address joins it and starts its
+    workers before it reads the scene (ray_cluster.connect_ahead), runs on them, and
+    leaves the cluster as it found it, also when its scene is refused."""
     with own_head(cpus=2) as head:
         target = tmp_path / "run.csv"
-        run = subprocess.run(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
-                                     "--stop", "0.05", "--quiet", "--backend", "ray",
-                                     "--address", head["address"], "--out", str(target)],
-                             cwd=ROOT, env=head["env"], capture_output=True, text=True,
-                             timeout=300)
+        chain = tmp_path / "chain.csv"
+        run, long = (subprocess.run(
+            DSIM + ["run", str(built["ssp"] / scene), "--stop", "0.05", "--quiet",
+                    "--backend", "ray", "--address", head["address"], "--out", str(out)],
+            cwd=ROOT, env=head["env"], capture_output=True, text=True, timeout=300)
+            for scene, out in (("spring_mass_linear.ssp", target), ("chain_10.ssp", chain)))
+        scripts = [subprocess.run(
+            [sys.executable, "-c", AHEAD_SCRIPT, head["address"], str(scene)],
+            cwd=ROOT, env=head["env"], capture_output=True, text=True, timeout=300)
+            for scene in (built["ssp"] / "chain_10.ssp", tmp_path / "missing.ssp")]
+    said = []
+    for script in scripts:
+        assert script.returncode == 0, script.stderr
+        said.append(json.loads(script.stdout.splitlines()[-1]))
+    ran, refused = said
+    assert len(ran["used"]) == 2 and ran["used"] == ran["started"], ran
+    assert refused["used"] == "refused" and len(refused["started"]) == 2, refused
+    assert ran["after"] == refused["after"] == [False, 0], said  # disconnected, no spare
+    assert long.returncode == 0 and long.stdout == "", long.stderr
+    [line] = long.stderr.splitlines()
+    assert re.search(r"\(components 'm\d+', 'm\d+', 'm\d+', 'm\d+', 'm\d+' and 5 more "
+                     r"share node", line), line
     assert run.returncode == 0 and run.stdout == "", run.stderr
     where = nodes_of_components(target.with_suffix(".stats.json"))
     assert len(set(where.values())) == 1

@@ -55,3 +55,41 @@ def test_the_progress_line_says_how_far_the_set_up_is(built, tmp_path):
     assert result.status == "completed"
     shown = screen.getvalue()
     assert "chain · FMUs instantiated 12/12" in shown and "chain · initialising" in shown
+
+
+#: a run on a local Ray instance it starts itself: what its observer is told first
+STARTS_RAY = """
+import json, sys
+import dsim
+from dsim.master.recording.observers import Observer
+
+class Told(Observer):
+    events = []
+    def preparing(self, what, done, total):
+        self.events.append([what, done, total])
+
+result = dsim.simulate(sys.argv[1], stop=0.002, observers=[Told()], backend="ray",
+                       handle_signals=False)
+print(json.dumps([result.status, Told.events]))
+"""
+
+
+def test_starting_ray_is_said_before_the_instances_and_only_when_it_starts(built,
+                                                                          ray_local):
+    """Starting a local Ray instance takes seconds with nothing else to show: the line
+    says it; a run on a Ray instance already there says nothing of it."""
+    import json
+    import subprocess
+    import sys
+
+    scene = str(built["ssp"] / "chain_10.ssp")
+    said = subprocess.run([sys.executable, "-c", STARTS_RAY, scene], capture_output=True,
+                          text=True, check=True).stdout
+    status, events = json.loads(said.splitlines()[-1])
+    assert status == "completed"
+    assert events[:2] == [["starting a local Ray instance", 0, 0],
+                          ["FMUs instantiated", 10, 10]], events
+    told = Told()
+    assert dsim.simulate(scene, stop=0.002, observers=[told], backend="ray",
+                         handle_signals=False).ok
+    assert [e for e in told.events if e[0] != "stepped"][:1] == [("FMUs instantiated", 10, 10)]

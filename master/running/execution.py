@@ -123,14 +123,14 @@ class Execution:
     #: seconds between two set-up progress notices (the last is always passed on)
     PREPARING_EVERY = 0.2
 
-    def _instantiated(self, done: int, total: int) -> None:
-        """The backend's progress: ``done`` of ``total`` FMUs instantiated, passed to
-        the observers a few times a second."""
+    def _instantiated(self, done: int, total: int, what: str = "FMUs instantiated") -> None:
+        """The backend's progress: ``done`` of ``total`` FMUs instantiated (or ``what``
+        else it does, ``total`` 0), passed to the observers a few times a second."""
         now = clock.perf_counter()
         if done < total and now - self._told < self.PREPARING_EVERY:
             return
         self._told = now
-        self._notify("preparing", "FMUs instantiated", done, total)
+        self._notify("preparing", what, done, total)
 
     def warn(self, message: str) -> None:
         """Record a warning and pass it to the observers."""

@@ -14,6 +14,7 @@ import logging
 import os
 import signal
 import socket
+import sys
 import tempfile
 import threading
 import time as clock
@@ -82,6 +83,9 @@ class Connection:
         self.ray = ray
         self.owned = owned
         self.address = address
+        #: made before its run's scene was read (connect_ahead): workers were started
+        #: ahead for that run (ray_spares.ahead)
+        self.ahead = False
 
     def cpus(self, resource: str = "") -> int:
         """Logical CPUs of the live nodes (those holding ``resource``, if named)."""
@@ -98,8 +102,49 @@ class Connection:
 
     def close(self) -> None:
         if self.owned and self.ray.is_initialized():
+            # the workers started ahead of this connection's run and not taken by it
+            # end with it
+            from dsim.master.running.backends import ray_spares
+
+            ray_spares.forget()
             self.ray.shutdown()
         self.owned = False
+
+
+#: the connection :func:`connect_ahead` made for the run about to begin, until that
+#: run's backend takes it (:func:`connect`) or the run ends without one (:func:`release`)
+_ahead: list[Connection] = []
+
+
+def connect_ahead(address: str | None) -> Connection | None:
+    """Join the cluster at ``address`` before the run's scene is read and planned, so
+    that its workers start meanwhile (ray_spares.ahead): the backend then takes this
+    connection, and ends it as its own.  Only for an address (a running cluster, a
+    fraction of a second to join): a new local instance takes seconds to start, a
+    cost a scene refused as bad input should not pay.  None when there is no address
+    or this process is already connected.  InputError as :func:`connect`."""
+    if not address:
+        return None
+    ray = ray_module()
+    if ray.is_initialized():
+        return None
+    connection = connect(address)
+    connection.ahead = True
+    _ahead.append(connection)
+    return connection
+
+
+def release() -> None:
+    """End the connection made ahead of a run that did not take it (refused as bad
+    input before its backend started)."""
+    while _ahead:
+        _ahead.pop().close()
+
+
+def starts_ray(address: str | None) -> bool:
+    """Whether :func:`connect` would start a local Ray instance (seconds)."""
+    ray = sys.modules.get("ray")
+    return not address and not (ray is not None and ray.is_initialized())
 
 
 def connect(address: str | None = None) -> Connection:
@@ -108,6 +153,8 @@ def connect(address: str | None = None) -> Connection:
     machine.  InputError when Ray is missing or the cluster cannot be reached."""
     ray = ray_module()
     _quiet_worker_deaths(ray)
+    if _ahead and ray.is_initialized() and _ahead[-1].address == address:
+        return _ahead.pop()  # made for this run (connect_ahead): ended with it
     if ray.is_initialized():  # a script's (or a test session's) own instance
         return Connection(ray, owned=False)
     if address:

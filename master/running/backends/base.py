@@ -40,7 +40,7 @@ class Backend(ABC):
         """Create every subsystem of a run from its
         :class:`~dsim.master.running.fmi.SubsystemSpec` (instantiated, in initialization mode);
         ``progress(done, total)``, if given, is told how many are instantiated as they
-        are."""
+        are, and ``progress(0, 0, what)`` what else takes long before (starting Ray)."""
 
     @abstractmethod
     def subset(self, indices) -> "Backend":

@@ -46,7 +46,8 @@ from dsim.master.running.collector import freeze, thaw
 from dsim.master.running.backends.ray_placement import Placement
 from dsim.master.running.backends.ray_worker import (CHECKPOINT, WORKER_OPTIONS, Host, deal,
                                                      unpack_answers)
-from dsim.master.running.ray_cluster import INSTALL, Shipment, address_problem, available, connect
+from dsim.master.running.ray_cluster import (INSTALL, Shipment, address_problem, available,
+                                             connect, starts_ray)
 
 #: seconds to wait for the workers to start and instantiate their FMUs
 START_SECONDS = 300.0
@@ -134,6 +135,8 @@ class RayBackend(Recovery, Backend):
     @classmethod
     def from_specs(cls, specs, address=None, call_timeout=None, restarts=None,
                    progress=None, **options) -> "RayBackend":
+        if progress is not None and starts_ray(address):  # seconds with nothing to show
+            progress(0, 0, "starting a local Ray instance")
         connection = connect(address)
         specs = list(specs)
         try:
@@ -228,11 +231,14 @@ class RayBackend(Recovery, Backend):
         return max(1, min(count, connection.cpus(placement)))
 
     @classmethod
-    def _spares(cls, connection) -> bool:
-        """Whether this run takes and leaves spare workers (ray_spares.py): not when it
-        started Ray itself (Ray ends with it), nor one worker per instance, nor inside
-        a Ray worker (a sweep's point), nor when they are turned off (ray_spares.keep)."""
-        return (ray_spares.keeping() and not connection.owned and not cls.one_per_instance
+    def _spares(cls, connection, leaving: bool = False) -> bool:
+        """Whether this run takes (or, ``leaving``, leaves) spare workers
+        (ray_spares.py): not one worker per instance, nor inside a Ray worker (a sweep's
+        point), nor when they are turned off (ray_spares.keep); it leaves none when it
+        made its connection (the driver ends with the run, or Ray does), and takes those
+        only when the connection was made ahead of it (ray_cluster.connect_ahead)."""
+        mine = connection.owned and not (connection.ahead and not leaving)
+        return (ray_spares.keeping() and not mine and not cls.one_per_instance
                 and ray_spares.in_driver(connection.ray))
 
     @classmethod
@@ -495,7 +501,7 @@ class RayBackend(Recovery, Backend):
                     pass  # a worker gone (or frozen) while closing: it is killed below
             for host in cluster.hosts:
                 ray.kill(host)
-            if self._spares(cluster.connection):  # for the next run of this driver
+            if self._spares(cluster.connection, leaving=True):  # the driver's next run
                 ray_spares.stock(ray, ray.remote(Host), cluster.options)
         finally:
             cluster.closed = True

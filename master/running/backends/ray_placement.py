@@ -21,6 +21,9 @@ from __future__ import annotations
 
 import socket
 
+#: components a placement note names, at most
+NAMED = 5
+
 
 class Placement:
     """The node of every worker of a run: :meth:`node` for the next worker of a
@@ -80,7 +83,9 @@ class Placement:
             shared.setdefault(node, []).extend(owners.get(number, []))
         node, names = max(shared.items(), key=lambda item: len(item[1]))
         where = self.nodes.get(node, {}).get("NodeManagerAddress", "?")
-        quoted = ", ".join(f"'{name}'" for name in names)
+        quoted = ", ".join(f"'{name}'" for name in names[:NAMED])
+        if len(names) > NAMED:  # one line, also for a chain of ten thousand
+            quoted += f" and {len(names) - NAMED} more"
         self.notes.append(
             f"placement: {len(chosen)} workers of components without a placement, "
             f"{self._spread_nodes} node{'s' * (self._spread_nodes != 1)} with CPUs in the "

@@ -179,6 +179,12 @@ def drop(ray=None) -> None:
     _pool.clear()
 
 
+def forget() -> None:
+    """Let go of the spare workers of a Ray connection about to end: they end with it
+    (ray_cluster.Connection.close)."""
+    _pool.clear()
+
+
 def _kill(ray, actor) -> None:
     try:
         ray.kill(actor)
