@@ -10,9 +10,10 @@ the next run's.  So when such a run ends, dsim starts as many *new* workers as i
 used, on the same nodes with the same options, and the next run takes them instead
 of starting its own: fresh processes that have hosted nothing, ready by the time the
 next scene is read and planned; a run with none kept (the first) starts its workers
-before its scene is read and planned (:func:`ahead`, from ``dsim.simulate``).  A run
-that started Ray itself (``dsim run --backend ray``) ends Ray with it, and leaves no
-spare.
+before its scene is read and planned (:func:`ahead`, from ``dsim.simulate``; a run given
+a cluster's address joins it first, ray_cluster.connect_ahead).  A run that made its own
+connection (``dsim run --backend ray``, with or without ``--address``) ends it, and
+leaves no spare.
 
 Only a driver keeps spares (a sweep's point runs inside a Ray worker, and leaves
 none).  Spares are kept per Ray session (a new ``ray.init`` forgets the old ones), take
