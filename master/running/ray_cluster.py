@@ -75,6 +75,12 @@ def _host_port(address: str) -> tuple[str, int | None]:
     return host.strip("[]"), int(port) if port.isdigit() and 0 < int(port) < 65536 else None
 
 
+#: what lets go of the Ray objects it holds when this process's connection ends, before
+#: it ends (ray_spares.forget: the workers started ahead of a run and not taken): Ray
+#: objects left for after ``ray.shutdown`` are a handle into a core worker that is gone
+BEFORE_SHUTDOWN: list = []
+
+
 class Connection:
     """This process's connection to Ray; ``owned`` when :func:`connect` made it (and
     then :meth:`close` undoes it); ``address``: the cluster's, when one was given."""
@@ -102,11 +108,8 @@ class Connection:
 
     def close(self) -> None:
         if self.owned and self.ray.is_initialized():
-            # the workers started ahead of this connection's run and not taken by it
-            # end with it
-            from dsim.master.running.backends import ray_spares
-
-            ray_spares.forget()
+            for let_go in BEFORE_SHUTDOWN:
+                let_go()
             self.ray.shutdown()
         self.owned = False
 

@@ -28,6 +28,8 @@ import os
 import sys
 from collections import Counter
 
+from dsim.master.running import ray_cluster
+
 #: session -> {options key -> [(actor, its ready call), ...]}; one session at a time
 _pool: dict[tuple, dict[tuple, list]] = {}
 #: whether runs leave spares: ``DSIM_RAY_SPARES=0`` in the environment, or :func:`keep`,
@@ -65,9 +67,7 @@ def settle(ray=None, timeout: float = 60.0) -> int:
     ready.  A script that times its runs calls it first, so that the spares' start does
     not slow what it times."""
     if ray is None:
-        from dsim.master.running.ray_cluster import ray_module
-
-        ray = ray_module()
+        ray = ray_cluster.ray_module()
     return len(_started(ray, timeout))
 
 
@@ -130,8 +130,6 @@ def ahead(ray=None) -> int:
     planned: as many as the cluster has CPUs (the most workers a run of components
     without a placement uses), on the nodes such a run chooses, less those already
     kept; only in a driver connected to Ray that keeps spares.  How many it started."""
-    from dsim.master.running.ray_cluster import Connection
-
     if ray is None:  # a process that never imported Ray is connected to none
         ray = sys.modules.get("ray")
     if ray is None or not ray.is_initialized() or not keeping() or not in_driver(ray):
@@ -139,7 +137,7 @@ def ahead(ray=None) -> int:
     from dsim.master.running.backends.ray_placement import Placement
     from dsim.master.running.backends.ray_worker import WORKER_OPTIONS, Host
 
-    connection = Connection(ray, owned=False)
+    connection = ray_cluster.Connection(ray, owned=False)
     workers = connection.cpus("")
     if workers < 1:
         return 0
@@ -170,9 +168,7 @@ def count() -> int:
 def drop(ray=None) -> None:
     """End every spare worker (they end with the driver anyway)."""
     if ray is None:
-        from dsim.master.running.ray_cluster import ray_module
-
-        ray = ray_module()
+        ray = ray_cluster.ray_module()
     for spares in _pool.values():
         for kept in spares.values():
             for actor, _ in kept:
@@ -184,6 +180,9 @@ def forget() -> None:
     """Let go of the spare workers of a Ray connection about to end: they end with it
     (ray_cluster.Connection.close)."""
     _pool.clear()
+
+
+ray_cluster.BEFORE_SHUTDOWN.append(forget)
 
 
 def _kill(ray, actor) -> None:
