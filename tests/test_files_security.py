@@ -20,6 +20,7 @@ from dsim.master.reading.unpacking import sweep_dead_folders
 from dsim.master.recording.observers import CsvRecorder, RunInfo
 from dsim.master.recording.output_files import OutputFile
 from tests.scene_files import component, pack, scene_folder, ssd
+from tests.test_ray_backend import AUTHENTICATION
 
 ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "dsim.master.tools.cli"]
@@ -337,11 +338,13 @@ def test_an_address_answers_the_same_whatever_the_port_state(built, tmp_path):
             started = time.monotonic()
             code, lines = dsim_cli("run", built["ssp"] / "spring_mass_linear.ssp",
                                    "--backend", "ray", "--address", f"127.0.0.1:{port}",
-                                   "--out", tmp_path / "out.csv")
+                                   "--out", tmp_path / "out.csv",
+                                   env={"RAY_AUTH_MODE": "disabled"})
             assert code == 2 and len(lines) == 1 and time.monotonic() - started < 30
             answers.append(lines[0].replace(str(port), "PORT"))
     finally:
         listening.close()
     assert answers[0] == answers[1] == (
         "dsim: error: setting address '127.0.0.1:PORT': no Ray cluster answers there; "
-        "start one with `ray start --head` and give the address it prints")
+        "start one with `ray start --head` and give the address it prints"
+        + AUTHENTICATION)

@@ -443,10 +443,17 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
+#: what the answer for an address where no cluster answers adds in a process without
+#: RAY_AUTH_MODE=token (ray_cluster._unreachable)
+AUTHENTICATION = (" (a cluster with token authentication, the default of `ray start` since "
+                  "Ray 2.52, also needs RAY_AUTH_MODE=token and its token here: "
+                  "docs/distributed.md, \"Authentication\")")
+
+
 @pytest.mark.parametrize("arguments, expected", [
     (["--backend", "ray", "--address", "127.0.0.1:{port}"],
      "dsim: error: setting address '127.0.0.1:{port}': no Ray cluster answers there; "
-     "start one with `ray start --head` and give the address it prints"),
+     "start one with `ray start --head` and give the address it prints" + AUTHENTICATION),
     (["--backend", "ray", "--address", "head-node"],
      "dsim: error: setting address 'head-node' is not HOST:PORT, ray://HOST:PORT or auto (the "
      "address that `ray start --head` prints)"),
@@ -465,10 +472,24 @@ def test_a_bad_address_or_backend_option_is_one_line(built, tmp_path, arguments,
     started = time.monotonic()
     process = subprocess.run(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
                                      "--out", str(tmp_path / "r.csv"), *arguments],
-                             cwd=ROOT, capture_output=True, text=True, timeout=120)
+                             cwd=ROOT, capture_output=True, text=True, timeout=120,
+                             env={**os.environ, "RAY_AUTH_MODE": "disabled"})
     assert process.returncode == 2 and process.stdout == ""
     assert process.stderr.strip().splitlines() == [expected.format(port=port)]
     assert time.monotonic() - started < 60 and not (tmp_path / "r.csv").exists()
+
+
+def test_a_process_set_for_token_authentication_is_not_told_of_it(built, tmp_path):
+    port = free_port()
+    process = subprocess.run(DSIM + ["run", str(built["ssp"] / "spring_mass_linear.ssp"),
+                                     "--out", str(tmp_path / "r.csv"), "--backend", "ray",
+                                     "--address", f"127.0.0.1:{port}"],
+                             cwd=ROOT, capture_output=True, text=True, timeout=120,
+                             env={**os.environ, "RAY_AUTH_MODE": "token"})
+    assert process.returncode == 2
+    assert process.stderr.strip().splitlines() == [
+        f"dsim: error: setting address '127.0.0.1:{port}': no Ray cluster answers there; "
+        "start one with `ray start --head` and give the address it prints"]
 
 
 @pytest.mark.parametrize("arguments", [["--backend", "ray"], ["--isolate"]])

@@ -217,9 +217,17 @@ _EMPTY_SETTINGS = b"\x00\x00\x00\x04\x00\x00\x00\x00\x00"
 def _unreachable(address: str) -> str:
     """The one answer for an address where no Ray cluster answers: a closed port, a
     silent one and one where something else listens read the same, so that the
-    setting (a run setting of ``dsim serve`` too) tells nothing about the network."""
-    return (f"setting address '{address}': no Ray cluster answers there; start one with "
+    setting (a run setting of ``dsim serve`` too) tells nothing about the network.  In
+    a process without ``RAY_AUTH_MODE=token`` it also says what a cluster with token
+    authentication (``ray start --head``'s default since Ray 2.52) needs: Ray itself
+    reports such a refusal only as warnings, then as a failure to connect."""
+    said = (f"setting address '{address}': no Ray cluster answers there; start one with "
             "`ray start --head` and give the address it prints")
+    if os.environ.get("RAY_AUTH_MODE", "").strip().lower() != "token":
+        said += (" (a cluster with token authentication, the default of `ray start` since "
+                 "Ray 2.52, also needs RAY_AUTH_MODE=token and its token here: "
+                 "docs/distributed.md, \"Authentication\")")
+    return said
 
 
 def watch_head(ray, on_lost, over) -> bool:
