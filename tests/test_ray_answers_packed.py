@@ -74,14 +74,51 @@ def test_the_driver_keeps_a_checkpoint_as_the_worker_pickled_it_and_marks_a_fail
     cluster = _Cluster(None, [None], [["a", "b"]])
     cluster.unrestartable, cluster.restarts_left = [None], 1
     cluster.checkpoints = {(0, 0): None, (0, 1): None}
-    cluster.journal = {(0, 0): [("set_forces", (np.zeros(1),))], (0, 1): []}
+    before = [(0, [("set_forces", (np.zeros(1),))])]
+    cluster.log = {0: [(pickle.dumps(before), None)]}
     backend = RayBackend(cluster, [(0, 0), (0, 1)], ["a", "b"])
     saved = pickle.dumps({"state": {"fmu": b"\x00"}, "start": [], "inputs": []})
-    backend._journal(0, [(0, [("@checkpoint", ()), ("trial_step", (np.ones(1), 0.0, 1e-3))])],
-                     [[saved, None]])
+    forces = np.ones(1)
+    batch = [(0, [("@checkpoint", ()), ("trial_step", (forces, 0.0, 1e-3))])]
+    backend._journal(0, batch, [[saved, None]], pickle.dumps(batch))
+    forces[0] = 7.0  # the coupling reuses its vectors: the journal keeps what was sent
     assert cluster.checkpoints[(0, 0)] is saved  # bytes, not loaded in the driver
-    assert [call[0] for call in cluster.journal[(0, 0)]] == ["trial_step"]
+    assert len(cluster.log[0]) == 2  # 'b' has saved no state yet: the first batch stays
+    journaled = backend._journaled(0)
+    assert [call[0] for call in journaled[0]] == ["trial_step"]
+    assert journaled[0][0][1][0].tolist() == [1.0]
     assert cluster.unrestartable == [None]
-    backend._journal(0, [(1, [("@checkpoint", ())])], [[{"error": "OSError: no room"}]])
+    both = [(0, [("@checkpoint", ())]), (1, [("@checkpoint", ()), ("advance", (forces,))])]
+    backend._journal(0, both, [[saved], [saved, None]], pickle.dumps(both))
+    assert len(cluster.log[0]) == 1  # both saved: the batches before are needed no more
+    assert {slot: [c[0] for c in calls] for slot, calls in backend._journaled(0).items()} \
+        == {0: [], 1: ["advance"]}
+    backend._journal(0, [(1, [("@checkpoint", ())])], [[{"error": "OSError: no room"}]],
+                     None)
     assert cluster.unrestartable[0] == ("component 'b' could not serialize its state "
                                         "(OSError: no room)")
+
+
+def test_a_journal_of_a_subsystem_never_saved_is_boiled_down_not_kept_whole():
+    """A worker with a subsystem in no joint (never saved): its journal is boiled down
+    to each subsystem's calls since its checkpoint every few batches, as they were
+    sent, a failed call marked."""
+    from dsim.master.running.backends.ray_backend import RayBackend, _Cluster
+    from dsim.master.running.backends.ray_recovery import LOG_BATCHES
+
+    cluster = _Cluster(None, [None], [["glued", "free"]])
+    cluster.unrestartable, cluster.restarts_left = [None], 1
+    cluster.checkpoints = {(0, 0): None, (0, 1): None}
+    cluster.log = {0: []}
+    backend = RayBackend(cluster, [(0, 0), (0, 1)], ["glued", "free"])
+    for step in range(3 * LOG_BATCHES):
+        batch = [(0, [("@checkpoint", ()), ("trial_step", (np.full(1, step),))]),
+                 (1, [("exchange", (float(step), 1e-3))])]
+        backend._journal(0, batch, [[b"state", None], [None]], pickle.dumps(batch))
+        assert len(cluster.log[0]) <= LOG_BATCHES
+    failed = [(1, [("exchange", (99.0, 1e-3)), ("read_outputs", ())])]
+    backend._journal_failed(0, (0, 1), pickle.dumps(failed))
+    journaled = backend._journaled(0)
+    assert [c[1][0].tolist() for c in journaled[0]] == [[3 * LOG_BATCHES - 1]]
+    assert [c[1][0] for c in journaled[1][:-2]] == [float(s) for s in range(3 * LOG_BATCHES)]
+    assert journaled[1][-2:] == [("exchange", (99.0, 1e-3)), ("@failed", ("read_outputs", ()))]

@@ -345,6 +345,37 @@ def test_a_killed_worker_is_started_again_and_the_run_gives_the_undisturbed_numb
         {loss["new_worker"]["pid"]} != {victim}
 
 
+def test_a_worker_holding_a_subsystem_in_no_joint_is_started_again_to_the_same_bits(
+        built, ray_local, tmp_path):
+    """chain_4 and a fifth SpringMass in no joint, on the first worker with two of the
+    chain: that one is never saved, so the driver's journal of the worker is boiled
+    down every few batches (ray_recovery.LOG_BATCHES) instead of cleared each step;
+    killed after 20 steps, a fresh worker takes the calls since and the run gives the
+    undisturbed numbers to the last bit."""
+    import shutil
+
+    from dsim.build_fmus.scenes import CHAIN, chain
+
+    scene = chain(4)
+    scene.component("free", "SpringMass", {"n": 1, "m[1]": 2.0, "k_ground[1]": 50.0,
+                                           "Fa[1]": 1.0, "omega[1]": 30.0, "P.mass": 1,
+                                           "Q.mass": 1}, outputs=["x[1]"], inline=True)
+    folder = tmp_path / "scene"
+    scene.write(folder, 0.0, 0.03, step=CHAIN["step"], tolerance=1e-13, maxIterations=20,
+                predictor="linear", refreshAfter=10)
+    (folder / "resources").mkdir(exist_ok=True)
+    shutil.copy(built["fmus"] / "SpringMass.fmu", folder / "resources" / "SpringMass.fmu")
+    here = dsim.simulate(folder)
+    there, victim, names = run_killing(dsim.prepare(folder, backend="ray"), at=20,
+                                       delay=0.005)
+    assert "free" in names and there.status == "completed" and there.steps == 30
+    assert list(there.signals) == list(here.signals)
+    for column, values in here.signals.items():
+        assert np.array_equal(there[column], values), column
+    [loss] = there.statistics["lost_workers"]
+    assert loss["recovered"] and loss["pid"] == victim
+
+
 def test_with_no_restarts_a_killed_worker_ends_the_run_saying_so(built, ray_local):
     scene = built["ssp"] / "spring_mass_linear.ssp"
     result, victim, names = run_killing(

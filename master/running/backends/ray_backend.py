@@ -94,8 +94,11 @@ class _Cluster:
         #: (worker, slot) -> the last checkpoint, pickled by the worker (None: from
         #: instantiation on)
         self.checkpoints: dict[tuple[int, int], bytes | None] = {}
-        #: (worker, slot) -> the calls answered since that checkpoint
-        self.journal: dict[tuple[int, int], list] = {}
+        #: worker -> the batches of calls it answered (or failed) since the last batch in
+        #: which every subsystem of it sent a checkpoint: (the calls as sent: the bytes of
+        #: their pickle, or a deep copy; where a failed batch stopped: (entry, call), or
+        #: None); Recovery._journaled reads each subsystem's calls since its checkpoint
+        self.log: dict[int, list] = {}
         #: every worker lost: time, node, address, pid, components, what, recovery seconds
         self.losses: list[dict] = []
         #: (worker, since when, time.monotonic) while the driver waits for its answer
@@ -197,9 +200,9 @@ class RayBackend(Recovery, Backend):
         cluster.notes = nodes.notes
         cluster.unrestartable = [_unrestartable(cluster.specs[h]) for h in range(len(hosts))]
         for h, chosen in enumerate(assigned):
+            cluster.log[h] = []
             for slot in range(len(chosen)):
                 cluster.checkpoints[(h, slot)] = None
-                cluster.journal[(h, slot)] = []
         backend = cls(cluster, members, [s.name for s in specs])
         try:
             backend._cluster.places = backend._open(opened, spared)
@@ -318,15 +321,14 @@ class RayBackend(Recovery, Backend):
             for host, batch in batches.items():
                 cluster.deferred.setdefault(host, []).extend(batch)
             return [[] for _ in steps]
-        pending, skipped, payloads = {}, {}, {}
+        pending, skipped, payloads, kept = {}, {}, {}, {}
         for host, batch in batches.items():
             ahead = cluster.deferred.pop(host, [])
             skipped[host] = len(ahead)
             payloads[host] = ahead + batch
             sent = _pickled(payloads[host])
             if self._restartable(host):  # the journal must hold the values as sent
-                payloads[host] = copy.deepcopy(payloads[host]) if sent is None else \
-                    pickle.loads(sent)
+                kept[host] = copy.deepcopy(payloads[host]) if sent is None else sent
             # the answers of thousands of subsystems come back packed (pack_answers)
             worker = cluster.hosts[host]
             pending[host] = worker.run_packed.remote(payloads[host], skipped[host]) \
@@ -335,17 +337,18 @@ class RayBackend(Recovery, Backend):
         for host, ref in pending.items():
             cluster.waiting = (host, clock.monotonic())  # for the progress line
             try:
-                results = self._answer(host, ref, payloads[host], _unpacked)
+                results = self._answer(host, ref, payloads[host], _unpacked, kept.get(host))
             finally:
                 cluster.waiting = None
-            self._journal(host, payloads[host], results)
+            self._journal(host, payloads[host], results, kept.get(host))
             answers[host] = iter(results[skipped[host]:])
         return [next(answers[host]) if calls else []
                 for (host, _), calls in zip(self.members, steps)]
 
-    def _answer(self, host: int, ref, payload=None, answered=None):
+    def _answer(self, host: int, ref, payload=None, answered=None, kept=None):
         """The answer of worker ``host`` to ``ref`` (``answered`` of it, if given: a
-        batch's packed answers made plain), or what its loss leaves."""
+        batch's packed answers made plain), or what its loss leaves; ``payload``: the
+        calls ``ref`` made, ``kept``: as the journal keeps them (Recovery._journal)."""
         ray = self._cluster.connection.ray
         who = _who(self._cluster.owners[host])
         try:
@@ -361,14 +364,14 @@ class RayBackend(Recovery, Backend):
         except ray.exceptions.RayTaskError as error:
             cause = _cause(error)
             if payload is not None:  # the calls made up to the error changed the worker
-                self._journal_failed(host, payload, getattr(cause, "dsim_at", None))
+                self._journal_failed(host, getattr(cause, "dsim_at", None), kept)
             raise cause from None
         except ray.exceptions.RayError as error:  # the worker, its node, or the cluster
             if payload is None:
                 self._cluster.dead.add(host)
                 raise SimulationError(f"{who}: {self._lost(host, error)['said']}",
                                       time=self._cluster.time) from None
-            return self._recover(host, payload, error)
+            return self._recover(host, payload, error, kept)
 
     def _each(self, method, *columns, time=None, answer: bool = True) -> list:
         """``method`` on every subsystem, with the i-th entry of each column: the
