@@ -38,9 +38,9 @@ import time as clock
 
 from dsim.master.errors import InputError, SimulationError
 from dsim.master.running.backends.base import Backend
-from dsim.master.running.backends.ray_recovery import (RESTARTS, Recovery, _cause,
-                                                       _first_line, _quoted, _unrestartable,
-                                                       _who)
+from dsim.master.running.backends.ray_recovery import (CHECKPOINT_EVERY, RESTARTS, Recovery,
+                                                       _cause, _first_line, _quoted,
+                                                       _unrestartable, _who)
 from dsim.master.running.backends import ray_spares
 from dsim.master.running.collector import freeze, thaw
 from dsim.master.running.backends.ray_placement import Placement
@@ -410,9 +410,12 @@ class RayBackend(Recovery, Backend):
         return list(self._names)
 
     def begin_step(self) -> None:
-        # a worker that may be started again sends each subsystem's saved state too
-        self._run([[("begin_step", ())] + ([(CHECKPOINT, ())] if self._restartable(host)
-                                           else [])
+        # a worker that may be started again sends each subsystem's saved state too,
+        # every CHECKPOINT_EVERY steps (ray_recovery.py)
+        self._begun = getattr(self, "_begun", -1) + 1
+        saving = self._begun % CHECKPOINT_EVERY == 0
+        self._run([[("begin_step", ())] + ([(CHECKPOINT, ())] if saving and
+                                           self._restartable(host) else [])
                    for host, _ in self.members], answer=False)
 
     def trial_step(self, forces, time, step_size):
