@@ -361,11 +361,12 @@ RAY_NOTES = (
     "fresh process (as `dsim run` is, with no spare), in turn, two rounds, stop 6 ms: "
     "in-process 5.04 and 4.95 s, Ray 4.24 and 4.25 s, the same bytes; since a worker "
     "answers for its thousands of subsystems with two arrays instead of one per vector "
-    "(4.92 to 5.94 s before). A step of chain_10000 takes longer on Ray (0.97 and 1.04 s "
-    "against 0.83 and 0.88 s in-process, measured in turn on 2026-11-27: the driver "
-    "keeps every subsystem's saved state and the calls since for a fresh worker; with "
-    "`--restarts 0`, 0.76 and 0.77 s, a little faster than in-process: "
-    "docs/distributed.md). "
+    "(4.92 to 5.94 s before). A step of chain_10000 on Ray takes about as long as "
+    "in-process: 0.85 s mean (0.83 and 0.86 s median in two more rounds) against 0.89 s "
+    "(0.87 and 0.90 s) in-process, measured in turn on 2026-11-27, since the workers "
+    "send each subsystem's saved state every fourth step and the driver keeps the "
+    "batches it sends as bytes (before: 0.97 to 1.04 s); with `--restarts 0`, which "
+    "keeps nothing for a fresh worker, 0.81 s (0.78 and 0.81 s): docs/distributed.md. "
     "With more cores per machine, or more machines, the instantiation divides further "
     "while the start of the workers does not grow.",
 )
@@ -381,7 +382,7 @@ GUIDE = (
     '- **Ctrl-C during the set-up** ends the run within 5 s with its statistics, as during a step; a second Ctrl-C ends it at once (docs/results.md).',
     '- **Look before running**: `dsim validate` and `dsim info` stay linear (the table above); `dsim info` prints counts and one line per distinct FMU, `dsim info --all` every variable (810,000 lines at 10,000 components).',
     '- **Record what you need**: a run records every output it is given and every joint force by default, 20,000 columns at chain_10000; `--outputs` and `--output-interval` choose columns and rows (docs/parameters.md). The statistics JSON holds a table of FMI calls per component, about 1.4 kB each (14 MB at 10,000).',
-    '- **In-process or Ray**: on one 2-core machine the in-process backend steps faster than Ray with its default restarts (0.83 to 0.88 s a step of chain_10000 against 0.97 to 1.04 s; 0.76 to 0.77 s on Ray with `--restarts 0`, which gives up surviving a lost worker); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md), but not from the command line, where every `dsim run` is a new process that starts Ray or joins a cluster first (below); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
+    '- **In-process or Ray**: on one 2-core machine a step of chain_10000 takes about as long on Ray, which survives a lost worker, as in-process (0.85 s mean against 0.89 s; 0.81 s on Ray with `--restarts 0`, which gives up surviving a lost worker); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md), but not from the command line, where every `dsim run` is a new process that starts Ray or joins a cluster first (below); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
     '- **Many scenes in one Python process** (a script, a sweep in-process): each run frees its instances, and what pythonfmu FMUs add to `sys.path` goes with the last of them.',
 )
 
