@@ -598,7 +598,7 @@ def _pickled(payload) -> bytes | None:
     cost the driver more than the C pickler's whole batch does, and Ray then sends
     bytes (chain_10000 on two workers: 1.49 to 1.60 s a step against 1.76 to 1.79 s,
     the driver's CPU 0.71 to 0.83 s against 0.98 to 1.03 s, in turn, 2026-11-27).  The
-    driver keeps what the bytes load back into as the values sent (the journal of
+    driver keeps the bytes themselves as the values sent (the journal of
     ray_recovery.py): nothing the caller changes after the call reaches them.  Written
     by hand: Ray has no option to pickle a call's arguments with the C pickler."""
     try:
