@@ -470,7 +470,7 @@ NOTES = (
     "subsystem at chain_10000 0.0867 and 0.0849 ms before, 0.0840 and 0.0865 after, "
     "interleaved; at chain_100 0.0433/0.0435 against 0.0444/0.0445) and was not kept: "
     "what grows is the memory each call reaches, not the number of sweeps (the same "
-    "again on 2026-11-27: 1 to 2% in three rounds at chain_10000). The calls alone, "
+    "again on 2026-11-27: 1 to 2% in two rounds at chain_10000). The calls alone, "
     "in a tight loop over the instances of one process with the collector off, least "
     "of 5 loops, from 100 to 10,000 instances: a state save 2.7 to 7.3 us, a restore "
     "2.9 to 7.9 us, a read of the output 2.1 to 7.0 us, of the port kinematics 2.7 to "
