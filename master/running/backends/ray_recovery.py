@@ -34,8 +34,8 @@ LATE_SECONDS = 3.0
 #: its worker and sent to the driver): a lost worker takes the calls of this many
 #: steps again at most.  Sending them every step took a step of chain_10000 on two
 #: workers 0.96 to 1.00 s, every 4 steps 0.78 to 0.81 s, every 8 0.75 to 0.83 s (the
-#: least and the median of a run's steps, 2026-11-27, in turn; in-process 0.85 to
-#: 0.87 s)
+#: least and the median of a run's steps, 2026-11-27, in turn; in-process, medians
+#: of three runs, 0.87 to 0.90 s)
 CHECKPOINT_EVERY = 4
 #: batches a worker's journal keeps as sent before it is boiled down to each
 #: subsystem's calls since its checkpoint (Recovery._journal): a worker whose every
