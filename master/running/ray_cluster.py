@@ -144,10 +144,16 @@ def release() -> None:
         _ahead.pop().close()
 
 
+def joined() -> bool:
+    """Whether this process is connected to Ray (without importing Ray: a process that
+    never imported it is connected to none)."""
+    ray = sys.modules.get("ray")
+    return ray is not None and ray.is_initialized()
+
+
 def starts_ray(address: str | None) -> bool:
     """Whether :func:`connect` would start a local Ray instance (seconds)."""
-    ray = sys.modules.get("ray")
-    return not address and not (ray is not None and ray.is_initialized())
+    return not address and not joined()
 
 
 def connect(address: str | None = None) -> Connection:

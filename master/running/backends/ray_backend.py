@@ -122,6 +122,8 @@ class RayBackend(Recovery, Backend):
         #: per subsystem: (worker index, slot in the worker)
         self.members = list(members)
         self._names = list(names)
+        #: macro steps begun by these subsystems (a checkpoint every CHECKPOINT_EVERY)
+        self._begun = 0
 
     # --- set-up ------------------------------------------------------------------
     @classmethod
@@ -240,8 +242,8 @@ class RayBackend(Recovery, Backend):
         point), nor when they are turned off (ray_spares.keep); it leaves none when it
         made its connection (the driver ends with the run, or Ray does), and takes those
         only when the connection was made ahead of it (ray_cluster.connect_ahead)."""
-        mine = connection.owned and not (connection.ahead and not leaving)
-        return (ray_spares.keeping() and not mine and not cls.one_per_instance
+        made_by_run = connection.owned and (leaving or not connection.ahead)
+        return (ray_spares.keeping() and not made_by_run and not cls.one_per_instance
                 and ray_spares.in_driver(connection.ray))
 
     @classmethod
@@ -412,8 +414,8 @@ class RayBackend(Recovery, Backend):
     def begin_step(self) -> None:
         # a worker that may be started again sends each subsystem's saved state too,
         # every CHECKPOINT_EVERY steps (ray_recovery.py)
-        self._begun = getattr(self, "_begun", -1) + 1
         saving = self._begun % CHECKPOINT_EVERY == 0
+        self._begun += 1
         self._run([[("begin_step", ())] + ([(CHECKPOINT, ())] if saving and
                                            self._restartable(host) else [])
                    for host, _ in self.members], answer=False)

@@ -130,9 +130,10 @@ def ahead(ray=None) -> int:
     planned: as many as the cluster has CPUs (the most workers a run of components
     without a placement uses), on the nodes such a run chooses, less those already
     kept; only in a driver connected to Ray that keeps spares.  How many it started."""
-    if ray is None:  # a process that never imported Ray is connected to none
-        ray = sys.modules.get("ray")
-    if ray is None or not ray.is_initialized() or not keeping() or not in_driver(ray):
+    if not ray_cluster.joined() or not keeping():
+        return 0
+    ray = ray or sys.modules["ray"]
+    if not in_driver(ray):
         return 0
     from dsim.master.running.backends.ray_placement import Placement
     from dsim.master.running.backends.ray_worker import WORKER_OPTIONS, Host
