@@ -380,7 +380,7 @@ GUIDE = (
     '',
     'What to expect, and what helps, with thousands of components (numbers from the tables above and from runs of chain_10000 on these machines on 2026-11-27):',
     '',
-    "- **Set-up** costs about half a millisecond and 35 to 50 kB per component besides what its model holds (an ElasticBody's mesh and matrices: docs/elastic_body.md); chain_10000 sets up in about 5 s and runs in about 0.5 GB. On a terminal the progress line counts the FMUs as they are instantiated (`chain_10000 · FMUs instantiated 1,282/10,000`), then says `initialising`; Observer.preparing tells a script the same (docs/api.md).",
+    "- **Set-up** costs about half a millisecond and 35 to 45 kB per component besides what its model holds (an ElasticBody's mesh and matrices: docs/elastic_body.md); chain_10000 sets up in about 5 s and runs in about 0.45 GB. On a terminal the progress line counts the FMUs as they are instantiated (`chain_10000 · FMUs instantiated 1,282/10,000`), then says `initialising`; Observer.preparing tells a script the same (docs/api.md).",
     '- **Ctrl-C during the set-up** ends the run within 5 s with its statistics, as during a step; a second Ctrl-C ends it at once (docs/results.md).',
     '- **Look before running**: `dsim validate` and `dsim info` stay linear (the table above); `dsim info` prints counts and one line per distinct FMU, `dsim info --all` every variable (810,000 lines at 10,000 components).',
     '- **Record what you need**: a run records every output it is given and every joint force by default, 20,000 columns at chain_10000; `--outputs` and `--output-interval` choose columns and rows (docs/parameters.md). The statistics JSON holds a table of FMI calls per component, about 1.4 kB each (14 MB at 10,000).',
@@ -408,7 +408,12 @@ NOTES = (
     "a step, on Ray, whose driver keeps every call since the last saved state, 0.35 "
     "to 0.4 s of a 1.4 s step). Every instance of one FMU file shares one binding of its library's "
     "functions (`dsim.master.running.fmi.library`: fmpy bound them again for each "
-    "instance, 6 ms apiece). Two quadratic pieces of set-up found by profiling "
+    "instance, 6 ms apiece), and with it the function objects and value-reference "
+    "arrays the time loop passes, which are the same for every instance (made per "
+    "instance they took about 6 kB each: on 2026-11-27, three rounds in turn, "
+    "chain_10000 peaked at 431 MB against 490 MB before, set up in 4.6 to 4.8 s "
+    "against 4.8 to 5.0 s, and took 81.5 to 82.5 us of CPU per step and subsystem "
+    "against 84.1 to 86.0 us). Two quadratic pieces of set-up found by profiling "
     "chain_10000 on 2026-11-27 and removed: the coupling looked up each subsystem in a "
     "set of the glued ones made again per subsystem (0.8 s at 10,000), and the check "
     "that no output overwrites an input resolved the FMU path of every component "
@@ -423,9 +428,11 @@ NOTES = (
     "variables with a getter and a setter each, about 110 kB). The script now imports "
     "the model class (`fmus/spring_mass/slave.py`), which declares its variables once "
     "for the class (`fmus/fmi_binding.py`, `Variable`: pythonfmu's C side only calls the "
-    "slave's get and set methods, which answer from that table). A component now costs "
+    "slave's get and set methods, which answer from that table). A component then cost "
     "about 33 kB, its FMU instance, dsim's handle of it and the scene's objects for it "
-    "together (the resident size over 2,000 components; tracemalloc agrees). pythonfmu "
+    "together (the resident size over 2,000 components; tracemalloc agrees), and about "
+    "6 kB less since its handle shares the library's functions and value references "
+    "(above). pythonfmu "
     "also puts the FMU's resources folder at the front of `sys.path` for every instance "
     "and never takes it out (10,000 copies at chain_10000, and more with every run of a "
     "process that runs several scenes): dsim keeps each such entry once while an "
@@ -477,7 +484,14 @@ NOTES = (
     "8.2 us. Reaching "
     "1.2 times chain_100's per step and subsystem would need a subsystem's objects to "
     "fit a few kilobytes of cache each (32 MB over 10,000), far below what a Python FMU "
-    "behind pythonfmu and its handles in the master take.",
+    "behind pythonfmu and its handles in the master take. Not the page tables: with "
+    "every object in 2 MB pages (glibc's allocator for all of Python's memory, "
+    "`PYTHONMALLOC=malloc GLIBC_TUNABLES=glibc.malloc.hugetlb=1`: 432 of 474 MB resident "
+    "in huge pages), chain_10000 took 91 to 95 us per step and subsystem against 86 to "
+    "87 us with Python's own allocator in 4 kB pages, and 98 to 103 us with glibc's in "
+    "4 kB pages (two rounds in turn on 2026-11-27): Python's allocator, which packs "
+    "objects of a size together, keeps a subsystem's objects closer than huge pages "
+    "could make up for.",
 )
 
 

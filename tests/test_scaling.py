@@ -101,6 +101,13 @@ def test_instances_of_one_fmu_file_share_one_binding_of_its_library(built, tmp_p
         assert library.binds(FMU2Slave, shared) == 10
         functions = {id(s.fmu._functions) for s in backend.subsystems}
         assert len(functions) == 1
+        # the time loop's functions and value-reference arrays: one object per file
+        steps = {id(s.call("fmi2DoStep").function) for s in backend.subsystems}
+        forces = {id(s._forces.vrs) for s in backend.subsystems}
+        distinct = {tuple(s._forces.vrs) for s in backend.subsystems}  # ends, middles
+        values = {id(s._forces.values) for s in backend.subsystems}
+        assert (len(steps), len(forces), len(values)) == (1, len(distinct), 10)
+        assert len(distinct) < 10
     finally:
         assert backend.close() == []
     assert library.binds(FMU2Slave, shared) == 0

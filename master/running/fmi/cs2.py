@@ -29,7 +29,7 @@ from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
 from dsim.master.running.fmi.checkpoint import Checkpoint
-from dsim.master.running.fmi.library import sharing
+from dsim.master.running.fmi import library
 from dsim.master.running.fmi.messages import CALLBACKS2, errors_logged, forget, logged_error
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
@@ -50,10 +50,9 @@ class _Call:
     __slots__ = ("function", "name", "owner", "calls", "seconds")
 
     def __init__(self, owner: "FmuSubsystem", name: str):
-        # a fresh function object of the library (fmpy's own carries argtypes, whose
-        # conversion costs as much as the call): arguments are passed as ctypes objects
-        self.function = owner.fmu.dll[name]
-        self.function.restype = ctypes.c_int
+        # a function object of the library without fmpy's argtypes (their conversion
+        # costs as much as the call): arguments are passed as ctypes objects
+        self.function = library.raw(owner.fmu, name)
         self.name = name
         self.owner = owner
         self.calls = 0
@@ -83,6 +82,14 @@ class _Call:
                                         f"{STATUS.get(status, status)}", 3)
 
 
+def _references(owner: "FmuSubsystem", vrs) -> tuple:
+    """(their count, the fmi2ValueReference array) of the value references ``vrs``:
+    the same objects for every instance of the FMU file (the C side only reads them)."""
+    vrs = tuple(vrs)
+    return library.shared(owner.fmu, ("references", vrs), lambda: (
+        ctypes.c_size_t(len(vrs)), (fmi2ValueReference * len(vrs))(*vrs)))
+
+
 class _Batch:
     """Value references of one FMI type, a value array (and its numpy view), and the
     bound get and set calls, allocated once."""
@@ -91,8 +98,7 @@ class _Batch:
         ctype, get_name, set_name = TYPES[kind]
         self.kind = kind
         self.size = len(vrs)
-        self.count = ctypes.c_size_t(self.size)
-        self.vrs = (fmi2ValueReference * self.size)(*vrs)
+        self.count, self.vrs = _references(owner, vrs)
         self.values = (ctype * self.size)()
         self.array = np.ctypeslib.as_array(self.values) if self.size else np.zeros(0)
         self.get = owner.call(get_name)
@@ -121,8 +127,7 @@ class _Strings:
 
     def __init__(self, owner: "FmuSubsystem", vrs):
         self.size = len(vrs)
-        self.count = ctypes.c_size_t(self.size)
-        self.vrs = (fmi2ValueReference * self.size)(*vrs)
+        self.count, self.vrs = _references(owner, vrs)
         self.values = (ctypes.c_char_p * self.size)()
         self.get = owner.call("fmi2GetString") if self.size else None
         self.set = owner.call("fmi2SetString") if self.size else None
@@ -191,9 +196,10 @@ class FmuSubsystem(Checkpoint, Subsystem):
         self.time = spec.start_time
         self._location = spec.location or spec.name
         try:
-            self.fmu = sharing(FMU2Slave)(guid=description.guid, unzipDirectory=unzipped(self.path),
-                                 modelIdentifier=description.coSimulation.modelIdentifier,
-                                 instanceName=spec.name)
+            self.fmu = library.sharing(FMU2Slave)(
+                guid=description.guid, unzipDirectory=unzipped(self.path),
+                modelIdentifier=description.coSimulation.modelIdentifier,
+                instanceName=spec.name)
         except Exception as error:  # fmpy raises plain Exceptions for a missing library
             raise InputError(f"{self._location}: FMU {self.path.name} cannot be loaded: "
                              f"{error}") from None

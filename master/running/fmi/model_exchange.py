@@ -33,7 +33,7 @@ from fmpy.fmi3 import FMU3Model
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
 from dsim.master.running.fmi.integrator import SolverSettings, make_integrator
-from dsim.master.running.fmi.library import sharing
+from dsim.master.running.fmi.library import raw, sharing
 from dsim.master.running.fmi.messages import CALLBACKS2, logger3
 
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
@@ -140,9 +140,7 @@ class ModelExchangeSubsystem(FmpyAdapter):
                  "inputs": "fmi3SetFloat64" if self.fmi3 else "fmi2SetReal"}
         self._raw = {}
         for key, name in names.items():
-            function = self.fmu.dll[name]
-            function.restype = ctypes.c_int
-            self._raw[key] = (function, name)
+            self._raw[key] = (raw(self.fmu, name), name)
         self._handle = ctypes.c_void_p(self.fmu.component)
         self._xin = np.zeros(self.nx)
         self._pointers = {key: array.ctypes.data_as(_DOUBLE_P) for key, array in (
