@@ -120,6 +120,7 @@ NODE_MARKERS = {
     "tests/test_sweep.py::test_a_sweep_over_fidelity_sets_ranks_them_against_the_finest": ("slow",),
     "tests/test_stability.py::test_fixed_joints_pass_the_four_bar_singular_points_on_the_penalized_measure": ("slow",),
     "tests/test_fmi_kinds_fmus.py::test_memory_safety": ("slow",),
+    "tests/test_pythonfmu_exit.py::test_a_process_that_ran_a_pythonfmu_fmu_exits_without_a_second_release": ("slow",),
     "tests/test_doe.py::test_a_terminated_serial_sweep_finishes_on_the_same_command": ("slow",),
     # slow: 3 to 4 s each (out of `make quick`, to keep it well under 3 minutes)
     "tests/test_hung_fmu.py::test_the_first_signal_ends_a_run_stuck_in_an_fmu_after_the_grace_period": ("slow",),

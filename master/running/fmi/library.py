@@ -52,7 +52,35 @@ class _Shared:
             entry[1] -= 1
             if entry[1] <= 0:
                 del _BOUND[key]
+                _release_python_state(self.dll)
         super().freeLibrary()
+
+
+#: what a pythonfmu library exports to drop the interpreter state its instances share
+PYTHONFMU_RELEASE = "finalizePythonInterpreter"
+
+
+def _release_python_state(dll) -> None:
+    """Let a pythonfmu library (one that exports :data:`PYTHONFMU_RELEASE`) drop its
+    shared interpreter state now that no instance of it is left in this process.
+
+    pythonfmu 0.7 (and pythonfmu3) keeps that state in a global ``std::shared_ptr``
+    that it releases twice when the process exits: a C++ static destructor destroys
+    the pointer, then the library's destructor function (run by ``_dl_fini`` after it:
+    glibc never unloads the library) assigns null to the destroyed pointer and so
+    releases its block a second time.  About one script in thirty that ran a pythonfmu
+    FMU through ``dsim.simulate`` then aborted after its last line with ``corrupted
+    double-linked list`` (exit code 134).  Released here, while the library is
+    loaded and nothing runs in it, the pointer is null when the process exits and both
+    releases do nothing; an instance made later makes a new state, as the first did.
+    The function takes no argument and returns nothing; a library without it is not
+    pythonfmu's and is left alone."""
+    try:
+        release = dll[PYTHONFMU_RELEASE]
+    except AttributeError:
+        return
+    release.argtypes, release.restype = [], None
+    release()
 
 
 def sharing(fmpy_class: type) -> type:
