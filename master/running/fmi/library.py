@@ -64,7 +64,7 @@ def _release_python_state(dll) -> None:
     """Let a pythonfmu library (one that exports :data:`PYTHONFMU_RELEASE`) drop its
     shared interpreter state now that no instance of it is left in this process.
 
-    pythonfmu 0.7 (and pythonfmu3) keeps that state in a global ``std::shared_ptr``
+    pythonfmu 0.7 keeps that state in a global ``std::shared_ptr``
     that it releases twice when the process exits: a C++ static destructor destroys
     the pointer, then the library's destructor function (run by ``_dl_fini`` after it:
     glibc never unloads the library) assigns null to the destroyed pointer and so
