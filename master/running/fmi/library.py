@@ -16,7 +16,7 @@ fmpy's own ``_loadFunctions`` is what it calls once).
 The binding also holds what the master's time loop passes to those functions and is
 the same for every instance (:func:`raw`, :func:`shared`): a function object of the
 library without fmpy's argument conversion, the value-reference arrays of a batch.
-Made per instance they cost about 5 kB each (55 MB at 10,000 components) and one
+Made per instance they cost about 6 kB each (59 MB at 10,000 components) and one
 more object a call reaches in memory.
 """
 from __future__ import annotations
