@@ -13,10 +13,13 @@ import platform
 import time
 from pathlib import Path
 
+from benchmarks import scaling
 from examples import chain, spring_mass
 from dsim.master.api import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
+#: the scaling page, whose figures this page quotes (benchmarks/scaling.py)
+SCALING = ROOT / "docs" / "scaling.md"
 
 
 def _timed(function, *args, **kwargs):
@@ -136,6 +139,7 @@ def main(argv=None) -> None:
         "subsystems (set-up, time per step, memory) and `dsim validate` and `dsim info` of "
         "up to 100,000 components: docs/scaling.md (`python -m benchmarks.scaling`).",
         "",
+        *([scaling.quote(SCALING.read_text()), ""] if SCALING.is_file() else []),
         "Where the time goes: the monolithic references are numpy loops over one small "
         "model (a step of the whole chain costs a few microseconds), so the ratio mostly "
         "measures the price of crossing the FMI boundary (ctypes into the pythonfmu C layer "

@@ -512,6 +512,57 @@ NOTES = (
 )
 
 
+#: the line of docs/benchmarks.md that quotes this page (rewritten whenever it is)
+QUOTE_START = "**At scale** ("
+#: the sentence of docs/benchmarks.md the quote follows (run_benchmarks writes both)
+QUOTE_AFTER = "docs/scaling.md (`python -m benchmarks.scaling`)."
+
+
+def _rows(page: str, cells: int) -> dict[str, list[str]]:
+    """The rows of the page's tables that have ``cells`` cells, by their first cell."""
+    rows = {}
+    for line in page.splitlines():
+        parts = [part.strip() for part in line.strip().strip("|").split("|")]
+        if line.startswith("| ") and len(parts) == cells and parts[0].isdigit():
+            rows[parts[0]] = parts
+    return rows
+
+
+def quote(page: str) -> str:
+    """The line of docs/benchmarks.md that quotes this page's tables (the text of
+    docs/scaling.md): the largest chain's set-up, peak memory and CPU per step and
+    subsystem against chain_100's, and the largest scene's validate and info times."""
+    written = page.split(" on ", 1)[1].split(" ", 1)[0]  # "Written by ... on DATE (..."
+    chains = _rows(page, 13)
+    checks = _rows(page, 7)
+    largest = max(chains, key=int)
+    most = max(checks, key=int)
+    chain, check = chains[largest], checks[most]
+    return (f"{QUOTE_START}docs/scaling.md, `python -m benchmarks.scaling` on {written}): "
+            f"chain_{largest} sets up in {chain[2]} s, peaks at {chain[12]} MB and takes "
+            f"{chain[9]} times chain_100's CPU per macro step and subsystem; `dsim "
+            f"validate` of {int(most):,} components takes {check[1]} s and `dsim info` "
+            f"{check[4]} s.")
+
+
+def requote(benchmarks: Path, page: str) -> None:
+    """Write :func:`quote` of ``page`` into the benchmarks page ``benchmarks``: over
+    its quote line, or as a paragraph after :data:`QUOTE_AFTER`."""
+    if not benchmarks.is_file():
+        return
+    lines = benchmarks.read_text().split("\n")
+    line = quote(page)
+    at = [i for i, text in enumerate(lines) if text.startswith(QUOTE_START)]
+    if at:
+        lines[at[0]] = line
+    else:
+        after = [i for i, text in enumerate(lines) if text.rstrip().endswith(QUOTE_AFTER)]
+        if not after:
+            return
+        lines[after[0] + 1:after[0] + 1] = ["", line]
+    benchmarks.write_text("\n".join(lines))
+
+
 def chain_folder(n: int, folder: Path) -> Path:
     """A chain of ``n`` subsystems as a scene folder (the FMU in its resources)."""
     from dsim.build_fmus.scenes import CHAIN, chain
@@ -737,6 +788,7 @@ def main(argv=None) -> str:
         "",
         *ray_text])
     Path(args.docs).write_text(text)
+    requote(Path(args.docs).parent / "benchmarks.md", text)
     return text
 
 

@@ -151,3 +151,27 @@ def test_a_run_keeps_its_set_up_out_of_the_collectors_passes_until_it_ends(built
         assert outer.close() == []
     assert gc.get_freeze_count() == before
     assert np.abs(result.signals["m1.x[1]"]).max() > 1e-6
+
+
+def test_the_benchmarks_page_quotes_the_scaling_tables_as_they_stand(tmp_path):
+    """docs/benchmarks.md quotes docs/scaling.md's figures (benchmarks/scaling.py rewrites
+    the quote with its page), and the quote reads them from the right cells."""
+    from benchmarks import scaling
+
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    page = (docs / "scaling.md").read_text()
+    line = scaling.quote(page)
+    assert line in (docs / "benchmarks.md").read_text().splitlines()
+    row = next(text for text in page.splitlines() if text.startswith("| 10000 | ")
+               and text.count("|") == 14)
+    cells = [cell.strip() for cell in row.strip("|").split("|")]
+    assert f"sets up in {cells[2]} s, peaks at {cells[12]} MB and takes {cells[9]} times" \
+        in line
+    # a page measured again: the quote is rewritten in place, not added again
+    target = tmp_path / "benchmarks.md"
+    target.write_text((docs / "benchmarks.md").read_text())
+    smaller = row.rsplit(f"| {cells[12]} ", 1)[0] + "| 1 |"  # peak memory 1 MB
+    scaling.requote(target, page.replace(row, smaller))
+    quoted = [text for text in target.read_text().splitlines()
+              if text.startswith(scaling.QUOTE_START)]
+    assert len(quoted) == 1 and "peaks at 1 MB" in quoted[0], quoted
