@@ -50,15 +50,19 @@ test-serial: fmus browser
 quick: fmus
 	$(PYTEST) -q -rs --durations=10 -m "$(QUICK)"
 
-# Debian's Chromium for dsim serve's browser tests, installed when missing and allowed
-# (best effort: without it those tests are skipped, and pytest -rs says so)
-browser:
-	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || { \
+# Debian packages some tests use, installed when missing and allowed (best effort: without
+# them those tests are skipped, and pytest -rs says so): Chromium for dsim serve's browser
+# tests, valgrind for the test of a pythonfmu FMU's process exit (test_pythonfmu_exit.py).
+# $(call debian,PACKAGE,COMMANDS): install PACKAGE unless one of COMMANDS is on the PATH
+debian = for c in $(2); do command -v $$c >/dev/null 2>&1 && exit 0; done; \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null || true; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(1) >/dev/null || true; \
 	  elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then \
-	    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null || true; \
-	  else echo "make: no Chromium, and no way to install it here: the browser tests will be skipped"; fi; }
+	    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(1) >/dev/null || true; \
+	  else echo "make: no $(1), and no way to install it here: the tests that need it will be skipped"; fi
+browser:
+	@$(call debian,chromium,chromium chromium-browser)
+	@$(call debian,valgrind,valgrind)
 
 # the screenshots of docs/serve.md, made by the browser tests
 screenshots: fmus browser
