@@ -512,10 +512,9 @@ NOTES = (
 )
 
 
-#: the line of docs/benchmarks.md that quotes this page (rewritten whenever it is)
+#: the line of docs/benchmarks.md that quotes this page (benchmarks/run_benchmarks.py
+#: writes it; this script rewrites it with its page)
 QUOTE_START = "**At scale** ("
-#: the sentence of docs/benchmarks.md the quote follows (run_benchmarks writes both)
-QUOTE_AFTER = "docs/scaling.md (`python -m benchmarks.scaling`)."
 
 
 def _rows(page: str, cells: int) -> dict[str, list[str]]:
@@ -546,21 +545,15 @@ def quote(page: str) -> str:
 
 
 def requote(benchmarks: Path, page: str) -> None:
-    """Write :func:`quote` of ``page`` into the benchmarks page ``benchmarks``: over
-    its quote line, or as a paragraph after :data:`QUOTE_AFTER`."""
+    """Write :func:`quote` of ``page`` over the quote line of the benchmarks page
+    ``benchmarks`` (a page without one gets it when run_benchmarks next writes it)."""
     if not benchmarks.is_file():
         return
     lines = benchmarks.read_text().split("\n")
-    line = quote(page)
     at = [i for i, text in enumerate(lines) if text.startswith(QUOTE_START)]
     if at:
-        lines[at[0]] = line
-    else:
-        after = [i for i, text in enumerate(lines) if text.rstrip().endswith(QUOTE_AFTER)]
-        if not after:
-            return
-        lines[after[0] + 1:after[0] + 1] = ["", line]
-    benchmarks.write_text("\n".join(lines))
+        lines[at[0]] = quote(page)
+        benchmarks.write_text("\n".join(lines))
 
 
 def chain_folder(n: int, folder: Path) -> Path:
