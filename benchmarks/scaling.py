@@ -122,10 +122,19 @@ def ray_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> 
 
 
 #: the ways `dsim run` is timed from the command line, as the page names them
-CLI_KINDS = {"in-process": ("in-process", []),
-             "cluster": ("`--backend ray --address` a running one-node cluster",
-                         ["--backend", "ray", "--address", "{address}"]),
-             "own": ("`--backend ray`, Ray started by the run", ["--backend", "ray"])}
+#: (its name, its options, its environment)
+CLI_KINDS = {"in-process": ("in-process", [], {}),
+             "cluster-none": ("`--backend ray --address` a running one-node cluster, no "
+                              "spare (`DSIM_RAY_SPARES=0`)",
+                              ["--backend", "ray", "--address", "{address}"],
+                              {"DSIM_RAY_SPARES": "0"}),
+             "cluster": ("the same, taking the spares the command a round before left",
+                         ["--backend", "ray", "--address", "{address}"], {}),
+             "cluster-next": ("the same again at once (the spares still starting)",
+                              ["--backend", "ray", "--address", "{address}"], {}),
+             "own": ("`--backend ray`, Ray started by the run", ["--backend", "ray"], {})}
+#: the ways whose set-up the page compares with in-process's, round by round
+CLI_COMPARED = ("cluster-none", "cluster", "cluster-next")
 
 
 def cli_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> dict:
@@ -167,13 +176,14 @@ def cli_setup(n: int, folder: Path, repetitions: int = 5, calm: float = 0.0) -> 
         for repetition in range(-1, repetitions):
             if repetition >= 0:
                 ceilings.append(ceiling_now(calm))
-            for kind, (_, options) in CLI_KINDS.items():
+            for kind, (_, options, extra) in CLI_KINDS.items():
                 out = folder / f"cli-{kind}-{repetition}.csv"
                 began = time.perf_counter()
                 subprocess.run([dsim, "run", str(scene), "--stop", "5e-3", "--quiet",
                                 "--out", str(out),
                                 *(o.format(address=address) for o in options)],
-                               env=env, check=True, stderr=subprocess.DEVNULL, cwd=folder)
+                               env={**env, **extra}, check=True, stderr=subprocess.DEVNULL,
+                               cwd=folder)
                 took = time.perf_counter() - began
                 if repetition >= 0:
                     said = json.loads(out.with_suffix(".stats.json").read_text())
@@ -206,22 +216,33 @@ def cli_lines(n: int, result: dict) -> list[str]:
         "### `dsim run` from the command line", "",
         f"chain_{n}, five macro steps, `dsim run` from the command line each way in turn, "
         f"{rounds} rounds after one not measured (`python -m benchmarks.scaling --only "
-        "ray`). Each command is a new process, with no spare worker to take: given a "
-        "running cluster's address, it joins the cluster and starts its workers before "
-        "it reads and plans the scene (`ray_cluster.connect_ahead`); without one it "
-        "starts a Ray instance of its own, and ends it as it ends. The command's wall "
-        "time includes Python's start, reading and planning, the five steps and the end "
-        "(Ray's shutdown included).", "",
+        "ray`). Each command is a new process. Given a running cluster's address, it "
+        "joins the cluster before it reads and plans the scene "
+        "(`ray_cluster.connect_ahead`), meanwhile claims the spare workers an earlier "
+        "command left in the cluster and starts the others it needs, and as it ends "
+        "leaves as many fresh spares there for the next command (`ray_pool.py`; "
+        "`DSIM_RAY_SPARES=0` turns that off: the first row of the cluster's); without "
+        "an address it starts a Ray instance of its own, and ends it as it ends. The "
+        "command's wall time includes Python's start, reading and planning, the five "
+        "steps and the end (Ray's shutdown included).", "",
         "| `dsim run` | set-up, least (s) | each round (s) | the command's wall time, least "
         "(s) | each round (s) |", "|---|---|---|---|---|"]
-    for kind, (name, _) in CLI_KINDS.items():
-        lines.append(f"| {name} | {cells(result['setup'][kind])} | "
-                     f"{cells(result['wall'][kind])} |")
-    cluster = result["setup"]["cluster"]
-    lines += ["", f"The cluster's set-up against in-process, round by round: "
-              f"{', '.join(f'{c / l:.2f}' for l, c in zip(local, cluster))} (faster in "
-              f"{sum(c < l for l, c in zip(local, cluster))} of {rounds}); the machine's "
-              f"ceiling before each round: {', '.join(f'{x:.2f}' for x in result['ceilings'])}. "
+    for kind, (name, _, _) in CLI_KINDS.items():
+        if kind in result["setup"]:
+            lines.append(f"| {name} | {cells(result['setup'][kind])} | "
+                         f"{cells(result['wall'][kind])} |")
+    compared = []
+    for kind in CLI_COMPARED:
+        cluster = result["setup"].get(kind)
+        if cluster:
+            compared.append(
+                f"{CLI_KINDS[kind][0]}: "
+                f"{', '.join(f'{c / l:.2f}' for l, c in zip(local, cluster))} (faster in "
+                f"{sum(c < l for l, c in zip(local, cluster))} of {rounds}; least against "
+                f"least {min(cluster) / min(local):.2f})")
+    lines += ["", f"Set-up against in-process, round by round: {'; '.join(compared)}; the "
+              f"machine's ceiling before each round: "
+              f"{', '.join(f'{x:.2f}' for x in result['ceilings'])}. "
               f"Results identical to the byte: {'yes' if result['identical'] else 'NO'}.",
               ""]
     return lines
@@ -358,7 +379,14 @@ RAY_NOTES = (
     "and planning of the scene (the table's first Ray row; this script's earlier runs "
     "on 2026-11-27, when every measured Ray run started its workers once the scene was "
     "planned, gave 0.75 s least, Ray faster in 0 of 5), and one that takes spares that "
-    "are ready is further ahead; one right after another run is behind. At chain_10000 the instantiation "
+    "are ready is further ahead; one right after another run is behind. From the "
+    "command line, each `dsim run` a new process and a new Ray job, only a running "
+    "cluster can hold spares for the next command: there they are detached Ray actors "
+    "that end themselves when no command takes them, or when the command that took "
+    "them is gone (`ray_pool.py`, docs/distributed.md), and a command that takes them "
+    "is ahead of in-process too, back to back also (the next command's Python start, "
+    "Ray's connection and the reading of its scene cover the spares' start; the table "
+    "above). At chain_10000 the instantiation "
     "outweighs the workers' start: measured on 2026-11-27, each run the first of a "
     "fresh process (as `dsim run` is, with no spare), in turn, two rounds, stop 6 ms: "
     "in-process 5.04 and 4.95 s, Ray 4.24 and 4.25 s, the same bytes; since a worker "
@@ -384,7 +412,7 @@ GUIDE = (
     '- **Ctrl-C during the set-up** ends the run within 5 s with its statistics, as during a step; a second Ctrl-C ends it at once (docs/results.md).',
     '- **Look before running**: `dsim validate` and `dsim info` stay linear (the table above); `dsim info` prints counts and one line per distinct FMU, `dsim info --all` every variable (810,000 lines at 10,000 components).',
     '- **Record what you need**: a run records every output it is given and every joint force by default, 20,000 columns at chain_10000; `--outputs` and `--output-interval` choose columns and rows (docs/parameters.md). The statistics JSON holds a table of FMI calls per component, about 1.4 kB each (14 MB at 10,000).',
-    '- **In-process or Ray**: on one 2-core machine a step of chain_10000 takes about as long on Ray, which survives a lost worker, as in-process (0.85 s mean against 0.89 s; 0.81 s on Ray with `--restarts 0`, which gives up surviving a lost worker); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers, a script that runs several scenes on its own Ray instance: below, and docs/distributed.md), but not from the command line, where every `dsim run` is a new process that starts Ray or joins a cluster first (below); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
+    '- **In-process or Ray**: on one 2-core machine a step of chain_10000 takes about as long on Ray, which survives a lost worker, as in-process (0.85 s mean against 0.89 s; 0.81 s on Ray with `--restarts 0`, which gives up surviving a lost worker); Ray sets up faster at chain_10000, and at chain_1000 when its workers were started ahead (spare workers: a script that runs several scenes on its own Ray instance, or `dsim run --address` on a running cluster, which keeps them for the next command: below, and docs/distributed.md), but not a `dsim run` that starts Ray itself (below); Ray is above all for running components apart: on other machines, isolated from each other, surviving a lost node.',
     '- **Many scenes in one Python process** (a script, a sweep in-process): each run frees its instances, and what pythonfmu FMUs add to `sys.path` goes with the last of them.',
 )
 

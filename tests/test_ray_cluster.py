@@ -509,3 +509,144 @@ def test_a_lost_head_ends_a_sweep_within_seconds_its_lost_points_run_again(built
     with open(out / "sweep.csv") as table:
         assert [(row["point"], row["status"], row["steps"]) for row in csv.DictReader(table)] \
             == [("1", "completed", "100"), ("2", "completed", "15000")]
+
+
+#: what a script on the cluster at argv[1] finds of the spares commands left there
+#: (ray_pool.py): {name: process id}; with argv[2] == "impostors" it first ends them
+#: and leaves in their place two actors that are no spare of dsim's under names of
+#: their form (one answers a claim with a string, one raises), and prints theirs; with
+#: argv[2] == "end" it ends the actors named after it first
+SPARES_SCRIPT = """
+import json, os, sys, uuid
+import ray
+from dsim.master.running.backends import ray_pool
+
+ray.init(address=sys.argv[1], logging_level="ERROR", log_to_driver=False)
+space = ray_pool.namespace()
+found = {name: ray.get(ray.get_actor(name, namespace=space).ready.remote(), timeout=60)
+         for name, _ in ray_pool._listed(ray)}
+if sys.argv[2:] == ["impostors"]:
+    @ray.remote
+    class Impostor:
+        def __init__(self, answer):
+            self.answer = answer
+        def ready(self):
+            return os.getpid()
+        def claim(self, job):
+            if self.answer == "raise":
+                raise RuntimeError("no")
+            return self.answer
+    kinds = {name.split("-")[1] for name in found}
+    for name in found:
+        ray.kill(ray.get_actor(name, namespace=space))
+    found = {}
+    for answer in ("yes", "raise"):
+        for kind in kinds:
+            name = f"{ray_pool.build()}-{kind}-{uuid.uuid4().hex[:12]}"
+            actor = Impostor.options(name=name, namespace=space, lifetime="detached",
+                                     num_cpus=0).remote(answer)
+            found[name] = ray.get(actor.ready.remote(), timeout=60)
+elif sys.argv[2:3] == ["end"]:
+    for name in sys.argv[3:]:
+        ray.kill(ray.get_actor(name, namespace=space))
+        found.pop(name)
+print(json.dumps(found))
+"""
+
+
+def spares_of(head, *action) -> dict[str, int]:
+    """The spares left in ``head``'s cluster: name -> process id (SPARES_SCRIPT)."""
+    found = subprocess.run([sys.executable, "-c", SPARES_SCRIPT, head["address"], *action],
+                           cwd=ROOT, env=head["env"], capture_output=True, text=True,
+                           timeout=120)
+    assert found.returncode == 0, found.stderr
+    return json.loads(found.stdout.splitlines()[-1])
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_commands_on_a_cluster_take_the_spares_the_command_before_left(built, tmp_path):
+    """Each `dsim run --address` leaves as many fresh workers in the cluster as it used
+    (ray_pool.py), and the next command runs on them, its numbers unchanged to the
+    byte; a refused scene gives back what it claimed; actors that are no spare of
+    dsim's under a spare's name are passed over, not used and not ended; a command
+    killed outright takes its workers with it within seconds; a spare no command takes
+    ends after DSIM_RAY_SPARE_SECONDS; DSIM_RAY_SPARES=0 leaves none."""
+    scene = str(built["ssp"] / "chain_10.ssp")
+
+    def command(name, head, *extra, env=None, stop="0.05"):
+        out = tmp_path / f"{name}.csv"
+        run = subprocess.run(DSIM + ["run", scene, "--stop", stop, "--quiet", "--backend",
+                                     "ray", "--address", head["address"], "--out",
+                                     str(out), *extra],
+                             cwd=ROOT, env={**head["env"], **(env or {})},
+                             capture_output=True, text=True, timeout=300)
+        stats = json.loads(out.with_suffix(".stats.json").read_text()) \
+            if run.returncode == 0 else {}
+        used = {c["worker"]["pid"] for c in stats.get("components", {}).values()}
+        return run, out, used
+
+    with own_head(cpus=2) as head:
+        first, first_out, first_used = command("first", head)
+        assert first.returncode == 0, first.stderr
+        left = spares_of(head)
+        assert len(left) == 2 and not set(left.values()) & first_used, (left, first_used)
+        assert not any(alive(pid) for pid in first_used)  # the run's own are gone
+
+        refused = subprocess.run(DSIM + ["run", str(tmp_path / "missing.ssp"), "--backend",
+                                         "ray", "--address", head["address"]],
+                                 cwd=ROOT, env=head["env"], capture_output=True, text=True,
+                                 timeout=300)
+        assert refused.returncode == 2, refused.stderr
+        assert spares_of(head) == left  # claimed, then given back
+
+        second, second_out, second_used = command("second", head)
+        assert second.returncode == 0, second.stderr
+        assert second_used == set(left.values())  # taken, not started anew
+        assert second_out.read_bytes() == first_out.read_bytes()
+        impostors = spares_of(head, "impostors")
+        assert len(impostors) == 2
+
+        third, third_out, third_used = command("third", head)
+        assert third.returncode == 0, third.stderr
+        assert third_out.read_bytes() == first_out.read_bytes()
+        assert not third_used & set(impostors.values()), (third_used, impostors)
+        after = spares_of(head, "end", *impostors)  # untouched until then
+        assert len(after) == 2 and not set(after.values()) & third_used, after
+
+        # killed outright: its run cannot end its workers; they see its job end
+        long = subprocess.Popen(DSIM + ["run", scene, "--stop", "50", "--quiet",
+                                        "--backend", "ray", "--address", head["address"],
+                                        "--out", str(tmp_path / "killed.csv")],
+                                cwd=ROOT, env=head["env"], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        try:
+            wait_for_rows(tmp_path / "killed.csv", long)
+            workers = processes_of(head["head"], "ray::Host")
+        finally:
+            long.kill()
+            long.wait()
+        deadline = time.monotonic() + 30
+        while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert sorted(workers) == sorted(after.values()), (workers, after)  # its own
+        assert not any(alive(pid) for pid in workers), workers
+
+        waiting, _, _ = command("waiting", head, env={"DSIM_RAY_SPARE_SECONDS": "3"})
+        assert waiting.returncode == 0, waiting.stderr
+        short = spares_of(head)
+        assert len(short) == 2
+        deadline = time.monotonic() + 30
+        while any(alive(pid) for pid in short.values()) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not any(alive(pid) for pid in short.values()) and spares_of(head) == {}
+
+        none, _, _ = command("none", head, env={"DSIM_RAY_SPARES": "0"})
+        assert none.returncode == 0, none.stderr
+        assert spares_of(head) == {}

@@ -137,6 +137,12 @@ def connect_ahead(address: str | None) -> Connection | None:
     return connection
 
 
+def made_ahead() -> Connection | None:
+    """The connection :func:`connect_ahead` made for the run about to begin, until
+    that run's backend takes it; else None."""
+    return _ahead[-1] if _ahead else None
+
+
 def release() -> None:
     """End the connection made ahead of a run that did not take it (refused as bad
     input before its backend started)."""

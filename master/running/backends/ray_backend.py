@@ -41,7 +41,7 @@ from dsim.master.running.backends.base import Backend
 from dsim.master.running.backends.ray_recovery import (CHECKPOINT_EVERY, RESTARTS, Recovery,
                                                        _cause, _first_line, _quoted,
                                                        _unrestartable, _who)
-from dsim.master.running.backends import ray_spares
+from dsim.master.running.backends import ray_pool, ray_spares
 from dsim.master.running.collector import freeze, thaw
 from dsim.master.running.backends.ray_placement import Placement
 from dsim.master.running.backends.ray_worker import (CHECKPOINT, WORKER_OPTIONS, Host, deal,
@@ -245,6 +245,14 @@ class RayBackend(Recovery, Backend):
         made_by_run = connection.owned and (leaving or not connection.ahead)
         return (ray_spares.keeping() and not made_by_run and not cls.one_per_instance
                 and ray_spares.in_driver(connection.ray))
+
+    @classmethod
+    def _leaves_in_cluster(cls, connection) -> bool:
+        """Whether this run leaves its spares in the cluster for the next command
+        (ray_pool.py): it made its connection to a cluster's address itself, and
+        would otherwise keep spares."""
+        return bool(connection.owned and connection.address and ray_spares.keeping()
+                    and not cls.one_per_instance and ray_spares.in_driver(connection.ray))
 
     @classmethod
     def _worker(cls, connection, remote, options: dict) -> tuple[object, bool]:
@@ -511,6 +519,11 @@ class RayBackend(Recovery, Backend):
                 ray.kill(host)
             if self._spares(cluster.connection, leaving=True):  # the driver's next run
                 ray_spares.stock(ray, ray.remote(Host), cluster.options)
+            elif self._leaves_in_cluster(cluster.connection):
+                try:
+                    ray_pool.stock(ray, Host, cluster.options)  # the next command's
+                except Exception:  # a spare not left costs the next command its start
+                    pass
         finally:
             cluster.closed = True
             if cluster.frozen:

@@ -29,8 +29,11 @@ import sys
 from collections import Counter
 
 from dsim.master.running import ray_cluster
+from dsim.master.running.backends import ray_pool
+from dsim.master.running.backends.ray_pool import key
 
-#: session -> {options key -> [(actor, its ready call), ...]}; one session at a time
+#: session -> {options key -> [(actor, its ready call, claimed), ...]}; one session at a
+#: time; ``claimed``: a spare of the cluster (ray_pool.py), whose call is its claim
 _pool: dict[tuple, dict[tuple, list]] = {}
 #: whether runs leave spares: ``DSIM_RAY_SPARES=0`` in the environment, or :func:`keep`,
 #: turns them off (a shared cluster whose idle processes others need)
@@ -74,17 +77,8 @@ def settle(ray=None, timeout: float = 60.0) -> int:
 def _started(ray, timeout: float) -> list:
     """The ready calls of the spares that have answered (waiting ``timeout`` s at most)."""
     calls = [ready for spares in _pool.values() for kept in spares.values()
-             for _, ready in kept]
+             for _, ready, _ in kept]
     return ray.wait(calls, num_returns=len(calls), timeout=timeout)[0] if calls else []
-
-
-def key(options: dict) -> tuple:
-    """What makes two workers interchangeable: their node, resources and Ray options."""
-    strategy = options.get("scheduling_strategy")
-    where = (getattr(strategy, "node_id", None), getattr(strategy, "soft", None)) \
-        if strategy is not None and not isinstance(strategy, str) else strategy
-    return (where, tuple(sorted(options.get("resources", {}).items())),
-            options.get("num_cpus"), options.get("max_restarts"))
 
 
 def _spares(ray) -> dict[tuple, list]:
@@ -100,7 +94,11 @@ def take(ray, remote, options: dict) -> tuple[object, bool]:
     True), else a new one (and False).  ``remote``: ``ray.remote(Host)``."""
     kept = _spares(ray).get(key(options), [])
     while kept:
-        actor, ready = kept.pop()
+        actor, ready, claimed = kept.pop()
+        if claimed:  # the cluster's (ray_pool.py): only if this driver won it
+            if ray_pool.won(ray, ready):
+                return actor, True
+            continue  # another's, or gone: not this driver's to end
         done, _ = ray.wait([ready], timeout=0)
         if not done:  # still starting: it will be ready sooner than a new one
             return actor, True
@@ -122,7 +120,8 @@ def stock(ray, remote, options: list[dict]) -> None:
         kept = spares.setdefault(kind, [])
         for _ in range(count - len(kept)):
             actor = remote.options(**examples[kind]).remote()
-            kept.append((actor, actor.ready.remote()))
+            kept.append((actor, actor.ready.remote(), False))
+        kept.sort(key=lambda entry: entry[2])  # the cluster's last: taken (popped) first
 
 
 def ahead(ray=None) -> int:
@@ -145,8 +144,13 @@ def ahead(ray=None) -> int:
     nodes = Placement(connection, [("", workers)])
     before = count()
     # the options RayBackend._start gives the workers of components without a placement
-    stock(ray, ray.remote(Host), [{**WORKER_OPTIONS, **nodes.options("", n)}
-                                  for n in range(workers)])
+    options = [{**WORKER_OPTIONS, **nodes.options("", n)} for n in range(workers)]
+    made = ray_cluster.made_ahead()
+    if made is not None and made.owned and made.address:  # a command's: the cluster's
+        spares = _spares(ray)
+        for example, actor, call in ray_pool.claim(ray, options):
+            spares.setdefault(key(example), []).append((actor, call, True))
+    stock(ray, ray.remote(Host), options)
     return count() - before
 
 
@@ -155,9 +159,11 @@ def pids(ray) -> set[int]:
     found = set()
     for ready in _started(ray, 0):
         try:
-            found.add(ray.get(ready, timeout=0))
+            pid = ray.get(ready, timeout=0)
         except ray.exceptions.RayError:  # it died before it started
-            pass
+            continue
+        if type(pid) is int:  # not a claim another driver won (ray_pool.py)
+            found.add(pid)
     return found
 
 
@@ -172,15 +178,27 @@ def drop(ray=None) -> None:
         ray = ray_cluster.ray_module()
     for spares in _pool.values():
         for kept in spares.values():
-            for actor, _ in kept:
-                _kill(ray, actor)
+            for actor, ready, claimed in kept:
+                if not claimed or ray_pool.won(ray, ready):  # never another's
+                    _kill(ray, actor)
     _pool.clear()
 
 
 def forget() -> None:
     """Let go of the spare workers of a Ray connection about to end: they end with it
-    (ray_cluster.Connection.close)."""
+    (ray_cluster.Connection.close); the cluster's that a refused run claimed and did
+    not use are given back to wait for the next command (ray_pool.py)."""
+    claimed = [(actor, ready) for spares in _pool.values() for kept in spares.values()
+               for actor, ready, claimed in kept if claimed]
     _pool.clear()
+    if claimed:
+        ray = sys.modules["ray"]
+        job = ray.get_runtime_context().get_job_id()
+        try:
+            ray.get([actor.give_back.remote(job) for actor, _ in claimed],
+                    timeout=ray_pool.CLAIM_SECONDS)
+        except Exception:  # not given back: it ends once this driver's job has
+            pass
 
 
 ray_cluster.BEFORE_SHUTDOWN.append(forget)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from dsim.master.running.backends.base import terminate_all
+from dsim.master.running.backends.ray_lease import Lease
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.fmi import open_subsystem
 from dsim.master.running.ray_cluster import landed
@@ -58,7 +59,7 @@ def crash_report(pid: int) -> str | None:
 class Host:
     """A worker process (the Ray actor): some subsystems, called in order."""
 
-    def __init__(self):
+    def __init__(self, spare_seconds: float | None = None):
         self.subsystems = []
         #: per subsystem: {"start": {method: arguments}, "inputs": {...}}, most recent
         #: last (what a checkpoint keeps besides the FMU state)
@@ -70,10 +71,23 @@ class Host:
         # here, where the driver looks when the process is gone
         self._faults = open(path, "w")
         faulthandler.enable(self._faults)
+        #: a spare kept in the cluster for a later command (ray_pool.py): its wait
+        self._lease = Lease(spare_seconds) if spare_seconds is not None else None
 
     def ready(self) -> int:
         """This worker's process id, once it has started (ray_spares.py)."""
         return os.getpid()
+
+    def claim(self, job: str) -> int | None:
+        """Take this spare of the cluster for the driver of Ray job ``job``
+        (ray_pool.py): its process id, or None when another driver took it first,
+        its wait ran out, or it is no such spare."""
+        taken = self._lease is not None and self._lease.take(job)
+        return os.getpid() if taken else None
+
+    def give_back(self, job: str) -> bool:
+        """Let go of this spare unused, for a later run (see :meth:`claim`)."""
+        return self._lease is not None and self._lease.give_back(job)
 
     def open(self, specs, files) -> dict:
         """Instantiate the FMUs of ``specs`` from the shipped ``files`` (for each, its
