@@ -21,6 +21,7 @@ import time as clock
 from pathlib import Path
 
 from dsim.master.errors import InputError
+from dsim.master.running.private_folder import private_folder
 
 #: how to get Ray, said whenever it is missing
 INSTALL = "pip install 'dsim[ray]'"
@@ -296,7 +297,8 @@ _QUIETED = False
 def ray_log() -> Path:
     """Where this process keeps what Ray's own processes said to it (a raylet's notice
     of a dead worker, its post-mortem when it is lost): never on dsim's output."""
-    return Path(tempfile.gettempdir()) / f"dsim-{os.getuid()}" / f"ray-{os.getpid()}.log"
+    return private_folder(Path(tempfile.gettempdir()) / f"dsim-{os.getuid()}") / \
+        f"ray-{os.getpid()}.log"
 
 
 def _quiet_worker_deaths(ray) -> None:
@@ -365,7 +367,8 @@ def landed(shipped: tuple[str, str, object]) -> Path:
 
     import ray
 
-    folder = Path(tempfile.gettempdir()) / f"dsim-worker-{os.getuid()}" / digest[:32]
+    folder = private_folder(Path(tempfile.gettempdir()) / f"dsim-worker-{os.getuid()}") \
+        / digest[:32]
     target = folder / original.name
     if not target.is_file():
         folder.mkdir(parents=True, exist_ok=True)

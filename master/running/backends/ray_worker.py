@@ -22,6 +22,7 @@ import numpy as np
 from dsim.master.running.backends.base import terminate_all
 from dsim.master.running.backends.ray_lease import Lease
 from dsim.master.running.collector import collector_paused
+from dsim.master.running.private_folder import private_folder
 from dsim.master.running.fmi import open_subsystem
 from dsim.master.running.ray_cluster import landed
 
@@ -39,7 +40,8 @@ REMEMBERED = ("write_start_inputs", "write_inputs", "write_texts", "set_forces",
 
 def fault_file(pid: int) -> Path:
     """Where the worker process ``pid`` of this machine reports a crash."""
-    return Path(tempfile.gettempdir()) / f"dsim-worker-{os.getuid()}" / f"fault-{pid}.txt"
+    return private_folder(Path(tempfile.gettempdir()) / f"dsim-worker-{os.getuid()}") / \
+        f"fault-{pid}.txt"
 
 
 def crash_report(pid: int) -> str | None:
@@ -65,12 +67,7 @@ class Host:
         #: last (what a checkpoint keeps besides the FMU state)
         self.written = []
         self.initialized = []
-        path = fault_file(os.getpid())
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # a crashing FMU (SIGSEGV, SIGABRT, SIGBUS, SIGFPE, SIGILL) leaves its report
-        # here, where the driver looks when the process is gone
-        self._faults = open(path, "w")
-        faulthandler.enable(self._faults)
+        self._faults = None  # the crash report's file, from the first FMU on (open)
         #: a spare kept in the cluster for a later command (ray_pool.py): its wait
         self._lease = Lease(spare_seconds) if spare_seconds is not None else None
 
@@ -95,6 +92,12 @@ class Host:
         where this worker runs."""
         import ray
 
+        if self._faults is None:
+            # a crashing FMU (SIGSEGV, SIGABRT, SIGBUS, SIGFPE, SIGILL) leaves its report
+            # here, where the driver looks when the process is gone; a worker that hosts
+            # none (a spare) leaves no file
+            self._faults = open(fault_file(os.getpid()), "w")
+            faulthandler.enable(self._faults)
         places: dict[tuple, Path] = {}  # shipped file -> where it landed: once per file
 
         def place(shipped) -> Path:
@@ -205,12 +208,14 @@ class Host:
     def close(self) -> list[Exception]:
         """Terminate every subsystem, even if some fail; the errors they raised."""
         errors, self.subsystems = terminate_all(self.subsystems), []
-        faulthandler.disable()
-        self._faults.close()
-        try:
-            fault_file(os.getpid()).unlink()
-        except OSError:
-            pass
+        if self._faults is not None:
+            faulthandler.disable()
+            self._faults.close()
+            self._faults = None
+            try:
+                fault_file(os.getpid()).unlink()
+            except OSError:
+                pass
         return errors
 
 
