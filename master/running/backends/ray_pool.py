@@ -111,7 +111,10 @@ def claim(ray, options: list[dict]) -> list[tuple[dict, object, object]]:
     wanted = Counter(kind(o) for o in options)
     examples = {kind(o): o for o in options}
     job = ray.get_runtime_context().get_job_id()
-    listed = _listed(ray)
+    try:
+        listed = _listed(ray)
+    except Exception:  # the cluster cannot say (Ray's own error): new workers, as before
+        return []
     random.shuffle(listed)  # two commands at once do not go for the same spares
     claims = []
     for name, its_kind in listed:
