@@ -574,7 +574,8 @@ def alive(pid: int) -> bool:
 def test_commands_on_a_cluster_take_the_spares_the_command_before_left(built, tmp_path):
     """Each `dsim run --address` leaves as many fresh workers in the cluster as it used
     (ray_pool.py), and the next command runs on them, its numbers unchanged to the
-    byte; a refused scene gives back what it claimed; actors that are no spare of
+    byte; two commands at once never share a worker; a refused scene gives back what
+    it claimed; actors that are no spare of
     dsim's under a spare's name are passed over, not used and not ended; a command
     killed outright takes its workers with it within seconds; a spare no command takes
     ends after DSIM_RAY_SPARE_SECONDS; DSIM_RAY_SPARES=0 leaves none."""
@@ -610,6 +611,21 @@ def test_commands_on_a_cluster_take_the_spares_the_command_before_left(built, tm
         assert second.returncode == 0, second.stderr
         assert second_used == set(left.values())  # taken, not started anew
         assert second_out.read_bytes() == first_out.read_bytes()
+
+        # two commands at once, two spares there: never a worker for both
+        pair = [subprocess.Popen(DSIM + ["run", scene, "--stop", "0.05", "--quiet",
+                                         "--backend", "ray", "--address", head["address"],
+                                         "--out", str(tmp_path / f"pair{n}.csv")],
+                                 cwd=ROOT, env=head["env"], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True) for n in range(2)]
+        for process in pair:
+            assert process.wait(300) == 0, process.communicate()[1]
+        used = [{c["worker"]["pid"] for c in json.loads(
+            (tmp_path / f"pair{n}.stats.json").read_text())["components"].values()}
+            for n in range(2)]
+        assert len(used[0]) == len(used[1]) == 2 and not used[0] & used[1], used
+        for n in range(2):
+            assert (tmp_path / f"pair{n}.csv").read_bytes() == first_out.read_bytes()
         impostors = spares_of(head, "impostors")
         assert len(impostors) == 2
 
