@@ -591,11 +591,13 @@ def test_commands_on_a_cluster_take_the_spares_the_command_before_left(built, tm
         stats = json.loads(out.with_suffix(".stats.json").read_text()) \
             if run.returncode == 0 else {}
         used = {c["worker"]["pid"] for c in stats.get("components", {}).values()}
-        return run, out, used
+        how = {c["worker"]["started"] for c in stats.get("components", {}).values()}
+        return run, out, (used, how)
 
     with own_head(cpus=2) as head:
-        first, first_out, first_used = command("first", head)
+        first, first_out, (first_used, how) = command("first", head)
         assert first.returncode == 0, first.stderr
+        assert how == {"ahead"}  # no spare there yet: started before its scene was read
         left = spares_of(head)
         assert len(left) == 2 and not set(left.values()) & first_used, (left, first_used)
         assert not any(alive(pid) for pid in first_used)  # the run's own are gone
@@ -607,9 +609,10 @@ def test_commands_on_a_cluster_take_the_spares_the_command_before_left(built, tm
         assert refused.returncode == 2, refused.stderr
         assert spares_of(head) == left  # claimed, then given back
 
-        second, second_out, second_used = command("second", head)
+        second, second_out, (second_used, how) = command("second", head)
         assert second.returncode == 0, second.stderr
         assert second_used == set(left.values())  # taken, not started anew
+        assert how == {"cluster spare"}  # and the statistics say so
         assert second_out.read_bytes() == first_out.read_bytes()
 
         # two commands at once, two spares there: never a worker for both
@@ -629,7 +632,7 @@ def test_commands_on_a_cluster_take_the_spares_the_command_before_left(built, tm
         impostors = spares_of(head, "impostors")
         assert len(impostors) == 2
 
-        third, third_out, third_used = command("third", head)
+        third, third_out, (third_used, _) = command("third", head)
         assert third.returncode == 0, third.stderr
         assert third_out.read_bytes() == first_out.read_bytes()
         assert not third_used & set(impostors.values()), (third_used, impostors)

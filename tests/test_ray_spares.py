@@ -41,6 +41,8 @@ def test_a_run_leaves_fresh_spares_and_the_next_run_takes_them(built, ray_local)
     assert len(spares) == 2 and not spares & used  # new processes, not the run's own
     second = dsim.simulate(scene, stop=stop, backend="ray")
     assert workers(second) == spares  # taken, not started anew
+    assert {c["worker"]["started"] for c in second.statistics["components"].values()} \
+        == {"ahead"}
     same_run(here, first)
     same_run(here, second)
     ray_spares.settle(ray_local)

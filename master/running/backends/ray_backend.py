@@ -167,7 +167,7 @@ class RayBackend(Recovery, Backend):
         shipment = Shipment(ray)
         remote = ray.remote(Host)
         hosts, assigned, members, worker_options = [], [], [None] * len(specs), []
-        spared = []  # the workers that were started ahead (ray_spares.py)
+        started = []  # per worker, how the run got it (ray_spares.NEW, SPARE, ...)
         groups = [(placement, indices, cls._workers(connection, placement, len(indices)))
                   for placement, indices in cls._groups(connection, specs)]
         # each worker pinned to its node, chosen here (ray_placement.py)
@@ -182,10 +182,9 @@ class RayBackend(Recovery, Backend):
                 for slot, index in enumerate(chosen):
                     members[index] = (len(hosts), slot)
                 placed = {**options, **nodes.options(placement, number)}
-                host, spare = cls._worker(connection, remote, placed)
+                host, how = cls._worker(connection, remote, placed)
                 hosts.append(host)
-                if spare:
-                    spared.append(len(hosts) - 1)
+                started.append(how)
                 assigned.append(chosen)
                 worker_options.append(placed)
                 if not placement:
@@ -207,7 +206,7 @@ class RayBackend(Recovery, Backend):
                 cluster.checkpoints[(h, slot)] = None
         backend = cls(cluster, members, [s.name for s in specs])
         try:
-            backend._cluster.places = backend._open(opened, spared)
+            backend._cluster.places = backend._open(opened, started)
         except BaseException:
             backend.close()
             raise
@@ -256,27 +255,31 @@ class RayBackend(Recovery, Backend):
 
     @classmethod
     def _worker(cls, connection, remote, options: dict) -> tuple[object, bool]:
-        """A worker with ``options``, and whether it is a spare started ahead."""
+        """A worker with ``options``, and how the run got it (ray_spares.take)."""
         if cls._spares(connection):
             return ray_spares.take(connection.ray, remote, options)
-        return remote.options(**options).remote(), False
+        return remote.options(**options).remote(), ray_spares.NEW
 
-    def _open(self, opened, spared=()) -> list[dict]:
-        """Wait for every worker to instantiate its FMUs: their places.  A spare worker
-        (``spared``: their numbers) found dead is replaced by a new one, once."""
+    def _open(self, opened, started: list[str]) -> list[dict]:
+        """Wait for every worker to instantiate its FMUs: their places, each with how
+        the run got the worker (``started``, per worker: ray_spares.NEW, SPARE or
+        CLUSTER_SPARE), which the statistics show.  A spare found dead is replaced by a
+        new worker, once."""
         ray = self._cluster.connection.ray
         self._started(dict(enumerate(opened)))
         places = []
         for h, ref in enumerate(opened):
             try:
-                places.append(self._place(h, ref, last=h not in spared))
+                place = self._place(h, ref, last=started[h] == ray_spares.NEW)
+                places.append({**place, "started": started[h]})
             except ray.exceptions.RayActorError:
                 # a spare that died while it waited for a run, before it held anything
                 worker = ray.remote(Host).options(**self._cluster.options[h]).remote()
                 self._cluster.hosts[h] = worker
                 again = worker.open.remote(self._cluster.specs[h], self._cluster.files[h])
                 self._started({h: again})
-                places.append(self._place(h, again, last=True))
+                places.append({**self._place(h, again, last=True),
+                               "started": ray_spares.NEW})
         return places
 
     def _started(self, opened: dict) -> None:

@@ -19,6 +19,7 @@ import time as clock
 
 from dsim.master.errors import SimulationError
 from dsim.master.reading.fmi_description import describe
+from dsim.master.running.backends.ray_spares import NEW
 from dsim.master.running.backends.ray_worker import (CHECKPOINT, FAILED, RESUME, Host,
                                                      crash_report)
 from dsim.master.running.ray_cluster import listening as _listening
@@ -272,7 +273,7 @@ class Recovery:
             raise SimulationError(str(_cause(failed))) from None
         except ray.exceptions.RayError as failed:
             raise _Lost(failed) from None
-        cluster.hosts[host], cluster.places[host] = worker, place
+        cluster.hosts[host], cluster.places[host] = worker, {**place, "started": NEW}
         replay, journaled = [], self._journaled(host)
         for slot in range(len(cluster.owners[host])):
             checkpoint = cluster.checkpoints[(host, slot)]

@@ -89,25 +89,30 @@ def _spares(ray) -> dict[tuple, list]:
     return _pool[session]
 
 
-def take(ray, remote, options: dict) -> tuple[object, bool]:
-    """A worker with ``options``: a spare started ahead when there is a live one (and
-    True), else a new one (and False).  ``remote``: ``ray.remote(Host)``."""
+#: how a run got a worker, as its statistics say (``worker.started``)
+SPARE, CLUSTER_SPARE, NEW = "ahead", "cluster spare", "new"
+
+
+def take(ray, remote, options: dict) -> tuple[object, str]:
+    """A worker with ``options``: a live spare when there is one (and :data:`SPARE`, or
+    :data:`CLUSTER_SPARE` for one an earlier command left in the cluster), else a new
+    one (and :data:`NEW`).  ``remote``: ``ray.remote(Host)``."""
     kept = _spares(ray).get(key(options), [])
     while kept:
         actor, ready, claimed = kept.pop()
         if claimed:  # the cluster's (ray_pool.py): only if this driver won it
             if ray_pool.won(ray, ready):
-                return actor, True
+                return actor, CLUSTER_SPARE
             continue  # another's, or gone: not this driver's to end
         done, _ = ray.wait([ready], timeout=0)
         if not done:  # still starting: it will be ready sooner than a new one
-            return actor, True
+            return actor, SPARE
         try:
             ray.get(ready, timeout=0)
-            return actor, True
+            return actor, SPARE
         except ray.exceptions.RayError:  # gone while it waited: never used
             _kill(ray, actor)
-    return remote.options(**options).remote(), False
+    return remote.options(**options).remote(), NEW
 
 
 def stock(ray, remote, options: list[dict]) -> None:
