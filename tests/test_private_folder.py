@@ -100,3 +100,25 @@ def test_a_worker_never_loads_an_fmu_planted_where_it_lands_shipped_files(
     target = landed((elsewhere, digest, ref))
     assert target.read_bytes() == b"the real FMU"
     assert not target.is_relative_to(folder)
+
+
+def test_empty_crash_reports_of_ended_workers_are_swept_a_crash_is_kept(shared_tmp):
+    """A worker killed without a crash leaves an empty report nobody reads (before this
+    release every worker made one, spares too): the next worker of the node removes
+    those of ended processes; one with a crash in it, and a live process's, stay."""
+    import subprocess
+    import sys
+
+    from dsim.master.running.backends.ray_worker import sweep_reports
+
+    ended = subprocess.Popen([sys.executable, "-c", "pass"])
+    ended.wait()
+    folder = fault_file(os.getpid()).parent
+    empty, crashed, live = (folder / f"fault-{ended.pid}.txt",
+                            folder / f"fault-{ended.pid + 100000000}.txt",
+                            folder / f"fault-{os.getpid()}.txt")
+    empty.touch()
+    crashed.write_text("Fatal Python error: Segmentation fault\n")
+    live.touch()
+    assert sweep_reports(folder) == [empty]
+    assert not empty.exists() and crashed.exists() and live.exists()

@@ -657,7 +657,7 @@ def test_commands_on_a_cluster_take_the_spares_the_command_before_left(built, tm
         assert sorted(workers) == sorted(after.values()), (workers, after)  # its own
         assert not any(alive(pid) for pid in workers), workers
 
-        waiting, _, _ = command("waiting", head, env={"DSIM_RAY_SPARE_SECONDS": "3"})
+        waiting, _, _ = command("waiting", head, env={"DSIM_RAY_SPARE_SECONDS": "8"})
         assert waiting.returncode == 0, waiting.stderr
         short = spares_of(head)
         assert len(short) == 2

@@ -44,6 +44,36 @@ def fault_file(pid: int) -> Path:
         f"fault-{pid}.txt"
 
 
+def sweep_reports(folder: Path) -> list[Path]:
+    """Remove the empty crash reports in ``folder`` of worker processes of this machine
+    that have ended (killed without a crash, or before this release, which made one for
+    every worker, spares too): an empty one says nothing a driver could read, and
+    nothing else removes it.  A report with a crash in it waits for its driver.  The
+    files removed."""
+    removed = []
+    for path in folder.glob("fault-*.txt"):
+        pid = path.stem.removeprefix("fault-")
+        if not pid.isdigit() or _alive(int(pid)):
+            continue
+        try:
+            if path.lstat().st_size == 0:
+                path.unlink()
+                removed.append(path)
+        except OSError:  # gone meanwhile
+            pass
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: alive
+        return True
+    return True
+
+
 def crash_report(pid: int) -> str | None:
     """The first line of the crash report of worker ``pid`` on this machine (e.g.
     ``Fatal Python error: Aborted``), or None when it left none; the report is
@@ -98,6 +128,7 @@ class Host:
             # none (a spare) leaves no file
             self._faults = open(fault_file(os.getpid()), "w")
             faulthandler.enable(self._faults)
+            sweep_reports(fault_file(os.getpid()).parent)
         places: dict[tuple, Path] = {}  # shipped file -> where it landed: once per file
 
         def place(shipped) -> Path:
