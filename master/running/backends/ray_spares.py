@@ -133,7 +133,9 @@ def ahead(ray=None) -> int:
     """Start spare workers for the run about to begin, while its scene is read and
     planned: as many as the cluster has CPUs (the most workers a run of components
     without a placement uses), on the nodes such a run chooses, less those already
-    kept; only in a driver connected to Ray that keeps spares.  How many it started."""
+    kept; only in a driver connected to Ray that keeps spares.  A command that joined
+    a cluster first claims the spares an earlier command left there (ray_pool.py), and
+    when it found any starts none.  How many it took or started."""
     if not ray_cluster.joined() or not keeping():
         return 0
     ray = ray or sys.modules["ray"]
@@ -153,8 +155,11 @@ def ahead(ray=None) -> int:
     made = ray_cluster.made_ahead()
     if made is not None and made.owned and made.address:  # a command's: the cluster's
         spares = _spares(ray)
-        for example, actor, call in ray_pool.claim(ray, options):
+        claimed = ray_pool.claim(ray, options)
+        for example, actor, call in claimed:
             spares.setdefault(key(example), []).append((actor, call, True))
+        if claimed:  # as many as the command before used: no more started ahead (on a
+            return count() - before  # large cluster, one per CPU is mostly waste)
     stock(ray, ray.remote(Host), options)
     return count() - before
 
