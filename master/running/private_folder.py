@@ -40,9 +40,7 @@ def private_folder(path) -> Path:
         return _instead[path]
     try:
         path.mkdir(mode=0o700, parents=False)
-    except FileExistsError:
-        pass
-    except OSError:  # the parent is missing or not ours to write: the check says
+    except OSError:  # there already, or not ours to make: the check below says
         pass
     if safe(path):
         return path

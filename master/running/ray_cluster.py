@@ -139,8 +139,9 @@ def connect_ahead(address: str | None) -> Connection | None:
 
 
 def made_ahead() -> Connection | None:
-    """The connection :func:`connect_ahead` made for the run about to begin, until
-    that run's backend takes it; else None."""
+    """The connection :func:`connect_ahead` made for the run about to begin (always
+    this process's own, to a cluster's address), until that run's backend takes it;
+    else None."""
     return _ahead[-1] if _ahead else None
 
 

@@ -26,8 +26,10 @@ state, an FMU that crashed (it left a crash report) and a worker lost again on t
 same call end the run as before, with a line that says which it was.
 
 A run of a driver that joined a Ray instance it did not start takes the spare workers
-the run before left and, as it ends, starts new ones for the next (ray_spares.py):
-never a process that hosted FMUs, only the start of a process taken out of a set-up.
+the run before left and, as it ends, starts new ones for the next (ray_spares.py); a
+run that joined a cluster's address itself leaves them in the cluster for the next
+command (ray_pool.py): never a process that hosted FMUs, only the start of a process
+taken out of a set-up.
 """
 from __future__ import annotations
 
@@ -235,26 +237,31 @@ class RayBackend(Recovery, Backend):
         return max(1, min(count, connection.cpus(placement)))
 
     @classmethod
-    def _spares(cls, connection, leaving: bool = False) -> bool:
-        """Whether this run takes (or, ``leaving``, leaves) spare workers
-        (ray_spares.py): not one worker per instance, nor inside a Ray worker (a sweep's
-        point), nor when they are turned off (ray_spares.keep); it leaves none when it
-        made its connection (the driver ends with the run, or Ray does), and takes those
-        only when the connection was made ahead of it (ray_cluster.connect_ahead)."""
-        made_by_run = connection.owned and (leaving or not connection.ahead)
-        return (ray_spares.keeping() and not made_by_run and not cls.one_per_instance
+    def _keeps_spares(cls, connection) -> bool:
+        """Whether runs of this kind on ``connection`` keep spare workers at all: not
+        one worker per instance, nor inside a Ray worker (a sweep's point), nor when
+        they are turned off (ray_spares.keep)."""
+        return (ray_spares.keeping() and not cls.one_per_instance
                 and ray_spares.in_driver(connection.ray))
+
+    @classmethod
+    def _spares(cls, connection, leaving: bool = False) -> bool:
+        """Whether this run takes (or, ``leaving``, leaves) this driver's spare workers
+        (ray_spares.py): it leaves none when it made its connection (the driver ends
+        with the run, or Ray does), and takes those only when the connection was made
+        ahead of it (ray_cluster.connect_ahead)."""
+        made_by_run = connection.owned and (leaving or not connection.ahead)
+        return not made_by_run and cls._keeps_spares(connection)
 
     @classmethod
     def _leaves_in_cluster(cls, connection) -> bool:
         """Whether this run leaves its spares in the cluster for the next command
-        (ray_pool.py): it made its connection to a cluster's address itself, and
-        would otherwise keep spares."""
-        return bool(connection.owned and connection.address and ray_spares.keeping()
-                    and not cls.one_per_instance and ray_spares.in_driver(connection.ray))
+        (ray_pool.py): it made its connection to a cluster's address itself."""
+        return bool(connection.owned and connection.address
+                    and cls._keeps_spares(connection))
 
     @classmethod
-    def _worker(cls, connection, remote, options: dict) -> tuple[object, bool]:
+    def _worker(cls, connection, remote, options: dict) -> tuple[object, str]:
         """A worker with ``options``, and how the run got it (ray_spares.take)."""
         if cls._spares(connection):
             return ray_spares.take(connection.ray, remote, options)

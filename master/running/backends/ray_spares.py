@@ -12,8 +12,9 @@ of starting its own: fresh processes that have hosted nothing, ready by the time
 next scene is read and planned; a run with none kept (the first) starts its workers
 before its scene is read and planned (:func:`ahead`, from ``dsim.simulate``; a run given
 a cluster's address joins it first, ray_cluster.connect_ahead).  A run that made its own
-connection (``dsim run --backend ray``, with or without ``--address``) ends it, and
-leaves no spare.
+connection ends it, and keeps no spare here: one that started Ray itself leaves none,
+one that joined a cluster's address leaves them in the cluster for the next command
+(ray_pool.py), and such a command takes those first (:func:`ahead`).
 
 Only a driver keeps spares (a sweep's point runs inside a Ray worker, and leaves
 none).  Spares are kept per Ray session (a new ``ray.init`` forgets the old ones), take
@@ -152,8 +153,7 @@ def ahead(ray=None) -> int:
     before = count()
     # the options RayBackend._start gives the workers of components without a placement
     options = [{**WORKER_OPTIONS, **nodes.options("", n)} for n in range(workers)]
-    made = ray_cluster.made_ahead()
-    if made is not None and made.owned and made.address:  # a command's: the cluster's
+    if ray_cluster.made_ahead() is not None:  # joined a cluster's address for this run
         spares = _spares(ray)
         claimed = ray_pool.claim(ray, options)
         for example, actor, call in claimed:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dsim.master.processes import process_alive
 from dsim.master.running.backends.base import terminate_all
 from dsim.master.running.backends.ray_lease import Lease
 from dsim.master.running.collector import collector_paused
@@ -53,7 +54,7 @@ def sweep_reports(folder: Path) -> list[Path]:
     removed = []
     for path in folder.glob("fault-*.txt"):
         pid = path.stem.removeprefix("fault-")
-        if not pid.isdigit() or _alive(int(pid)):
+        if not pid.isdigit() or process_alive(int(pid)):
             continue
         try:
             if path.lstat().st_size == 0:
@@ -62,16 +63,6 @@ def sweep_reports(folder: Path) -> list[Path]:
         except OSError:  # gone meanwhile
             pass
     return removed
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process: alive
-        return True
-    return True
 
 
 def crash_report(pid: int) -> str | None:
@@ -126,9 +117,10 @@ class Host:
             # a crashing FMU (SIGSEGV, SIGABRT, SIGBUS, SIGFPE, SIGILL) leaves its report
             # here, where the driver looks when the process is gone; a worker that hosts
             # none (a spare) leaves no file
-            self._faults = open(fault_file(os.getpid()), "w")
+            path = fault_file(os.getpid())
+            self._faults = open(path, "w")
             faulthandler.enable(self._faults)
-            sweep_reports(fault_file(os.getpid()).parent)
+            sweep_reports(path.parent)
         places: dict[tuple, Path] = {}  # shipped file -> where it landed: once per file
 
         def place(shipped) -> Path:
