@@ -228,18 +228,16 @@ def cli_lines(n: int, result: dict) -> list[str]:
         "| `dsim run` | set-up, least (s) | each round (s) | the command's wall time, least "
         "(s) | each round (s) |", "|---|---|---|---|---|"]
     for kind, (name, _, _) in CLI_KINDS.items():
-        if kind in result["setup"]:
-            lines.append(f"| {name} | {cells(result['setup'][kind])} | "
-                         f"{cells(result['wall'][kind])} |")
+        lines.append(f"| {name} | {cells(result['setup'][kind])} | "
+                     f"{cells(result['wall'][kind])} |")
     compared = []
     for kind in CLI_COMPARED:
-        cluster = result["setup"].get(kind)
-        if cluster:
-            compared.append(
-                f"{CLI_KINDS[kind][0]}: "
-                f"{', '.join(f'{c / l:.2f}' for l, c in zip(local, cluster))} (faster in "
-                f"{sum(c < l for l, c in zip(local, cluster))} of {rounds}; least against "
-                f"least {min(cluster) / min(local):.2f})")
+        cluster = result["setup"][kind]
+        compared.append(
+            f"{CLI_KINDS[kind][0]}: "
+            f"{', '.join(f'{c / l:.2f}' for l, c in zip(local, cluster))} (faster in "
+            f"{sum(c < l for l, c in zip(local, cluster))} of {rounds}; least against "
+            f"least {min(cluster) / min(local):.2f})")
     lines += ["", f"Set-up against in-process, round by round: {'; '.join(compared)}; the "
               f"machine's ceiling before each round: "
               f"{', '.join(f'{x:.2f}' for x in result['ceilings'])}. "
