@@ -40,6 +40,7 @@ from fmpy.ssp.simulation import simulate_ssp
 import dsim
 from dsim.master.recording.observers import CsvRecorder, StepRecord, _csv_block
 from tests.third_party.build import c_fmu, causal_ring_ssp
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = 1e-3
@@ -426,7 +427,7 @@ def main(argv=None) -> str:
         "# Causal systems: dsim against fmpy's SSP runner and libcosim",
         "",
         f"Written by `python -m benchmarks.causal_benchmark` on {date.today()} "
-        f"({platform.machine()}, Python {platform.python_version()}). A ring of n first-order "
+        f"({machine()}, Python {platform.python_version()}). A ring of n first-order "
         "lag blocks, each a plain-C FMI 2.0 co-simulation FMU compiled in the run "
         "(tests/third_party/block.c), connected causally (no joints), step 1 ms. Both masters "
         "run the same .ssp archive; so does libcosim (the C++ co-simulation library of the "

@@ -24,6 +24,7 @@ from datetime import date
 from pathlib import Path
 
 from examples import parameter_study as study
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -55,7 +56,7 @@ def report(samples: int, startup: float, cpus: int, pairs: list[dict]) -> tuple[
         "# Sweep throughput: serial against Ray",
         "",
         f"Written by `python -m benchmarks.doe_throughput` on {date.today()} (Python "
-        f"{platform.python_version()}, {platform.machine()}, {os.cpu_count()} cores, a "
+        f"{platform.python_version()}, {machine()}, {os.cpu_count()} cores, a "
         f"local Ray instance of {cpus} CPUs started once in {startup:.1f} s, not counted "
         "below). The sweep: examples/parameter_study.py's Latin hypercube over "
         f"`left.k_ground[1]`, `right.k[1]`, `right.m[2]` of spring_mass_linear, {samples} "

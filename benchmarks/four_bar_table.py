@@ -37,6 +37,7 @@ from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
 from dsim.master.planning.load import load_scene
 from dsim.master.sweeps.sweep import error_against
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The seed's Table 5.1 (refreshes, total iterations; None: failed at a singular point).
@@ -243,7 +244,7 @@ def main(argv=None) -> dict:
         "# Four bar through its singular configuration: Table 5.1 by dsim",
         "",
         f"Written by `python -m benchmarks.four_bar_table` on {time.strftime('%Y-%m-%d')} "
-        f"(Python {platform.python_version()}, {platform.machine()}). "
+        f"(Python {platform.python_version()}, {machine()}). "
         + INTRODUCTION.format(step=FOUR_BAR["step"], stop=stop,
                               max_iterations=FOUR_BAR["max_iterations"],
                               radius=FOUR_BAR["spectral_radius"]),

@@ -11,13 +11,16 @@ from __future__ import annotations
 import argparse
 import cProfile
 import io
+import platform
 import pstats
 import tempfile
 import time
+from datetime import date
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks import machine
 from dsim.build_fmus.frame_scenes import part_parameters
 from dsim.fmus.elastic import craig_bampton_error, frame
 from dsim.fmus.elastic.body_spec import build_body, spec_from_parameters
@@ -66,7 +69,14 @@ LEVERS = (
     "the garbage collector (3 to 6 passes per 1000 steps, 5 to 40 ms). Tried earlier and "
     "not kept: a body's saved state holding its arrays instead of copies (1%, within the "
     "noise, and ElasticBody.get_state would no longer return a state the caller may "
-    "change).")
+    "change)."
+    " Nor the five parts stepped on two threads (each Newton trial's calls of the "
+    "five FMUs handed to a pool of two threads in the in-process backend: scipy's "
+    "SuperLU solve lets go of Python's lock, and two threads solving alone ran 1.7 "
+    "times as fast): frame_split took 9.6 to 10.3 s against 5.8 to 6.8 s one after "
+    "the other, the same bytes, on an AMD EPYC on 2026-11-27, whether ctypes let go "
+    "of the lock around each FMI call or kept it: the Python around the solves needs "
+    "the lock, and it changes hands at every FMI call and numpy operation.")
 
 
 def glued_versus_monolithic(stop: float, repetitions: int = 3) -> dict:
@@ -304,8 +314,9 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
     calls_per_step = sum(calls for calls, _ in functions.values()) / stats["steps"]
     lines = [
         "# frame_split: glued versus monolithic, and Craig-Bampton", "",
-        "Written by `python -m benchmarks.frame_benchmark` (OMP_NUM_THREADS=1, one process, "
-        "the in-process backend). Scene: build/ssp/frame_split.ssp, five ElasticBody FMUs "
+        f"Written by `python -m benchmarks.frame_benchmark` on {date.today()} ({machine()}, "
+        f"Python {platform.python_version()}, OMP_NUM_THREADS=1, one process, the in-process "
+        "backend). Scene: build/ssp/frame_split.ssp, five ElasticBody FMUs "
         f"glued on six edges, H = 1e-4 s, 0 to {stop:g} s ({stats['steps']} steps). After a "
         "short warm-up of each, the glued run, the monolithic solve and the floor run in turn "
         f"{len(run['ratios'])} times; the table gives the least wall time of each (set-up "
@@ -421,7 +432,12 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
         "differences), then 6 to 8 (one variable at a time through pythonfmu's getters and "
         "setters, outputs recomputed after every step and restore, numpy dispatch), then "
         "3.02 (two full Newmark solves per part per step), then 2.42 (the repeated step by "
-        "the linear response, on a busier machine), then 2.28, then the ratio above. "
+        "the linear response, on a busier machine), then 2.28, then 2.06 (2026-11-27, on a "
+        "CPU with AVX-512: floor 1.34 x), and the ratio above on the CPU named at the top. "
+        "The ratio depends on the CPU: on an AMD EPYC the same code gave 2.81 with a floor "
+        "of 1.59 x (2026-11-27), its monolithic solve 2.5 times and the glued run 3.5 "
+        "times slower than on the AVX-512 machine, the Python around each solve costing "
+        "relatively more there. "
         + LEVERS,
         "", "Profile of a 0.05 s glued run (sorted by own time):", "", "```",
         profile.strip(), "```", "",

@@ -20,6 +20,7 @@ import numpy as np
 from examples import crank_slider, four_bar
 from dsim.master.api import simulate
 from dsim.master.recording.results import read_csv
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 #: scene -> (reference description, function returning (reference, seconds))
@@ -157,7 +158,7 @@ def main(argv=None) -> None:
         "# Benchmarks: linkage scenes",
         "",
         f"Written by `python -m benchmarks.linkage_benchmark` on {time.strftime('%Y-%m-%d')} "
-        f"({platform.machine()}, Python {platform.python_version()}, one process, in-process "
+        f"({machine()}, Python {platform.python_version()}, one process, in-process "
         "backend). Each row is one glued run from the scene's .ssp archive through real "
         "pythonfmu FMUs; its monolithic reference (the same rule and step: one Linkage for the "
         "rigid mechanisms, one FlexibleMechanism, fmus/flexible_link/mechanism.py, for the "

@@ -34,6 +34,7 @@ from fmpy import simulate_fmu
 import dsim
 from tests.test_fmi_kinds import bouncing_height
 from tests.third_party.kinds.build import build_fmu
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = 1e-3
@@ -116,7 +117,7 @@ def table(rows: list[dict], repetitions: int) -> str:
     lines = [
         "# Model Exchange: dsim's integration per step against fmpy's",
         "",
-        f"Measured {date.today()} on {platform.machine()} with Python "
+        f"Measured {date.today()} on {machine()} with Python "
         f"{platform.python_version()} by `python -m benchmarks.model_exchange_benchmark` "
         f"(communication step {STEP:g} s, rtol {RTOL:g}, {repetitions} repetitions; "
         "per-step time is the slope between a short and a long run (oscillator "

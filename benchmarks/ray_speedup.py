@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 import dsim
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -197,7 +198,7 @@ def report(args, startup: float, heavy, light, sweep, ceilings, workers: int) ->
         "# The Ray backend against the in-process backend",
         "",
         f"Written by `OMP_NUM_THREADS=1 python -m benchmarks.ray_speedup` on {date.today()} "
-        f"({platform.machine()}, {os.cpu_count()} cores shared with other work, Python "
+        f"({machine()}, {os.cpu_count()} cores shared with other work, Python "
         f"{platform.python_version()}, Ray {__import__('ray').__version__}). One local Ray "
         f"instance with one worker per core ({workers} workers) is started once (it took "
         f"{startup:.1f} s: what `dsim run --backend ray` without `--address` pays on top, "

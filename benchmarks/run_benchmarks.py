@@ -13,7 +13,7 @@ import platform
 import time
 from pathlib import Path
 
-from benchmarks import scaling
+from benchmarks import machine, scaling
 from examples import chain, spring_mass
 from dsim.master.api import simulate
 
@@ -114,7 +114,7 @@ def main(argv=None) -> None:
         "# Benchmarks: spring-mass and chain scenes",
         "",
         f"Written by `python -m benchmarks.run_benchmarks` on {time.strftime('%Y-%m-%d')} "
-        f"({platform.processor() or platform.machine()}, Python {platform.python_version()}, "
+        f"({machine()}, Python {platform.python_version()}, "
         "one process, in-process backend). Every row is one glued run from the scene's "
         ".ssp archive through real pythonfmu FMUs loaded with fmpy; the monolithic "
         "reference runs right after it in the same process, so the ratio column compares "

@@ -28,6 +28,8 @@ import time
 from datetime import date
 from pathlib import Path
 
+from benchmarks import machine
+
 ROOT = Path(__file__).resolve().parent.parent
 FMU = ROOT / "build" / "fmus" / "SpringMass.fmu"
 
@@ -527,7 +529,13 @@ NOTES = (
     "8.2 us. Reaching "
     "1.2 times chain_100's per step and subsystem would need a subsystem's objects to "
     "fit a few kilobytes of cache each (32 MB over 10,000), far below what a Python FMU "
-    "behind pythonfmu and its handles in the master take. Not the page tables: with "
+    "behind pythonfmu and its handles in the master take; the physics cores alone, "
+    "stepped in plain Python without FMI or master (the `cores alone` columns), already "
+    "grow more than 1.2 times: 1.30 on the machine of the table above and 1.46 on an "
+    "AMD EPYC of these machines (2026-11-27, chain_100 against chain_10000, two runs "
+    "each in turn), where the whole run grew 1.46 times too (114 to 167 us of CPU per "
+    "step and subsystem): there dsim's layers add nothing to the growth. Not the page "
+    "tables: with "
     "every object in 2 MB pages (glibc's allocator for all of Python's memory, "
     "`PYTHONMALLOC=malloc GLIBC_TUNABLES=glibc.malloc.hugetlb=1`: 432 of 474 MB resident "
     "in huge pages), chain_10000 took 91 to 95 us per step and subsystem against 86 to "
@@ -778,7 +786,7 @@ def main(argv=None) -> str:
     text = "\n".join([
         "# Scaling: ten to a hundred thousand subsystems",
         "",
-        f"Written by `python -m benchmarks.scaling` on {date.today()} ({platform.machine()}, "
+        f"Written by `python -m benchmarks.scaling` on {date.today()} ({machine()}, "
         f"Python {platform.python_version()}, in-process backend). Chains of n SpringMass "
         "FMUs (pythonfmu, one FMU file shared by every component) glued in a line by fixed "
         "joints (`build_fmus/scenes.py`, `chain(n)`), each measured in a fresh process. "

@@ -26,6 +26,7 @@ from examples.testbed import Testbed, energy, monolithic, write_scene
 from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
 from dsim.master.sweeps.sweep import error_against
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 COUPLINGS = ("iterative", "explicit")
@@ -142,7 +143,7 @@ def main(argv=None) -> None:
         "# Stability at the extremes",
         "",
         f"Written by `python -m benchmarks.stability` on {time.strftime('%Y-%m-%d')} (Python "
-        f"{platform.python_version()}, {platform.machine()}, {time.perf_counter() - started:.0f}"
+        f"{platform.python_version()}, {machine()}, {time.perf_counter() - started:.0f}"
         " s). The testbed (examples/testbed.py): two SpringMass FMUs, m1 on a 100 N/m spring "
         "to ground glued to m2, which a 100 N/m spring ties to m3 under a 10 N load; 10 kg "
         "each unless said. Every run is compared with its monolithic twin (the same chain in "

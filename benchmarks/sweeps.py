@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from dsim.master.sweeps.sweep import Sweep, cheapest, command_line, markdown, run_sweep
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "results" / "sweeps"
@@ -74,7 +75,7 @@ def main(argv=None) -> None:
         "# Sweeps of the shipped scenes",
         "",
         f"Written by `python -m benchmarks.sweeps` on {time.strftime('%Y-%m-%d')} (Python "
-        f"{platform.python_version()}, {platform.machine()}, one process, points run one "
+        f"{platform.python_version()}, {machine()}, one process, points run one "
         "after the other). Each point is one `dsim sweep` run; its error is against the "
         "monolithic twin the scene ships (at a tenth of the scene's step), so it holds the "
         "time discretization's error as well as the gluing's. Wall times are of a shared "

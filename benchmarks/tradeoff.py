@@ -19,6 +19,7 @@ from dsim.build_fmus.twins.spring_mass import monolithic as spring_mass_monolith
 from dsim.fmus.elastic.frame import STEP_SIZE, monolithic_frame
 from dsim.master.api import simulate
 from dsim.master.sweeps.sweep import error_against
+from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "results" / "tradeoff"
@@ -93,7 +94,7 @@ def main(argv=None) -> list[dict]:
         "# Speed against accuracy",
         "",
         f"Written by `python -m benchmarks.tradeoff` on {time.strftime('%Y-%m-%d')} "
-        f"(Python {platform.python_version()}, {platform.machine()}, one process). Each "
+        f"(Python {platform.python_version()}, {machine()}, one process). Each "
         "row is one glued run through the scene's FMUs; the error is the largest difference "
         "of the scene's watched output (m3's position; the frame's load point) from the "
         "monolithic reference, relative to the reference's peak. The tolerance is absolute, "
