@@ -37,10 +37,10 @@ from pathlib import Path
 import numpy as np
 from fmpy.ssp.simulation import simulate_ssp
 
+from benchmarks import machine
 import dsim
 from dsim.master.recording.observers import CsvRecorder, StepRecord, _csv_block
 from tests.third_party.build import c_fmu, causal_ring_ssp
-from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = 1e-3

@@ -23,8 +23,8 @@ import time
 from datetime import date
 from pathlib import Path
 
-from examples import parameter_study as study
 from benchmarks import machine
+from examples import parameter_study as study
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -32,12 +32,12 @@ from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
+from benchmarks import machine
 from dsim.build_fmus.linkage_scenes import FOUR_BAR
 from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
 from dsim.master.planning.load import load_scene
 from dsim.master.sweeps.sweep import error_against
-from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The seed's Table 5.1 (refreshes, total iterations; None: failed at a singular point).

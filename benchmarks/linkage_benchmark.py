@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import machine
 from examples import crank_slider, four_bar
 from dsim.master.api import simulate
 from dsim.master.recording.results import read_csv
-from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 #: scene -> (reference description, function returning (reference, seconds))

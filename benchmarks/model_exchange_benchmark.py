@@ -31,10 +31,10 @@ from pathlib import Path
 import numpy as np
 from fmpy import simulate_fmu
 
+from benchmarks import machine
 import dsim
 from tests.test_fmi_kinds import bouncing_height
 from tests.third_party.kinds.build import build_fmu
-from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = 1e-3

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-import dsim
 from benchmarks import machine
+import dsim
 
 ROOT = Path(__file__).resolve().parent.parent
 

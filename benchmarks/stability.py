@@ -22,11 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import machine
 from examples.testbed import Testbed, energy, monolithic, write_scene
 from dsim.build_fmus.twins import four_bar_twin
 from dsim.master.api import simulate
 from dsim.master.sweeps.sweep import error_against
-from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 COUPLINGS = ("iterative", "explicit")

@@ -15,8 +15,8 @@ import shutil
 import time
 from pathlib import Path
 
-from dsim.master.sweeps.sweep import Sweep, cheapest, command_line, markdown, run_sweep
 from benchmarks import machine
+from dsim.master.sweeps.sweep import Sweep, cheapest, command_line, markdown, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "results" / "sweeps"

@@ -14,12 +14,12 @@ import platform
 import time
 from pathlib import Path
 
+from benchmarks import machine
 from dsim.build_fmus.twins import FRAME_OUTPUT
 from dsim.build_fmus.twins.spring_mass import monolithic as spring_mass_monolithic
 from dsim.fmus.elastic.frame import STEP_SIZE, monolithic_frame
 from dsim.master.api import simulate
 from dsim.master.sweeps.sweep import error_against
-from benchmarks import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT_DIR = ROOT / "results" / "tradeoff"
