@@ -40,12 +40,12 @@ def hung_scene(tmp_path_factory):
     return scene_folder(folder / "scene", text, {"oscillator.fmu": fmu})
 
 
-def start(scene: Path, target: Path, *options: str) -> subprocess.Popen:
+def start(scene: Path, target: Path, *options: str, **env: str) -> subprocess.Popen:
     """dsim run in a session of its own: every process it starts is found by it."""
     return subprocess.Popen([sys.executable, "-m", "dsim.master.tools.cli", "run", str(scene), "--out",
                              str(target), "--quiet", *options], cwd=ROOT,
                             stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            env={**os.environ, "OMP_NUM_THREADS": "1"})
+                            env={**os.environ, "OMP_NUM_THREADS": "1", **env})
 
 
 def rows_on_disk(path: Path) -> int:
@@ -182,11 +182,19 @@ def test_the_first_signal_ends_a_set_up_stuck_in_an_fmu_after_the_grace_period(t
                stop=1.0, master='step="0.001"')
     scene = scene_folder(tmp_path / "scene", text, {"oscillator.fmu": fmu})
     target = tmp_path / "out" / "run.csv"
-    process = start(scene, target)
+    hung = tmp_path / "hung"  # the FMU creates it as it starts to hang
+    process = start(scene, target, OSCILLATOR_HUNG=str(hung))
 
     def stuck():
-        time.sleep(2.0)  # instantiated and stuck (no row: the start is never reached)
-        assert process.poll() is None and rows_on_disk(target) == -1
+        # not a fixed sleep: on a loaded machine the import alone may take seconds, and
+        # a signal before the run is under way is a plain KeyboardInterrupt
+        deadline = time.monotonic() + 60
+        while not hung.exists():
+            assert process.poll() is None, process.stderr.read()
+            assert time.monotonic() < deadline, "the FMU never reached its initialization"
+            time.sleep(0.05)
+        time.sleep(0.3)
+        assert process.poll() is None and rows_on_disk(target) == -1  # no row, no start
 
     stats = ended_by_one_signal(process, target, stuck)
     assert (stats["status"], stats["steps"]) == ("interrupted", 0)

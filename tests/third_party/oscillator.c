@@ -11,10 +11,12 @@
  * step that reaches t (t < 0: when it is instantiated), as a crashing FMU takes down
  * whatever process loads it.  With -DHANG_TIME=t the first step that reaches t never
  * returns, as an FMU stuck in its own solver; with -DHANG_INITIALIZATION
- * fmi2ExitInitializationMode never returns. */
+ * fmi2ExitInitializationMode never returns, after creating the file named by the
+ * environment variable OSCILLATOR_HUNG (if set), so a test knows when it is stuck. */
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include <fcntl.h>
 #include "fmi2Functions.h"
 
 enum { VR_M, VR_K, VR_F, VR_S, VR_V, VR_A, VR_S0, VR_HMAX, N_VARS };
@@ -63,6 +65,8 @@ FMI2_Export fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Model *m = c;
 #ifdef HANG_INITIALIZATION
+    const char *hung = getenv("OSCILLATOR_HUNG");
+    if (hung != NULL) close(open(hung, O_WRONLY | O_CREAT | O_EXCL, 0600));
     for (;;) pause();
 #endif
     m->x[VR_S] = m->x[VR_S0]; m->x[VR_V] = 0.0;
