@@ -27,6 +27,9 @@ versions:
 """
 from __future__ import annotations
 
+import hashlib
+import threading
+import zipfile
 from dataclasses import dataclass, field
 from functools import lru_cache
 from itertools import product
@@ -149,34 +152,78 @@ class FmuDescription:
         """The variable called ``name`` (KeyError when there is none)."""
         return self.by_name[name]
 
-#: FMU file -> the rule its description breaks that dsim tolerates (a warning)
-_TOLERATED: dict[Path, str] = {}
+#: SHA-256 of a modelDescription.xml -> (dsim's description, the rule it breaks that dsim
+#: tolerates or None), for the last _KEPT read: the same FMU in another folder (a scene
+#: unpacked again, a sweep's next point, a test's copy) is not parsed again (fmpy's
+#: parse and schema check take about 20 ms)
+_READ: dict[bytes, tuple] = {}
+_KEPT = 256
+_READ_LOCK = threading.Lock()  # dsim serve reads scenes in several threads
+
+
+def _content_key(path: Path) -> bytes | None:
+    """The SHA-256 of the modelDescription.xml of the FMU at ``path`` (an .fmu archive,
+    an unpacked FMU's folder or the XML file itself); None where it cannot be read
+    (fmpy's parse says why)."""
+    try:
+        if path.is_dir():
+            data = (path / "modelDescription.xml").read_bytes()
+        elif zipfile.is_zipfile(path):
+            with zipfile.ZipFile(path) as archive:
+                data = archive.read("modelDescription.xml")
+        else:
+            data = path.read_bytes()
+    except (OSError, KeyError, zipfile.BadZipFile, RuntimeError, ValueError):
+        return None
+    return hashlib.sha256(data).digest()
 
 
 def _parsed(path: Path):
-    """fmpy's parse of the FMU's modelDescription.xml, schema-checked.
+    """fmpy's parse of the FMU's modelDescription.xml, schema-checked, and the rule it
+    breaks that dsim tolerates (or None).
 
     OpenModelica exports Enumeration (and other non-Real) variables with
     variability="continuous", which FMI 2.0 forbids but which changes nothing a
     co-simulation master does with them: such a description is read again without
     fmpy's semantic checks, and :func:`description_warning` says so."""
     try:
-        return read_model_description(str(path))
+        return read_model_description(str(path)), None
     except ValidationError as error:
         if not error.problems or not all(CONTINUOUS_DISCRETE in p for p in error.problems):
             raise
         names = [p.split('"')[1] for p in error.problems]
-        _TOLERATED[path] = (f"modelDescription.xml declares {len(names)} non-Real "
-                            "variable(s) variability=\"continuous\" (FMI 2.0 forbids it; "
-                            f"it changes nothing dsim does): {', '.join(names[:3])}"
-                            f"{', ...' if len(names) > 3 else ''}")
-    return read_model_description(str(path), validate=False)
+        tolerated = (f"modelDescription.xml declares {len(names)} non-Real "
+                     "variable(s) variability=\"continuous\" (FMI 2.0 forbids it; "
+                     f"it changes nothing dsim does): {', '.join(names[:3])}"
+                     f"{', ...' if len(names) > 3 else ''}")
+    return read_model_description(str(path), validate=False), tolerated
+
+
+def _described(path: Path) -> tuple:
+    """(dsim's description, the tolerated rule or None) of the FMU at ``path``, read
+    once per content (see _READ)."""
+    key = _content_key(path)
+    if key is not None and key in _READ:
+        return _READ[key]
+    md, tolerated = _parsed(path)
+    found = (_description(md), tolerated)
+    if key is not None:
+        with _READ_LOCK:
+            if len(_READ) >= _KEPT:
+                del _READ[next(iter(_READ))]
+            _READ[key] = found
+    return found
 
 
 @lru_cache(maxsize=64)
 def describe(path: Path) -> FmuDescription:
-    """dsim's description of the FMU file at ``path`` (cached per file)."""
-    md = _parsed(Path(path))
+    """dsim's description of the FMU file at ``path`` (cached per file, and read once
+    per content of its modelDescription.xml)."""
+    return _described(Path(path))[0]
+
+
+def _description(md) -> FmuDescription:
+    """dsim's description made of fmpy's ``md``."""
     major = int(md.fmiVersion.split(".")[0])
     declared = {}
     variables, unsupported = [], {}
@@ -286,8 +333,7 @@ def _extent(dimension) -> int:
 
 def description_warning(path: Path) -> str | None:
     """The rule ``path``'s modelDescription.xml breaks that dsim tolerates, or None."""
-    describe(path)
-    return _TOLERATED.get(Path(path))
+    return _described(Path(path))[1]
 
 
 def variables_by_name(path: Path) -> dict[str, Variable]:
