@@ -471,7 +471,7 @@ def test_a_lost_head_ends_a_sweep_within_seconds_its_lost_points_run_again(built
     1, one line naming what was lost; the first point kept, the second `lost`; the same
     sweep again (in-process: where it runs is not part of the sweep) runs only that one."""
     out = tmp_path / "sweep"
-    sweep = DSIM + ["sweep", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "1,150",
+    sweep = DSIM + ["sweep", str(built["ssp"] / "spring_mass_linear.ssp"), "--stop", "1,60",
                     "--out", str(out)]
     with own_head(cpus=1) as head:
         process = subprocess.Popen(sweep + ["--backend", "ray", "--address", head["address"]],
@@ -491,7 +491,7 @@ def test_a_lost_head_ends_a_sweep_within_seconds_its_lost_points_run_again(built
     assert process.returncode == 1 and ended < 10 and out_text == "", err
     assert re.fullmatch(r"point 1/2: stop=1: completed, error \S+, [\d.]+ s",
                         err.splitlines()[0]), err
-    assert err.splitlines()[1] == "point 2/2: stop=150: lost, 0.00 s", err
+    assert err.splitlines()[1] == "point 2/2: stop=60: lost, 0.00 s", err
     lines = err.splitlines()[2:]
     assert len(lines) in (1, 2), err  # what was lost; where Ray's words are, if it said any
     assert re.fullmatch(r"dsim: sweep failed: lost the Ray head \(its GCS at \S+ stopped "
@@ -508,7 +508,7 @@ def test_a_lost_head_ends_a_sweep_within_seconds_its_lost_points_run_again(built
     assert "1 of 2 points already finished" in again.stderr
     with open(out / "sweep.csv") as table:
         assert [(row["point"], row["status"], row["steps"]) for row in csv.DictReader(table)] \
-            == [("1", "completed", "100"), ("2", "completed", "15000")]
+            == [("1", "completed", "100"), ("2", "completed", "6000")]
 
 
 #: what a script on the cluster at argv[1] finds of the spares commands left there
