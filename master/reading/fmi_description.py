@@ -216,10 +216,15 @@ def _described(path: Path) -> tuple:
 
 
 @lru_cache(maxsize=64)
+def _described_file(path: Path) -> tuple:
+    """_described, cached per file."""
+    return _described(Path(path))
+
+
 def describe(path: Path) -> FmuDescription:
     """dsim's description of the FMU file at ``path`` (cached per file, and read once
     per content of its modelDescription.xml)."""
-    return _described(Path(path))[0]
+    return _described_file(path)[0]
 
 
 def _description(md) -> FmuDescription:
@@ -333,7 +338,7 @@ def _extent(dimension) -> int:
 
 def description_warning(path: Path) -> str | None:
     """The rule ``path``'s modelDescription.xml breaks that dsim tolerates, or None."""
-    return _described(Path(path))[1]
+    return _described_file(path)[1]
 
 
 def variables_by_name(path: Path) -> dict[str, Variable]:
