@@ -397,3 +397,36 @@ def test_rayleigh_damping_decay_rate():
     print(f"decay over {cycles} cycles: {measured:.4f}, exp(-zeta w t) = {expected:.4f}")
     assert cycles == 4
     assert measured == pytest.approx(expected, rel=0.03)
+
+
+def test_matrices_are_assembled_once_per_mesh_material_and_thickness(monkeypatch):
+    """A body made again on the same mesh takes its K and M from the process's cache
+    (the same numbers to the bit, never the cached object itself); another mesh,
+    material or thickness is assembled anew."""
+    from dsim.fmus.elastic import assembly
+    from dsim.fmus.elastic.geometry import rectangle
+
+    monkeypatch.setattr(assembly, "_ASSEMBLED", {})
+    made = []
+    real = assembly.asm
+    monkeypatch.setattr(assembly, "asm", lambda *a, **k: made.append(1) or real(*a, **k))
+    basis = assembly.vector_basis(rectangle(0.0, 1.0, 0.0, 0.2, 0.05))
+    first = assembly.stiffness_matrix(basis, STEEL, 0.01)
+    first.data[:] = 0.0  # a caller's change stays the caller's
+    again = assembly.stiffness_matrix(assembly.vector_basis(
+        rectangle(0.0, 1.0, 0.0, 0.2, 0.05)), STEEL, 0.01)
+    assert len(made) == 1
+    fresh = assembly._stiffness_matrix(basis, STEEL, 0.01)
+    def same(a, b) -> bool:
+        return a.shape == b.shape and (a != b).nnz == 0
+
+    assert same(again, fresh) and abs(fresh).max() > 1e6
+    for other in (assembly.stiffness_matrix(basis, STEEL, 0.02),
+                  assembly.stiffness_matrix(basis, assembly.Material(70e9, 0.33, 2700.0),
+                                            0.01),
+                  assembly.stiffness_matrix(assembly.vector_basis(
+                      rectangle(0.0, 1.0, 0.0, 0.2, 0.1)), STEEL, 0.01)):
+        assert not same(other, fresh)
+    assert len(made) == 1 + 1 + 3  # the fresh one, then three others
+    assert not same(assembly.mass_matrix(basis, STEEL, 0.01),
+                    assembly.mass_matrix(basis, STEEL, 0.01, lumped=True))

@@ -5,6 +5,7 @@ K is in N/m, M in kg, forces in N, displacements in m, stresses in Pa.
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,8 +64,47 @@ def vector_basis(mesh: Mesh, order: int = 1) -> Basis:
     return Basis(mesh, element, intorder=4)
 
 
+#: matrices assembled in this process, by everything they are made of (the mesh's and
+#: the quadrature's arrays as bytes, the element, the material, the thickness): a body
+#: instantiated again on the same mesh (the next run of a scene, a sweep's next point, a
+#: spare worker's next command) is not assembled again (over a second for four_post's
+#: plate).  Written here because functools' caches cannot key on arrays; kept small and
+#: for matrices of at most _KEPT_NONZEROS entries, as the bodies hold only their reduced
+#: matrices.
+_ASSEMBLED: dict[tuple, sp.csr_matrix] = {}
+_KEPT, _KEPT_NONZEROS = 8, 2_000_000
+_ASSEMBLED_LOCK = threading.Lock()
+
+
+def _key(kind: str, basis: Basis, *more) -> tuple:
+    mesh = basis.mesh
+    return (kind, type(mesh).__name__, mesh.p.shape, mesh.p.tobytes(), mesh.t.shape,
+            mesh.t.tobytes(), type(basis.elem).__name__, type(basis.elem.elem).__name__,
+            basis.X.tobytes(), basis.W.tobytes(), *more)
+
+
+def _assembled(key: tuple, assemble) -> sp.csr_matrix:
+    """The matrix ``assemble()`` makes, assembled once per ``key`` (see _ASSEMBLED); a
+    copy, so that no caller changes the one kept."""
+    with _ASSEMBLED_LOCK:
+        found = _ASSEMBLED.get(key)
+    if found is None:
+        found = assemble()
+        if found.nnz <= _KEPT_NONZEROS:
+            with _ASSEMBLED_LOCK:
+                if len(_ASSEMBLED) >= _KEPT:
+                    del _ASSEMBLED[next(iter(_ASSEMBLED))]
+                _ASSEMBLED[key] = found
+    return found.copy()
+
+
 def stiffness_matrix(basis: Basis, material: Material, thickness: float = 1.0) -> sp.csr_matrix:
     """Stiffness K (N/m) on all dofs; 2-D bodies are scaled by ``thickness`` (m)."""
+    return _assembled(_key("K", basis, material, thickness),
+                      lambda: _stiffness_matrix(basis, material, thickness))
+
+
+def _stiffness_matrix(basis: Basis, material: Material, thickness: float) -> sp.csr_matrix:
     lam, mu = material.lame(basis.mesh.dim())
     scale = thickness if basis.mesh.dim() == 2 else 1.0
 
@@ -82,6 +122,12 @@ def stiffness_matrix(basis: Basis, material: Material, thickness: float = 1.0) -
 def mass_matrix(basis: Basis, material: Material, thickness: float = 1.0,
                 lumped: bool = False) -> sp.csr_matrix:
     """Consistent mass M (kg), or its row-sum lumped diagonal if ``lumped``."""
+    return _assembled(_key("M", basis, material, thickness, lumped),
+                      lambda: _mass_matrix(basis, material, thickness, lumped))
+
+
+def _mass_matrix(basis: Basis, material: Material, thickness: float,
+                 lumped: bool) -> sp.csr_matrix:
     scale = material.density * (thickness if basis.mesh.dim() == 2 else 1.0)
     mass = scale * asm(_mass_form, basis)
     if lumped:  # row sums are positive for linear elements, and keep the total mass
