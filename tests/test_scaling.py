@@ -7,7 +7,6 @@ import cProfile
 import hashlib
 import pstats
 import shutil
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,7 @@ import dsim
 from dsim.build_fmus.scenes import CHAIN, chain
 from dsim.master.api import prepare
 from dsim.master.checks.validate import validate
-from dsim.master.reading import fmi_description, fmu_archive, ports
+from dsim.master.reading import digests, fmi_description, ports
 from dsim.master.reading.fmu_archive import unzipped
 from dsim.master.running.backends.inprocess import InProcessBackend
 from dsim.master.running.fmi import library
@@ -45,7 +44,7 @@ def test_ten_thousand_components_validate_with_the_right_findings(built, tmp_pat
     done once for 10,001 components."""
     hashed, described = [], []
     real_sha, real_read = hashlib.sha256, fmi_description.read_model_description
-    monkeypatch.setattr(fmu_archive.hashlib, "sha256",
+    monkeypatch.setattr(digests.hashlib, "sha256",
                         lambda data: hashed.append(len(data)) or real_sha(data))
     monkeypatch.setattr(fmi_description, "read_model_description",
                         lambda *a, **k: described.append(a) or real_read(*a, **k))
@@ -62,12 +61,8 @@ def test_ten_thousand_components_validate_with_the_right_findings(built, tmp_pat
     assert len([w for w in found.warnings if "no_such" in w]) == 1
     assert "parameter 'no_such' is not a variable of component 'extra'" in \
         " ".join(found.warnings)
-    # one FMU file: hashed once (and its modelDescription.xml once, the key of the parsed
-    # descriptions), its description parsed once, its ports matched once
-    fmu_size = (built["fmus"] / "SpringMass.fmu").stat().st_size
-    assert sorted(hashed) == sorted([fmu_size, len(zipfile.ZipFile(
-        built["fmus"] / "SpringMass.fmu").read("modelDescription.xml"))]), hashed[:5]
-    assert len(described) == 1
+    # one FMU file: hashed once, its description parsed once, its ports matched once
+    assert len(hashed) == 1 and len(described) == 1
     assert ports._file_ports.cache_info().misses - misses == 1
 
 

@@ -66,9 +66,8 @@ def vector_basis(mesh: Mesh, order: int = 1) -> Basis:
 
 #: matrices assembled in this process, by everything they are made of (the mesh's and
 #: the quadrature's arrays as bytes, the element, the material, the thickness): a body
-#: instantiated again on the same mesh (the next run of a scene, a sweep's next point, a
-#: spare worker's next command) is not assembled again (over a second for four_post's
-#: plate).  Written here because functools' caches cannot key on arrays; kept small and
+#: instantiated again on the same mesh in this process (the next run of a scene, a
+#: sweep's next point) is not assembled again (over a second for four_post's plate).  Written here because functools' caches cannot key on arrays; kept small and
 #: for matrices of at most _KEPT_NONZEROS entries, as the bodies hold only their reduced
 #: matrices.
 _ASSEMBLED: dict[tuple, sp.csr_matrix] = {}

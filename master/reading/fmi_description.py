@@ -27,9 +27,7 @@ versions:
 """
 from __future__ import annotations
 
-import hashlib
 import threading
-import zipfile
 from dataclasses import dataclass, field
 from functools import lru_cache
 from itertools import product
@@ -37,6 +35,8 @@ from pathlib import Path
 
 from fmpy import platform, platform_tuple, read_model_description
 from fmpy.model_description import ValidationError
+
+from dsim.master.reading.digests import file_digest
 
 #: dsim's value kind of each FMI type name (1.0, 2.0 and 3.0)
 KIND_OF_TYPE = {"Real": "Real", "Float64": "Real", "Float32": "Real",
@@ -152,30 +152,14 @@ class FmuDescription:
         """The variable called ``name`` (KeyError when there is none)."""
         return self.by_name[name]
 
-#: SHA-256 of a modelDescription.xml -> (dsim's description, the rule it breaks that dsim
-#: tolerates or None), for the last _KEPT read: the same FMU in another folder (a scene
-#: unpacked again, a sweep's next point, a test's copy) is not parsed again (fmpy's
-#: parse and schema check take about 20 ms)
-_READ: dict[bytes, tuple] = {}
+#: SHA-256 of an FMU file (:func:`~dsim.master.reading.digests.file_digest`, which
+#: the archive checks compute anyway) -> (dsim's description, the rule it breaks that
+#: dsim tolerates or None), for the last _KEPT read: the same FMU in another folder (a
+#: scene unpacked again, a sweep's next point, a test's copy) is not parsed again
+#: (fmpy's parse and schema check take about 20 ms)
+_READ: dict[str, tuple] = {}
 _KEPT = 256
 _READ_LOCK = threading.Lock()  # dsim serve reads scenes in several threads
-
-
-def _content_key(path: Path) -> bytes | None:
-    """The SHA-256 of the modelDescription.xml of the FMU at ``path`` (an .fmu archive,
-    an unpacked FMU's folder or the XML file itself); None where it cannot be read
-    (fmpy's parse says why)."""
-    try:
-        if path.is_dir():
-            data = (path / "modelDescription.xml").read_bytes()
-        elif zipfile.is_zipfile(path):
-            with zipfile.ZipFile(path) as archive:
-                data = archive.read("modelDescription.xml")
-        else:
-            data = path.read_bytes()
-    except (OSError, KeyError, zipfile.BadZipFile, RuntimeError, ValueError):
-        return None
-    return hashlib.sha256(data).digest()
 
 
 def _parsed(path: Path):
@@ -202,9 +186,11 @@ def _parsed(path: Path):
 def _described(path: Path) -> tuple:
     """(dsim's description, the tolerated rule or None) of the FMU at ``path``, read
     once per content (see _READ)."""
-    key = _content_key(path)
-    if key is not None and key in _READ:
-        return _READ[key]
+    # an unpacked FMU's folder is parsed each time; a missing file, fmpy says so
+    key = file_digest(path) if path.is_file() else None
+    found = _READ.get(key)
+    if found is not None:
+        return found
     md, tolerated = _parsed(path)
     found = (_description(md), tolerated)
     if key is not None:
@@ -223,7 +209,7 @@ def _described_file(path: Path) -> tuple:
 
 def describe(path: Path) -> FmuDescription:
     """dsim's description of the FMU file at ``path`` (cached per file, and read once
-    per content of its modelDescription.xml)."""
+    per content of the file: see _READ)."""
     return _described_file(path)[0]
 
 

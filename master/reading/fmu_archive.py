@@ -9,7 +9,6 @@ child process, where a crash is only a message.
 """
 from __future__ import annotations
 
-import hashlib
 import signal
 import struct
 import subprocess
@@ -20,6 +19,7 @@ from pathlib import Path
 from fmpy import platform, platform_tuple, read_model_description, sharedLibraryExtension
 
 from dsim.master.errors import InputError
+from dsim.master.reading.digests import file_digest
 from dsim.master.reading.fmi_description import chosen_interface, describe, library_folder
 from dsim.master.reading.unpacking import check_archive, extract
 
@@ -201,19 +201,6 @@ def _library_bytes_problem(path: Path) -> str | None:
 
 
 _CHECKED: dict[tuple[str, bool], str | None] = {}
-#: (file, its identity on disk) -> SHA-256 of its bytes: a file used by 10,000
-#: components is read and hashed once; written again (another size, time or inode),
-#: it is hashed again
-_DIGESTS: dict[tuple, str] = {}
-
-
-def _digest(path: Path) -> str:
-    """SHA-256 of the file's bytes, computed once per version of the file."""
-    status = path.stat()
-    key = (str(path), status.st_ino, status.st_size, status.st_mtime_ns, status.st_ctime_ns)
-    if key not in _DIGESTS:
-        _DIGESTS[key] = hashlib.sha256(path.read_bytes()).hexdigest()
-    return _DIGESTS[key]
 
 
 def _first_blocker(path: Path) -> str | None:
@@ -234,7 +221,7 @@ def fmu_problem(path: Path, load: bool = True) -> str | None:
     loaded in a child process; without, nothing of the FMU runs (``dsim validate``,
     uploads to ``dsim serve``: an FMU's library runs its constructors when loaded)."""
     path = Path(path)
-    digest = _digest(path)
+    digest = file_digest(path)
     if (digest, False) not in _CHECKED:  # what reading the files finds, nothing loaded
         _CHECKED[digest, False] = _archive_problem(path) or _first_blocker(path)
     if load and (digest, True) not in _CHECKED:
