@@ -141,6 +141,15 @@ class MasterSettings:
     start: str = "auto"
     perturbation: float = 1e-3
     step_cuts: int = 4
+    #: ``step="auto"``: the macro step is chosen at every step from an error estimate
+    #: (:mod:`dsim.master.running.step_control`); ``step`` is then the output grid
+    adaptive: bool = False
+    #: the error an adaptive run keeps to, weighted E + E |x| per quantity (None: 1e-6)
+    error_tolerance: float | None = None
+    #: the smallest and largest macro step of an adaptive run, s (None: the output
+    #: interval / 2**20 and the output interval)
+    min_step: float | None = None
+    max_step: float | None = None
 
 
 @dataclass(frozen=True)

@@ -52,7 +52,17 @@ class Setting:
 SETTINGS = {s.keyword: s for s in (
     Setting("stop", None, float, "positive", "stop time, s (default: the scene's "
             "DefaultExperiment stopTime)"),
-    Setting("step", "step", float, "positive", "macro step H, s"),
+    Setting("step", "step", float, "positive", "macro step H, s, or auto: chosen at "
+            "every step from an error estimate, to --error-tolerance (docs/method.md)"),
+    Setting("error_tolerance", "errorTolerance", float, "positive",
+            "with --step auto: the error the run keeps to, weighted E + E |x| per "
+            "interface quantity and connected value (default 1e-6)"),
+    Setting("min_step", "minStep", float, "positive",
+            "with --step auto: the smallest macro step, s (default: the output "
+            "interval / 2**20)"),
+    Setting("max_step", "maxStep", float, "positive",
+            "with --step auto: the largest macro step, s (default: the output interval, "
+            "which every step lands on)"),
     Setting("tolerance", "tolerance", float, "positive",
             "absolute interface tolerance, in the units of the joints' measure (m for "
             "displacement)"),
@@ -146,12 +156,46 @@ def convert(setting: Setting, value, label: str) -> tuple[object, str | None]:
     return converted, None
 
 
+#: the step setting's word for an error-controlled macro step
+AUTO = "auto"
+
+
+def _is_auto(keyword: str, value) -> bool:
+    return keyword == "step" and isinstance(value, str) and value.strip().lower() == AUTO
+
+
+#: the settings that only an error-controlled run takes
+STEP_CONTROL = ("error_tolerance", "min_step", "max_step")
+
+
+def step_control_problems(settings: MasterSettings, where: str,
+                          attributes: bool = False) -> list[str]:
+    """What is wrong with the error-control settings together, one line each, starting
+    with ``where`` and naming the settings as keywords (or as ``glue:Master``
+    ``attributes``)."""
+    def name(keyword):
+        return SETTINGS[keyword].attribute if attributes else keyword
+    problems = []
+    if not settings.adaptive:
+        problems += [f"{where} {name(k)}: only an error-controlled step takes it (step auto, "
+                     f"--step auto), and the step is fixed at {settings.step:g} s"
+                     for k in STEP_CONTROL if getattr(settings, k) is not None]
+    elif (settings.min_step is not None and settings.max_step is not None
+          and settings.min_step > settings.max_step):
+        problems.append(f"{where} {name('min_step')} {settings.min_step:g} s is larger than "
+                        f"{name('max_step')} {settings.max_step:g} s")
+    return problems
+
+
 def settings_from_annotation(attributes: dict, where: str, problems: list) -> MasterSettings:
     """The master settings of a ``glue:Master`` element's attributes (text); each
     problem is appended to ``problems`` and its default kept."""
     values = {}
     for attribute, text in attributes.items():
         setting = BY_ATTRIBUTE.get(attribute)
+        if setting is not None and _is_auto(setting.keyword, text):
+            values["adaptive"] = True
+            continue
         if setting is None:
             problems.append(f"{where}: unknown attribute '{attribute}' (known: "
                             f"{', '.join(sorted(BY_ATTRIBUTE))})")
@@ -161,7 +205,9 @@ def settings_from_annotation(attributes: dict, where: str, problems: list) -> Ma
             problems.append(problem)
         else:
             values[setting.keyword] = value
-    return MasterSettings(**values)
+    settings = MasterSettings(**values)
+    problems += step_control_problems(settings, f"{where}:", attributes=True)
+    return settings
 
 
 def resolve(master: MasterSettings, overrides: dict) -> tuple[MasterSettings, dict]:
@@ -177,6 +223,9 @@ def resolve(master: MasterSettings, overrides: dict) -> tuple[MasterSettings, di
         if setting is None:
             problems.append(f"unknown setting '{keyword}' (known: {', '.join(SETTINGS)})")
             continue
+        if _is_auto(keyword, value):
+            values["adaptive"] = True
+            continue
         converted, problem = convert(setting, value, f"setting {keyword}")
         if problem:
             problems.append(problem)
@@ -184,9 +233,16 @@ def resolve(master: MasterSettings, overrides: dict) -> tuple[MasterSettings, di
             values[keyword] = converted
         else:
             run_options[keyword] = converted
+    if "step" in values:  # a fixed step for this run: the scene's error control goes
+        values["adaptive"] = False
+        values.update({k: None for k in STEP_CONTROL if k not in values})
     if problems:
         raise InputError(problems)
-    return replace(master, **values), run_options
+    master = replace(master, **values)
+    problems = step_control_problems(master, "setting")
+    if problems:
+        raise InputError(problems)
+    return master, run_options
 
 
 #: Largest number of macro steps: beyond 2**52 steps of one span, start + n * step

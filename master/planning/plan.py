@@ -10,7 +10,8 @@ and collects every problem into one :class:`~dsim.master.errors.InputError`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from dsim.master.running.connections import (Transfer, build_text_transfer, buil
                                              check_connections)
 from dsim.master.running.fmi import SubsystemSpec
 from dsim.master.running.fmi.integrator import solver_problem
+from dsim.master.running.step_control import DEFAULT_TOLERANCE, StepControl
 from dsim.master.running.timeline import is_whole, span_note
 from dsim.master.scene import Scene
 from dsim.master.settings import check_span
@@ -95,6 +97,9 @@ class Plan:
     #: the unit of every numeric column (``time``, outputs, joint forces; '' where the
     #: FMU declares none), as the FMUs declare them
     units: dict = None
+    #: an error-controlled run's settings (``step="auto"``; the scene's step is then
+    #: the output interval), or None: a fixed step
+    step_control: StepControl | None = None
 
     @property
     def text_columns(self) -> tuple[str, ...]:
@@ -419,6 +424,59 @@ def _passes(paths: list[str], links) -> int:
         return len(paths)
 
 
+def _step_control(scene: Scene, output_interval) -> tuple[Scene, StepControl | None]:
+    """An error-controlled scene (``step="auto"``) with its step made the output
+    interval (``output_interval``, default the scene's step: the grid every macro step
+    lands on), and what it asks of the controller; a fixed-step scene as it is."""
+    master = scene.master
+    if not master.adaptive:
+        return scene, None
+    interval = master.step
+    if output_interval is not None:
+        try:
+            interval = float(output_interval)
+        except (TypeError, ValueError):
+            return scene, None  # record_every says what is wrong with it
+        if not (math.isfinite(interval) and interval > 0):
+            return scene, None
+    control = StepControl(tolerance=master.error_tolerance or DEFAULT_TOLERANCE,
+                          min_step=master.min_step, max_step=master.max_step,
+                          first_step=min(master.step, interval))
+    return replace(scene, master=replace(master, step=interval)), control
+
+
+def _step_control_problems(scene: Scene, backend: str, usable: dict, chosen: dict,
+                           problems: list) -> None:
+    """What an error-controlled run cannot do with this scene: a backend that keeps no
+    snapshots, an FMU that cannot go back to a saved state or take steps of any size,
+    a smallest step longer than the output interval."""
+    master = scene.master
+    if not master.adaptive:
+        return
+    if not BACKENDS[backend].snapshots:
+        problems.append(f"{scene.file}: step auto (an error-controlled step) runs on the "
+                        f"in-process backend only; the {backend} backend keeps no snapshot "
+                        "of its FMUs' states yet")
+    if master.min_step is not None and master.min_step > master.step:
+        problems.append(f"{scene.file}: min_step {master.min_step:g} s is longer than the "
+                        f"output interval {master.step:g} s that every step lands on")
+    for component in scene.components:
+        path = component.path
+        if path not in chosen:
+            continue
+        if not can_roll_back(component.source, chosen[path]):
+            problems.append(f"{component.location}: component '{path}' cannot save and "
+                            "restore its state (" + _why_no_rollback(component.source,
+                                                                     chosen[path])
+                            + "), so an error-controlled step (step auto) cannot take its "
+                            "steps again: give a fixed step (--step)")
+        elif not _variable_step(component.source, chosen[path]):
+            problems.append(f"{component.location}: component '{path}' takes only a fixed "
+                            "communication step (canHandleVariableCommunicationStepSize="
+                            "false), so an error-controlled step (step auto) cannot size "
+                            "its steps: give a fixed step (--step)")
+
+
 def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: bool,
              strict: bool, output_interval) -> dict:
     """Every check that needs no FMU instance; what the plan is built from (usable
@@ -440,6 +498,7 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     _check_connectors(scene, usable, problems, warnings)
     _check_parameters(scene, usable, problems, warnings)
     _capabilities(scene, usable, problems, chosen)
+    _step_control_problems(scene, backend, usable, chosen, problems)
     for component in scene.components:
         problems += [f"{component.location}: {problem}" for problem in
                      (solver_problem(name, value) for name, value in component.solver) if problem]
@@ -565,6 +624,7 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     warning is a problem too.  ``outputs``, ``output_interval``: what to record
     (:mod:`dsim.master.recording.selection`)."""
     backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
+    scene, step_control = _step_control(scene, output_interval)
     checked = _checked(scene, backend, backend_options, load_libraries, strict,
                        output_interval)
     chosen, warnings = checked["chosen"], checked["warnings"]
@@ -609,5 +669,5 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         outputs=tuple([outputs] if isinstance(outputs, str) else outputs or ()),
         output_interval=None if output_interval is None else float(output_interval),
         loops=loops, loop_positions=_loop_positions(loops, paths, moves["writes"]),
-        iterated=iterated, units=column_units(checked["usable"], recorded, layout.labels,
+        iterated=iterated, step_control=step_control, units=column_units(checked["usable"], recorded, layout.labels,
                                               layout.joint_of, checked["sides"]))

@@ -13,13 +13,10 @@ def _count(functions: dict, names) -> int:
     return sum(functions.get(name, {}).get("calls", 0) for name in names)
 
 
-def _components(execution) -> dict:
-    if execution.backend is None:
-        return {}
+def _components(plan, counts) -> dict:
     result = {}
-    backend = execution.backend
-    specs = {spec.name: spec for spec in execution.plan.specs}
-    for name, counters, place in zip(backend.names, backend.counters(), backend.places()):
+    specs = {spec.name: spec for spec in plan.specs}
+    for name, counters, place in counts.subsystems or ():
         functions = {f: {"calls": calls, "seconds": seconds}
                      for f, (calls, seconds) in sorted(counters.items())}
         result[name] = {"seconds": sum(f["seconds"] for f in functions.values()),
@@ -35,51 +32,49 @@ def _components(execution) -> dict:
     return result
 
 
-def recorded_units(execution) -> dict[str, str]:
+def recorded_units(plan, columns=()) -> dict[str, str]:
     """Column of the results CSV -> its unit ('' where the FMU declares none; String
-    columns have none)."""
-    plan = execution.plan
+    columns have none); ``columns``: the run's numeric columns (default the plan's)."""
     units = plan.units or {}
-    columns = getattr(execution, "_columns", None) or tuple(plan.columns)
+    columns = tuple(columns) or tuple(plan.columns)
     if plan.selected is not None:
         columns = tuple(columns[i] for i in plan.selected)
     return {name: units.get(name, "") for name in ("time",) + columns
             + tuple(plan.text_columns)}
 
 
-def run_statistics(execution, wall_seconds: float, components: dict | None = None) -> dict:
-    """The statistics of an ended :class:`~dsim.master.running.execution.Execution` (seconds, counts);
-    ``components``: what is known of them, when they cannot be asked (an abandoned run
-    whose workers may be stuck)."""
-    scene, settings = execution.scene, execution.settings
-    components = _components(execution) if components is None else components
+def run_statistics(plan, counts, wall_seconds: float, components: dict | None = None) -> dict:
+    """The statistics of a run of ``plan`` from its
+    :class:`~dsim.master.running.counts.RunCounts` (seconds, counts); ``components``:
+    what is known of them, when they cannot be asked (an abandoned run whose workers
+    may be stuck)."""
+    scene, settings = plan.scene, plan.scene.master
+    components = _components(plan, counts) if components is None else components
     # (an abandoned run knows only where its workers ran: no seconds, no counts)
     inside = sum(c.get("seconds", 0.0) for c in components.values())
     do_steps = sum(c.get("do_steps", 0) for c in components.values())
     # Newton iterations -> steps that took that many
-    counts = dict(execution._iterations)  # (a copy: abandon() reads it from another thread)
-    taken = sum(counts.values())
-    total = sum(iterations * count for iterations, count in counts.items())
-    steps = execution.index
-    coupling = execution.coupling
-    phases = dict(execution._phases)
-    if coupling is not None:
-        phases.update({f"steps: {k}": v for k, v in coupling.seconds.items()})
+    histogram = counts.iterations
+    taken = sum(histogram.values())
+    total = sum(iterations * count for iterations, count in histogram.items())
+    steps = counts.steps
+    phases = counts.phases
+    coupling = counts.coupling
     return {
         "scene": scene.name,
         "file": str(scene.file),
-        "status": execution.status,
-        "message": str(execution.error) if execution.error else None,
+        "status": counts.status,
+        "message": str(counts.error) if counts.error else None,
         "start_time": scene.start_time,
         "stop_time": scene.stop_time,
-        "time_reached": execution.time,
+        "time_reached": counts.time,
         # an FMU that ended the simulation itself: which, and the time it reached
-        "ended_by": getattr(execution, "ended_by", None),
-        "coupling": execution.plan.coupling,
-        "backend": execution.plan.backend,
+        "ended_by": counts.ended_by,
+        "coupling": plan.coupling,
+        "backend": plan.backend,
         "master": dict(settings.__dict__),
         "steps": steps,
-        "planned_steps": execution.planned_steps,
+        "planned_steps": counts.planned_steps,
         "wall_seconds": wall_seconds,
         "setup_seconds": phases["setup"],
         "phases": phases,
@@ -88,27 +83,29 @@ def run_statistics(execution, wall_seconds: float, components: dict | None = Non
         "iterations": {
             "total": total if steps else 0,
             "mean_per_step": total / taken if steps and taken else 0.0,
-            "max_per_step": max(counts, default=0) if steps else 0,
-            "histogram": {str(k): v for k, v in sorted(counts.items()) if v},
+            "max_per_step": max(histogram, default=0) if steps else 0,
+            "histogram": {str(k): v for k, v in sorted(histogram.items()) if v},
         },
-        "lambda_refreshes": coupling.refreshes if coupling is not None else 0,
-        "lambda_factorizations": coupling.factorizations if coupling is not None else 0,
-        "step_cuts": getattr(coupling, "cuts", 0),
-        "least_squares_factorizations": getattr(coupling, "regularized", 0),
-        "least_squares_steps": getattr(coupling, "least_squares_steps", 0),
-        "roundoff_steps": getattr(coupling, "roundoff_steps", 0),
+        "lambda_refreshes": coupling.get("lambda_refreshes", 0),
+        "lambda_factorizations": coupling.get("lambda_factorizations", 0),
+        "step_cuts": coupling.get("step_cuts", 0),
+        "least_squares_factorizations": coupling.get("least_squares_factorizations", 0),
+        "least_squares_steps": coupling.get("least_squares_steps", 0),
+        "roundoff_steps": coupling.get("roundoff_steps", 0),
         "do_steps_per_step": do_steps / steps if steps else 0.0,
+        # an error-controlled run (step auto): its steps and its largest estimate
+        "step_control": counts.step_control,
         "components": components,
         # every worker lost (killed, or gone with its node) and how the run went on
-        "lost_workers": getattr(execution.backend, "losses", list)(),
-        "warnings": list(execution.warnings),
+        "lost_workers": list(counts.lost_workers),
+        "warnings": list(counts.warnings),
         # what repeats the run besides the scene and "master": the parameter sets
         # chosen, the values given on top (docs/parameters.md) and what was recorded
         "parameter_sets": list(scene.parameter_sets),
         "parameters": dict(scene.overrides),
         # the unit of each column of the results CSV (docs/results.md, "Units")
-        "units": recorded_units(execution),
-        "recording": {"outputs": list(execution.plan.outputs),
-                      "output_interval": execution.plan.output_interval,
-                      "every_steps": execution.plan.record_every},
+        "units": recorded_units(plan, counts.columns),
+        "recording": {"outputs": list(plan.outputs),
+                      "output_interval": plan.output_interval,
+                      "every_steps": plan.record_every},
     }

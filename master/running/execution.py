@@ -35,9 +35,10 @@ from dsim.master.recording.statistics import run_statistics
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.couplings import COUPLINGS
 from dsim.master.running.collector import collector_paused
-from dsim.master.running.loops import LoopSolver
+from dsim.master.running.counts import RunCounts
 from dsim.master.running.interrupts import SignalWatch, end_lost
 from dsim.master.running.start import check_start, start_forces
+from dsim.master.running.step_control import StepController
 from dsim.master.running.timeline import size_to, step_count
 
 
@@ -93,6 +94,12 @@ class Execution:
         self._held = None
         #: the coupling's kernel, when it takes whole steps (:meth:`_kernel_step`)
         self._kernel = None
+        #: the error-controlled steps (``step="auto"``:
+        #: :mod:`dsim.master.running.step_control`), or None: one step per macro step
+        self.controller = None
+        self._said_notes: list[str] = []
+        #: the process is the run's: it may end it when the Ray head is lost (:meth:`run`)
+        self._end_when_lost = False
 
     # --- time --------------------------------------------------------------------
     def step_time(self, index: int) -> float:
@@ -184,20 +191,21 @@ class Execution:
             raise
         self.status = "running"
         kernel = getattr(self.coupling, "kernel", None)
-        if kernel is not None and not self._text_reads and not len(self.coupling.forces):
+        if kernel is not None and not self._text_reads and not len(self.coupling.forces) \
+                and self.controller is None:
             self._kernel = kernel
             self._start, self._size = self.scene.start_time, self.settings.step
         for message in self.plan.warnings:
             self.warn(message)
-        for message in getattr(self.backend, "notes", list)():  # what a lost worker ends
+        for message in self.backend.notes():  # what a lost worker ends
             self.warn(message)
-        waiting = getattr(self.backend, "waiting", None)  # for a progress line
-        for observer in self.observers:
-            if waiting is not None and hasattr(observer, "waiting"):
-                observer.waiting = waiting
-        head = getattr(self.backend, "watch_head", None)
-        if head is not None and getattr(self, "_end_when_lost", False):
-            head(lambda what: end_lost(self, what))  # never left to Ray's own timeouts
+        if self.backend.has_workers:  # for a progress line
+            for observer in self.observers:
+                if hasattr(observer, "waiting"):
+                    observer.waiting = self.backend.waiting
+        if self._end_when_lost:
+            self.backend.watch_head(lambda what: end_lost(self, what))  # never left to
+            # Ray's own timeouts
         self._phases["setup"] = clock.perf_counter() - self._wall_start
         try:
             self._read_texts()
@@ -255,25 +263,17 @@ class Execution:
                                    settings, self._step_size(0)):
             self.warn(message)
         self.layout = layout
-        self.coupling = COUPLINGS[plan.coupling](self.backend, plan.glued, layout, joints,
-                                                 settings, plan.transfer)
-        if sensitivity is not None:
-            self.coupling.start_sensitivity = sensitivity
-        if plan.loops:
-            self.coupling.loop_solver = LoopSolver(plan.transfer, plan.loops,
-                                                   plan.loop_positions, settings)
-        if plan.coupling == "strong":
-            self.coupling.iterate(plan.iterated)
-            # names for the message of an input that fails
-            self.coupling.labels = tuple(f"'{plan.specs[g].name}.{name}'"
-                                         for g in self.coupling.group
-                                         for name in plan.specs[g].writes)
-        if plan.variable_steps and hasattr(self.coupling, "cut_limit"):
-            self.coupling.cut_limit = settings.step_cuts
+        self.coupling = COUPLINGS[plan.coupling].from_plan(plan, self.backend, layout, joints,
+                                                           settings, sensitivity)
         self.coupling.start(glued.kinematics() if layout.size else None, forces)
         self.coupling.solve_loops(self.plan.scene.start_time)
         for note in getattr(self.coupling.loop_solver, "notes", ()):
             self.warn(note)
+        if plan.step_control is not None:
+            self.controller = StepController(
+                plan.step_control, self._take, self._estimated, self._estimated_labels(),
+                self.backend, self.coupling, self.scene.stop_time - self.scene.start_time,
+                settings.step)
 
     def _start_sensitivity(self, glued, layout, forces):
         """In initialization mode, d a / d f of every glued subsystem (when the explicit
@@ -300,6 +300,39 @@ class Execution:
         return positions
 
     # --- steps -------------------------------------------------------------------
+    def _take(self, time: float, size: float, index: int, end: float):
+        """One macro step of every subsystem from ``time`` by ``size`` (s) to ``end``,
+        the algebraic loops solved there: the coupling's report."""
+        report = self.coupling.step(time, size, index)
+        self.coupling.solve_loops(end)
+        return report
+
+    def _estimated(self) -> np.ndarray:
+        """What an error-controlled step's estimate weighs: the connected values (each
+        source once) and the glued ports' positions and velocities; where there is
+        neither, every value read.  Not the joint forces nor accelerations: a force
+        that makes two ports compatible to a tolerance is known only to that tolerance
+        over the ports' flexibility, which grows as 1 / h**2 when the step shrinks."""
+        outputs = self.coupling.outputs
+        parts = [outputs[self._sources]] if len(self._sources) else []
+        if self.layout.size:
+            parts += [k for u, v, _ in self.coupling.glued.kinematics()
+                      for k in (u, v) if k is not None]
+        return np.concatenate(parts) if parts else outputs
+
+    def _estimated_labels(self) -> list[str]:
+        """The names of :meth:`_estimated`'s entries."""
+        reads = [f"{spec.name}.{name}" for spec in self.plan.specs for name in spec.reads]
+        self._sources = np.unique(self.plan.transfer.gather) if self.plan.transfer else \
+            np.zeros(0, int)
+        labels = [reads[i] for i in self._sources]
+        if self.layout.size:
+            for u, v, _ in self.coupling.glued.kinematics():
+                for kind, values in (("position", u), ("velocity", v)):
+                    if values is not None:
+                        labels += [f"a glued port's {kind}"] * len(values)
+        return labels if labels else reads
+
     def _row(self) -> np.ndarray:
         """The recorded values of the step (outputs, then joint forces): a new array."""
         outputs = self.coupling.outputs
@@ -351,8 +384,13 @@ class Execution:
             # and few cycles: the collector's passes over them (two full ones a step of
             # chain_10000 on Ray) wait for the step's end (collector.py)
             with collector_paused():
-                report = self.coupling.step(time, size, index + 1)
-                self.coupling.solve_loops(end)
+                if self.controller is None:
+                    report = self._take(time, size, index + 1, end)
+                else:  # error-controlled steps across the output interval
+                    report = self.controller.advance(time, size, index + 1, end)
+                    for note in self.controller.notes[len(self._said_notes):]:
+                        self._said_notes.append(note)
+                        self.warn(note)
             if report.cuts:
                 self._warn_cut(index + 1, end, size / 2 ** report.cuts)
             if report.lost and self.coupling.least_squares_steps <= CUTS_SAID:
@@ -506,7 +544,8 @@ class Execution:
                        f"step {self.index} of {self.planned_steps})")
         result = RunResult(self.status, message, self.time, self.index,
                            warnings=self.warnings, error=self.error, signal=self.signal)
-        result.statistics = run_statistics(self, clock.perf_counter() - self._wall_start)
+        result.statistics = run_statistics(self.plan, self.counts(),
+                                           clock.perf_counter() - self._wall_start)
         for observer in self.observers:
             try:
                 observer.finished(result)
@@ -514,6 +553,29 @@ class Execution:
                 result.warnings.append(f"{type(observer).__name__}: {error}")
             result.files.update(getattr(observer, "files", {}))
         return result
+
+    def counts(self, ask: bool = True) -> RunCounts:
+        """What the run counted so far (:class:`~dsim.master.running.counts.RunCounts`);
+        ``ask=False``: without asking the subsystems (another thread, while the main
+        one may be inside an FMU: their counters are then left out)."""
+        phases = dict(self._phases)
+        coupling = self.coupling
+        if coupling is not None:
+            phases.update({f"steps: {k}": v for k, v in coupling.seconds.items()})
+        backend = self.backend
+        subsystems = None
+        if ask and backend is not None:
+            subsystems = list(zip(backend.names, backend.counters(), backend.places()))
+        return RunCounts(
+            status=self.status, error=self.error, time=self.time, steps=self.index,
+            planned_steps=self.planned_steps, ended_by=self.ended_by,
+            warnings=tuple(self.warnings),
+            iterations=dict(self._iterations),  # a copy: abandon() reads it elsewhere
+            phases=phases, coupling=coupling.counts() if coupling is not None else {},
+            columns=self._columns,
+            step_control=self.controller.statistics() if self.controller else None,
+            subsystems=subsystems,
+            lost_workers=backend.losses() if backend is not None else [])  # the driver's
 
     def run(self, handle_signals: bool = True) -> RunResult:
         """Start (unless started), step to the end and finish.  With
@@ -563,6 +625,7 @@ class Execution:
             components = {component: {"worker": dict(place)} if place else {}
                           for component, place in zip(backend.names, backend.places())}
         wall = clock.perf_counter() - (self._wall_start or clock.perf_counter())
-        result.statistics = run_statistics(self, wall, components)
+        result.statistics = run_statistics(self.plan, self.counts(ask=False), wall,
+                                           components)
         result.statistics["message"] = message
         return result

@@ -26,6 +26,9 @@ class Subsystem(ABC):
     name: str
     interface: tuple[tuple[str, str], ...] = ()
     output_names: tuple[str, ...] = ()
+    #: the attributes in which :meth:`save_state` keeps the saved state: a
+    #: :meth:`snapshot` takes another state beside it by swapping them
+    SAVED: tuple[str, ...] = ()
 
     def __init__(self):
         self._dirty = False
@@ -85,6 +88,49 @@ class Subsystem(ABC):
 
     def terminate(self) -> None:
         """Release what the subsystem holds."""
+
+    def _free_saved(self) -> None:
+        """Release the saved state (an FMU state: fmi2FreeFMUstate); nothing to release
+        where it is plain data."""
+
+    # --- a state kept beside the macro step's: the error-controlled step -------------
+    def _slot(self) -> tuple:
+        return tuple(getattr(self, name, None) for name in self.SAVED)
+
+    def _put(self, values) -> None:
+        for name, value in zip(self.SAVED, values):
+            setattr(self, name, value)
+
+    def snapshot(self):
+        """The current state, kept beside the one :meth:`save_state` holds (which stays):
+        a handle for :meth:`rollback` and :meth:`discard`.  The error-controlled macro
+        step takes a step, goes back and takes it again in halves."""
+        held = self._slot()
+        self._put((None,) * len(self.SAVED))
+        try:
+            self.save_state()
+            return self._slot()
+        finally:
+            self._put(held)
+
+    def rollback(self, snapshot) -> None:
+        """Go back to a :meth:`snapshot` (kept: it can be gone back to again)."""
+        held = self._slot()
+        self._put(snapshot)
+        try:
+            self.restore_state()
+        finally:
+            self._put(held)
+        self._dirty = False
+
+    def discard(self, snapshot) -> None:
+        """Release a :meth:`snapshot`."""
+        held = self._slot()
+        self._put(snapshot)
+        try:
+            self._free_saved()
+        finally:
+            self._put(held)
 
     def statistics(self) -> dict:
         """FMI function (or core method) -> [calls, seconds]."""
@@ -193,6 +239,8 @@ class CoreSubsystem(Subsystem):
     glued at the named subset of its interface.  Until
     :meth:`finish_initialization` it behaves as an FMU in initialization mode: the
     start accelerations follow the forces written."""
+
+    SAVED = ("_saved",)
 
     def __init__(self, name: str, core, interface=None, start_time: float = 0.0):
         super().__init__()

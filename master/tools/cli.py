@@ -59,6 +59,17 @@ def _summary(result, plot: Path | None) -> str:
         f"wall time   {data['wall_seconds']:.3f} s "
         f"({data['seconds_in_fmus']:.3f} s inside FMUs)",
     ]
+    control = data.get("step_control")
+    if control and control["accepted_steps"]:
+        lines.insert(2, f"step auto   E {control['error_tolerance']:g}: "
+                     f"{control['accepted_steps']} steps accepted, "
+                     f"{control['rejected_steps']} taken again; "
+                     f"h {control['smallest_step']:.3g} .. {control['largest_step']:.3g} s "
+                     f"(mean {control['mean_step']:.3g}); largest estimate "
+                     f"{control['largest_estimate']:.3g} E"
+                     + (f" at t = {control['largest_estimate_time']:.6g} s "
+                        f"({control['largest_estimate_quantity']})"
+                        if control["largest_estimate_quantity"] else ""))
     signals = result.signals
     names = [n for n in signals if n != "time"]
     if names and len(signals["time"]):

@@ -96,6 +96,23 @@ class Backend(ABC):
     def flexibility(self, forces, time: float, step_size: float, deltas, bases) -> list:
         """Each subsystem's interface flexibility [Gu, Gv, Ga] by perturbation."""
 
+    #: whether :meth:`snapshot`, :meth:`rollback` and :meth:`discard` work here (the
+    #: error-controlled macro step needs them)
+    snapshots = False
+
+    def snapshot(self) -> list:
+        """Every subsystem's current state, kept beside the macro step's saved one
+        (:meth:`Subsystem.snapshot`): a handle for :meth:`rollback` and :meth:`discard`."""
+        raise NotImplementedError(f"the {self.name} backend keeps no snapshot")
+
+    def rollback(self, snapshot) -> None:
+        """Every subsystem back to its state in ``snapshot`` (which is kept)."""
+        raise NotImplementedError(f"the {self.name} backend keeps no snapshot")
+
+    def discard(self, snapshot) -> None:
+        """Release ``snapshot``."""
+        raise NotImplementedError(f"the {self.name} backend keeps no snapshot")
+
     @abstractmethod
     def set_forces(self, forces) -> None:
         """Write each subsystem's glued-dof forces (no step)."""
@@ -132,6 +149,26 @@ class Backend(ABC):
     @abstractmethod
     def counters(self) -> list[dict]:
         """Per subsystem: FMI function -> [calls, seconds]."""
+
+    # --- what a backend of workers elsewhere says; nothing here by default -----------
+    #: whether a worker can keep the run waiting (:meth:`waiting` has something to say)
+    has_workers = False
+
+    def notes(self) -> list[str]:
+        """What a user should know before the run (a placement that cannot hold)."""
+        return []
+
+    def waiting(self) -> str | None:
+        """Which worker the run has waited on long, for a progress line (None: none)."""
+        return None
+
+    def watch_head(self, on_lost) -> None:
+        """Call ``on_lost(what)`` when what the workers need is lost (a Ray head);
+        nothing to watch where every subsystem runs in this process."""
+
+    def losses(self) -> list[dict]:
+        """Every worker lost in the run and how the run went on."""
+        return []
 
     def places(self) -> list:
         """Per subsystem: where it ran ({"node": ..., "pid": ...}), or None (here)."""

@@ -86,6 +86,19 @@ class InProcessBackend(Backend):
         return [s.flexibility(f, time, step_size, d, b)
                 for s, f, d, b in zip(self.subsystems, forces, deltas, bases)]
 
+    snapshots = True
+
+    def snapshot(self) -> list:
+        return [s.snapshot() for s in self.subsystems]
+
+    def rollback(self, snapshot) -> None:
+        for subsystem, state in zip(self.subsystems, snapshot):
+            subsystem.rollback(state)
+
+    def discard(self, snapshot) -> None:
+        for subsystem, state in zip(self.subsystems, snapshot):
+            subsystem.discard(state)
+
     def set_forces(self, forces) -> None:
         for subsystem, f in zip(self.subsystems, forces):
             subsystem.set_forces(f)

@@ -116,6 +116,7 @@ class RayBackend(Recovery, Backend):
 
     name = "ray"
     remote = True
+    has_workers = True
     #: one worker per FMU instance whatever the number of CPUs
     one_per_instance = False
 

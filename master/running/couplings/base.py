@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dsim.master.running.connections import Transfer
+from dsim.master.running.loops import LoopSolver
 
 
 @dataclass
@@ -82,12 +83,52 @@ class Coupling(ABC):
         #: seconds spent measuring flexibilities and factoring the gluing matrix
         self.seconds = {"flexibility": 0.0, "factorization": 0.0}
 
+    @classmethod
+    def from_plan(cls, plan, backend, layout, joints, settings, sensitivity=None):
+        """The coupling of a run of ``plan`` (a checked
+        :class:`~dsim.master.planning.plan.Plan`) over ``backend``, configured from it
+        (:meth:`configure`); ``sensitivity``: d a / d f of the glued subsystems at the
+        start, where the plan asked for it."""
+        coupling = cls(backend, plan.glued, layout, joints, settings, plan.transfer)
+        coupling.configure(plan, sensitivity)
+        return coupling
+
+    def configure(self, plan, sensitivity=None) -> None:
+        """Take from the plan what this coupling uses besides its constructor's: here
+        the solver of the scene's algebraic loops; a subclass adds its own."""
+        if plan.loops:
+            self.loop_solver = LoopSolver(plan.transfer, plan.loops, plan.loop_positions,
+                                          self.settings)
+
     def start(self, kinematics=None, forces=None) -> None:
         """Set up at the start time, after initialization: ``kinematics`` of the
         glued subsystems and the start forces (None: zero)."""
         if forces is not None:
             self.forces = np.array(forces, dtype=float)
         self.read_outputs()
+
+    def counts(self) -> dict:
+        """What the coupling counted over the run, by the statistics' names: flexibility
+        refreshes and factorizations, and (a coupling that cuts steps or solves in the
+        least-squares sense says more) step cuts, least-squares factorizations and
+        steps, steps accepted at the round-off floor."""
+        return {"lambda_refreshes": self.refreshes,
+                "lambda_factorizations": self.factorizations, "step_cuts": 0,
+                "least_squares_factorizations": 0, "least_squares_steps": 0,
+                "roundoff_steps": 0}
+
+    def state(self) -> dict:
+        """What a macro step changes in the coupling (outputs, forces, and a
+        subclass's joint states and predictor history), for :meth:`set_state`: the
+        error-controlled step takes a step, goes back and takes it again in halves."""
+        return {"outputs": self.outputs.copy(), "forces": self.forces.copy(),
+                "parts": list(self._outputs_by_subsystem)}
+
+    def set_state(self, state: dict) -> None:
+        """Go back to a :meth:`state` (which stays usable)."""
+        self.outputs = state["outputs"].copy()
+        self.forces = state["forces"].copy()
+        self._outputs_by_subsystem = list(state["parts"])
 
     def solve_loops(self, time: float) -> None:
         """Solve the algebraic loops at the communication point ``time`` (the outputs
@@ -118,18 +159,14 @@ class Coupling(ABC):
             self._outputs_by_subsystem = self.free.step(time, step_size, inputs)
             self.outputs = _joined(self._outputs_by_subsystem)
             return _NOTHING
-        if glued:
-            if self._glued_inputs.size:
-                self.glued.write_inputs(self._glued_inputs.inputs(self.outputs))
-            report = self._advance(time, step_size, step_index)
-        else:
-            report = StepReport(0, 0, 0.0)
+        if self._glued_inputs.size:
+            self.glued.write_inputs(self._glued_inputs.inputs(self.outputs))
+        report = self._advance(time, step_size, step_index)
         if free:
             # write inputs, step, read outputs: one call per subsystem
             inputs = self._free_inputs.inputs(self.outputs) if self._free_inputs.size else ()
             self._assemble(1, self.free.step(time, step_size, inputs))
-        if glued:
-            self._assemble(0, self.glued.read_outputs())
+        self._assemble(0, self.glued.read_outputs())
         self.outputs = _joined(self._outputs_by_subsystem)
         return report
 

@@ -32,6 +32,12 @@ class ExplicitCoupling(IterativeCoupling):
         super().__init__(*args, **kwargs)
         self._envelope = EnvelopeWatch()
 
+    def configure(self, plan, sensitivity=None) -> None:
+        """The start sensitivity, where a glued FMU cannot save its state."""
+        super().configure(plan, sensitivity)
+        if sensitivity is not None:
+            self.start_sensitivity = sensitivity
+
     def _advance(self, time: float, step_size: float, step_index: int) -> StepReport:
         """Advance every glued subsystem once with predicted forces; record the
         residual left at the interface."""

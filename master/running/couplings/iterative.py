@@ -137,6 +137,12 @@ class IterativeCoupling(Coupling):
         joints.configure(layout.weights,
                          np.array([m == "displacement" for m in layout.measures], dtype=bool))
 
+    def configure(self, plan, sensitivity=None) -> None:
+        """A failed step may be cut where every glued FMU takes steps of any size."""
+        super().configure(plan, sensitivity)
+        if plan.variable_steps:
+            self.cut_limit = self.settings.step_cuts
+
     # --- start -----------------------------------------------------------------------
     def start(self, kinematics=None, forces=None) -> None:
         """Initial joint extensions from the glued ports' kinematics at the start time;
@@ -146,6 +152,25 @@ class IterativeCoupling(Coupling):
         if forces is not None:
             self._history.append(np.array(forces, dtype=float))
         super().start(kinematics, forces)
+
+    def counts(self) -> dict:
+        return {**super().counts(), "step_cuts": self.cuts,
+                "least_squares_factorizations": self.regularized,
+                "least_squares_steps": self.least_squares_steps,
+                "roundoff_steps": self.roundoff_steps}
+
+    def state(self) -> dict:
+        joints = self.joints
+        return {**super().state(), "joints": (joints.q.copy(), joints.qd.copy(),
+                                              joints.qdd.copy()),
+                "history": [f.copy() for f in self._history]}
+
+    def set_state(self, state: dict) -> None:
+        super().set_state(state)
+        q, qd, qdd = state["joints"]
+        self.joints.q, self.joints.qd, self.joints.qdd = q.copy(), qd.copy(), qdd.copy()
+        self._history = deque((f.copy() for f in state["history"]),
+                              maxlen=self._history.maxlen)
 
     # --- assembly --------------------------------------------------------------------
     def residual(self, kinematics, forces, step_size):

@@ -52,10 +52,21 @@ class StrongCoupling(IterativeCoupling):
         self._transfer = transfer or Transfer(np.zeros(0, int), np.zeros(0), np.zeros(0), ())
         self._jacobian = None
         self._measured_for = None
+        #: step size -> the factored Jacobian measured for it (an error-controlled run
+        #: moves between a few sizes and back)
+        self._jacobians: dict = {}
         self._previous = None  # the inputs at the last step's start (the predictor)
         #: the iterated inputs' names (component.variable), for messages
         self.labels: tuple = ()
         self.iterate(glued)
+
+    def configure(self, plan, sensitivity=None) -> None:
+        """The connections of the plan's iterated components, and their inputs' names
+        for the message of one that fails."""
+        super().configure(plan, sensitivity)
+        self.iterate(plan.iterated)
+        self.labels = tuple(f"'{plan.specs[g].name}.{name}'" for g in self.group
+                            for name in plan.specs[g].writes)
 
     @property
     def joined(self) -> bool:
@@ -90,6 +101,13 @@ class StrongCoupling(IterativeCoupling):
         self._resting = self.backend.subset(self._rest)
         self._group_inputs = self._transfer.restricted(self._group)
         self._rest_inputs = self._transfer.restricted(self._rest)
+
+    def state(self) -> dict:
+        return {**super().state(), "previous": self._previous}
+
+    def set_state(self, state: dict) -> None:
+        super().set_state(state)
+        self._previous = state["previous"]
 
     def start(self, kinematics=None, forces=None) -> None:
         if self.joined:
@@ -159,6 +177,7 @@ class StrongCoupling(IterativeCoupling):
             jacobian[:, k] = (residual - base) / delta
         self._jacobian = lu_factor(jacobian, check_finite=False)
         self._measured_for = step_size
+        self._jacobians[step_size] = self._jacobian
         self.refreshes += 1
         self.factorizations += 1
         return spent
@@ -194,6 +213,8 @@ class StrongCoupling(IterativeCoupling):
                     f"t = {time + step_size:g} s: input {self._label(worst)} is "
                     f"{abs(residual[worst]):.3g} from its source's value (tolerance "
                     f"{limit[worst]:.3g})", time=time + step_size)
+            if self._measured_for != step_size and step_size in self._jacobians:
+                self._jacobian, self._measured_for = self._jacobians[step_size], step_size
             if self._jacobian is None or self._measured_for != step_size or (
                     evaluations % self.settings.refresh_after == 0):
                 iterations += self._measure(time, step_size, step_index, start, u,

@@ -291,12 +291,17 @@ class FmuSubsystem(Checkpoint, Subsystem):
         self._initializing = False
 
     # --- Subsystem -------------------------------------------------------------------
-    def save_state(self):
-        # Free the held state before taking the next: asking an FMU to overwrite a state in
-        # place (FMI 2.0 allows it) leaks the old one in pythonfmu, which always allocates.
+    SAVED = ("_state",)
+
+    def _free_saved(self) -> None:
         if self._state is not None:
             self._free_state(ctypes.byref(self._state))
             self._state = None
+
+    def save_state(self):
+        # Free the held state before taking the next: asking an FMU to overwrite a state in
+        # place (FMI 2.0 allows it) leaks the old one in pythonfmu, which always allocates.
+        self._free_saved()
         state = fmi2FMUstate()
         self._get_state(ctypes.byref(state))
         self._state = state

@@ -53,6 +53,8 @@ class CoSimulation3Subsystem(FmpyAdapter):
         self._checked("exit initialization mode", self.fmu.exitInitializationMode)
         self._initializing = False
 
+    SAVED = ("_state",)
+
     def save_state(self):
         self._free_saved()
         self._state = self._checked(self.GET_STATE, self.fmu.getFMUState)

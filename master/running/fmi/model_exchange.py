@@ -270,6 +270,8 @@ class ModelExchangeSubsystem(FmpyAdapter):
         if self._input_places:
             self._start[n:] = np.asarray(start, dtype=float)[self._input_places]
 
+    SAVED = ("_fmu_state", "_saved")
+
     def save_state(self):
         self._free_saved()
         if self.can_save:
