@@ -20,8 +20,8 @@ from dsim.master.planning.assembly import assemble
 from dsim.master.planning.loops import find_loops
 from dsim.master.planning.parameters import written_by_master
 from dsim.master.reading.fmu_archive import fmu_problem
-from dsim.master.reading.fmi_description import (CO_SIMULATION, can_roll_back,
-                                                chosen_interface, describe,
+from dsim.master.reading.fmi_description import (CO_SIMULATION, MODEL_EXCHANGE,
+                                                can_roll_back, chosen_interface, describe,
                                                 description_warning)
 from dsim.master.reading.ports import NEEDED, component_ports, joint_port_dofs
 from dsim.master.reading.ssp_values import TYPES
@@ -153,6 +153,16 @@ def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
         except ValueError as error:
             problems.append(f"{where}: {error}")
             continue
+        why = _needs_rollback(scene, component)
+        asked = component.implementation in (CO_SIMULATION, MODEL_EXCHANGE)
+        if why and not asked and _model_exchange_rolls_back(
+                component.source, chosen[component.path]):
+            chosen[component.path] = MODEL_EXCHANGE
+            warnings.append(f"{where}: cannot save its state in co-simulation "
+                            "(canGetAndSetFMUstate is false), and {why} takes steps back: it "
+                            "runs through its Model Exchange interface, which dsim "
+                            "integrates (implementation=\"CoSimulation\" on the component "
+                            "keeps co-simulation)".replace("{why}", why))
         usable[component.path] = description.by_name
         tolerated = description_warning(component.source)
         if tolerated:
@@ -357,6 +367,28 @@ def _capabilities(scene: Scene, usable: dict, problems: list, chosen: dict) -> N
                             "only once per process (canBeInstantiatedOnlyOncePerProcess), and "
                             f"{len(components)} components use it: "
                             f"{', '.join(c.path for c in components)}")
+
+
+def _needs_rollback(scene: Scene, component) -> str:
+    """What in the run takes ``component``'s steps back (the strong coupling, an
+    error-controlled step, an iterated joint), in words; '' when nothing does."""
+    master = scene.master
+    if master.adaptive:
+        return "the error-controlled step (step auto)"
+    if master.coupling == "strong":
+        return "the strong coupling"
+    if master.coupling != "explicit" and any(component.path in (joint.a[0], joint.b[0])
+                                             for joint in scene.joints):
+        return "its joint's Newton iteration"
+    return ""
+
+
+def _model_exchange_rolls_back(source, interface: str) -> bool:
+    """Whether a component chosen to run in co-simulation cannot go back to a saved
+    state there, and its FMU offers Model Exchange (FMI 2.0 or 3.0), which can."""
+    description = describe(source)
+    return (interface == CO_SIMULATION and not can_roll_back(source, interface)
+            and description.major >= 2 and description.interface(MODEL_EXCHANGE) is not None)
 
 
 def _iterated(scene: Scene, links, chosen: dict) -> tuple[int, ...]:

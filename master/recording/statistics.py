@@ -95,6 +95,9 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
         "do_steps_per_step": do_steps / steps if steps else 0.0,
         # an error-controlled run (step auto): its steps and its largest estimate
         "step_control": counts.step_control,
+        # a fixed-step run: how far each connected value moves within a step while the
+        # FMU it feeds does not see it move, relative to its range (docs/method.md)
+        "coupling_error": counts.coupling_error,
         "components": components,
         # every worker lost (killed, or gone with its node) and how the run went on
         "lost_workers": list(counts.lost_workers),

@@ -36,3 +36,6 @@ class RunCounts:
     subsystems: list | None = None
     #: every worker lost, and how the run went on
     lost_workers: list = field(default_factory=list)
+    #: a fixed-step run's estimate of its connections' coupling error
+    #: (:meth:`CouplingErrorWatch.statistics`), or None
+    coupling_error: dict | None = None

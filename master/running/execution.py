@@ -36,6 +36,7 @@ from dsim.master.running.backends import BACKENDS
 from dsim.master.running.couplings import COUPLINGS
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.counts import RunCounts
+from dsim.master.running.coupling_error import CouplingErrorWatch
 from dsim.master.running.interrupts import SignalWatch, end_lost
 from dsim.master.running.start import check_start, start_forces
 from dsim.master.running.step_control import StepController
@@ -98,6 +99,8 @@ class Execution:
         #: :mod:`dsim.master.running.step_control`), or None: one step per macro step
         self.controller = None
         self._said_notes: list[str] = []
+        #: a fixed-step run's estimate of its coupling error (None: no connection)
+        self._watch: CouplingErrorWatch | None = None
         #: the process is the run's: it may end it when the Ray head is lost (:meth:`run`)
         self._end_when_lost = False
 
@@ -269,6 +272,8 @@ class Execution:
         self.coupling.solve_loops(self.plan.scene.start_time)
         for note in getattr(self.coupling.loop_solver, "notes", ()):
             self.warn(note)
+        if plan.transfer is not None and plan.transfer.size and plan.step_control is None:
+            self._watch = self._coupling_error_watch()
         if plan.step_control is not None:
             self.controller = StepController(
                 plan.step_control, self._take, self._estimated, self._estimated_labels(),
@@ -298,6 +303,23 @@ class Execution:
             for port_dof, value in zip(spec.port_dofs, u):
                 positions[(spec.name, port_dof.port, port_dof.dof)] = value
         return positions
+
+    def _coupling_error_watch(self) -> CouplingErrorWatch:
+        """The watch of the connected sources (:mod:`~dsim.master.running.coupling_error`),
+        each marked iterated where the strong coupling iterates the connection."""
+        plan = self.plan
+        transfer = plan.transfer
+        reads = [f"{spec.name}.{name}" for spec in plan.specs for name in spec.reads]
+        iterated_inputs = np.zeros(transfer.size, dtype=bool)
+        if plan.coupling == "strong":
+            for index, begin, end in transfer.targets:
+                if index in plan.iterated:
+                    iterated_inputs[begin:end] = True
+        sources = np.unique(transfer.gather)
+        iterated = [bool(np.all(iterated_inputs[transfer.gather == s])) for s in sources]
+        watch = CouplingErrorWatch(sources, [reads[s] for s in sources], iterated)
+        watch.add(self.coupling.outputs)
+        return watch
 
     # --- steps -------------------------------------------------------------------
     def _take(self, time: float, size: float, index: int, end: float):
@@ -402,6 +424,8 @@ class Execution:
             self.index, self.time = index + 1, end
             row = self._row()
             self._check_finite(row)
+            if self._watch is not None:
+                self._watch.add(self.coupling.outputs)
             self._phases["steps"] += clock.perf_counter() - started
             self._iterations[report.iterations] += 1
             record = StepRecord(self.index, end, self._chosen(row), report.iterations,
@@ -458,6 +482,8 @@ class Execution:
             self.index, self.time = following, end
             row = outputs if self._record_all else outputs[self.plan.record_index]
             self._check_finite(row)
+            if self._watch is not None:
+                self._watch.add(outputs)
             self._phases["steps"] += clock.perf_counter() - started
             self._iterations[0] += 1
             # a StepRecord made as its own _make makes it, without its Python __new__
@@ -531,6 +557,10 @@ class Execution:
                     stepped(held)
             except OutputError as error:
                 self.warnings.append(str(error))
+        if self._watch is not None and self.status == "completed":
+            warning = self._watch.warning(self.plan.coupling)
+            if warning:
+                self.warn(warning)
         self._flush_rows()
         if self.backend is not None:  # said after how the run ended, not before
             self.warnings += [f"releasing the subsystems: {error}"
@@ -574,6 +604,7 @@ class Execution:
             phases=phases, coupling=coupling.counts() if coupling is not None else {},
             columns=self._columns,
             step_control=self.controller.statistics() if self.controller else None,
+            coupling_error=self._watch.statistics() if self._watch is not None else None,
             subsystems=subsystems,
             lost_workers=backend.losses() if backend is not None else [])  # the driver's
 

@@ -59,6 +59,11 @@ def _summary(result, plot: Path | None) -> str:
         f"wall time   {data['wall_seconds']:.3f} s "
         f"({data['seconds_in_fmus']:.3f} s inside FMUs)",
     ]
+    held = data.get("coupling_error")
+    if held and held["connection"]:
+        lines.insert(2, f"coupling    error estimate: a connected value off by up to "
+                     f"{100 * held['largest']:.2g} % of its range within a step "
+                     f"({held['connection']}; statistics: coupling_error)")
     control = data.get("step_control")
     if control and control["accepted_steps"]:
         lines.insert(2, f"step auto   E {control['error_tolerance']:g}: "
