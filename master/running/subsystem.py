@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections import defaultdict
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -101,36 +102,34 @@ class Subsystem(ABC):
         for name, value in zip(self.SAVED, values):
             setattr(self, name, value)
 
+    @contextmanager
+    def _holding(self, values):
+        """The saved state swapped for ``values`` while the block runs."""
+        held = self._slot()
+        self._put(values)
+        try:
+            yield
+        finally:
+            self._put(held)
+
     def snapshot(self):
         """The current state, kept beside the one :meth:`save_state` holds (which stays):
         a handle for :meth:`rollback` and :meth:`discard`.  The error-controlled macro
         step takes a step, goes back and takes it again in halves."""
-        held = self._slot()
-        self._put((None,) * len(self.SAVED))
-        try:
+        with self._holding((None,) * len(self.SAVED)):
             self.save_state()
             return self._slot()
-        finally:
-            self._put(held)
 
     def rollback(self, snapshot) -> None:
         """Go back to a :meth:`snapshot` (kept: it can be gone back to again)."""
-        held = self._slot()
-        self._put(snapshot)
-        try:
+        with self._holding(snapshot):
             self.restore_state()
-        finally:
-            self._put(held)
         self._dirty = False
 
     def discard(self, snapshot) -> None:
         """Release a :meth:`snapshot`."""
-        held = self._slot()
-        self._put(snapshot)
-        try:
+        with self._holding(snapshot):
             self._free_saved()
-        finally:
-            self._put(held)
 
     def statistics(self) -> dict:
         """FMI function (or core method) -> [calls, seconds]."""
