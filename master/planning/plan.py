@@ -139,6 +139,7 @@ def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
     ModelExchange: what the SSD's ``implementation`` asks for, else co-simulation
     where the FMU has it)."""
     usable = {}
+    jointed = {path for joint in scene.joints for path in (joint.a[0], joint.b[0])}
     for component in scene.components:
         if not component.source.is_file():
             continue  # the reader has said so
@@ -153,7 +154,7 @@ def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
         except ValueError as error:
             problems.append(f"{where}: {error}")
             continue
-        why = _needs_rollback(scene, component)
+        why = _needs_rollback(scene.master, component.path in jointed)
         asked = component.implementation in (CO_SIMULATION, MODEL_EXCHANGE)
         if why and not asked and _model_exchange_rolls_back(
                 component.source, chosen[component.path]):
@@ -369,16 +370,15 @@ def _capabilities(scene: Scene, usable: dict, problems: list, chosen: dict) -> N
                             f"{', '.join(c.path for c in components)}")
 
 
-def _needs_rollback(scene: Scene, component) -> str:
-    """What in the run takes ``component``'s steps back (the strong coupling, an
-    error-controlled step, an iterated joint), in words; '' when nothing does."""
-    master = scene.master
+def _needs_rollback(master, jointed: bool) -> str:
+    """What in the run takes a component's steps back (the strong coupling, an
+    error-controlled step, an iterated joint, where ``jointed``), in words; '' when
+    nothing does."""
     if master.adaptive:
         return "the error-controlled step (step auto)"
     if master.coupling == "strong":
         return "the strong coupling"
-    if master.coupling != "explicit" and any(component.path in (joint.a[0], joint.b[0])
-                                             for joint in scene.joints):
+    if master.coupling != "explicit" and jointed:
         return "its joint's Newton iteration"
     return ""
 

@@ -349,10 +349,12 @@ class Execution:
             np.zeros(0, int)
         labels = [reads[i] for i in self._sources]
         if self.layout.size:
-            for u, v, _ in self.coupling.glued.kinematics():
+            for index, (u, v, _) in zip(self.plan.glued, self.coupling.glued.kinematics()):
+                spec = self.plan.specs[index]
                 for kind, values in (("position", u), ("velocity", v)):
                     if values is not None:
-                        labels += [f"a glued port's {kind}"] * len(values)
+                        labels += [f"{spec.name}.{p.port} {kind} {p.dof}"
+                                   for p in spec.port_dofs[:len(values)]]
         return labels if labels else reads
 
     def _row(self) -> np.ndarray:
