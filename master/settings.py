@@ -164,6 +164,13 @@ def _is_auto(keyword: str, value) -> bool:
     return keyword == "step" and isinstance(value, str) and value.strip().lower() == AUTO
 
 
+def convert_setting(keyword: str, value, label: str) -> tuple[object, str | None]:
+    """:func:`convert` of the setting ``keyword``, where ``step`` may also be ``auto``."""
+    if _is_auto(keyword, value):
+        return AUTO, None
+    return convert(SETTINGS[keyword], value, label)
+
+
 #: the settings that only an error-controlled run takes
 STEP_CONTROL = ("error_tolerance", "min_step", "max_step")
 

@@ -69,6 +69,23 @@ def test_the_ray_backend_gives_the_in_process_numbers_to_the_last_bit(built, ray
     assert os.getpid() not in workers(there)
 
 
+@pytest.mark.parametrize("backend", ["ray", "isolated"])
+def test_error_controlled_steps_on_workers_give_the_in_process_numbers(built, ray_local,
+                                                                       backend):
+    """step auto on the workers: the snapshots kept there under the driver's keys, the
+    same steps taken, taken again and accepted, to the last bit; a lost worker would
+    end the run, and the run says so."""
+    scene = built["ssp"] / "four_bar_singular_flexible.ssp"
+    settings = dict(stop=0.03, step="auto", error_tolerance=1e-5)
+    here = dsim.simulate(scene, **settings)
+    there = dsim.simulate(scene, backend=backend, **settings)
+    assert here.ok and there.ok, there.statistics["message"]
+    same_run(here, there)
+    assert there.statistics["step_control"] == here.statistics["step_control"]
+    assert here.statistics["step_control"]["rejected_steps"] > 0  # steps taken again too
+    assert any("a lost worker ends the run" in w for w in there.warnings)
+
+
 @pytest.fixture(scope="module")
 def crashing(tmp_path_factory):
     """The C oscillator built to end its process abruptly at t = 0.4975 s."""

@@ -142,7 +142,6 @@ def test_the_scene_can_ask_for_error_control_in_its_annotation(masses, tmp_path)
     (["--step", "auto", "--min-step", "0.1", "--max-step", "0.01"],
      "setting min_step 0.1 s is larger than max_step 0.01 s"),
     (["--step", "auto", "--min-step", "1"], "min_step 1 s is longer than the output interval"),
-    (["--step", "auto", "--backend", "isolated"], "runs on the in-process backend only"),
 ])
 def test_bad_error_control_settings_are_one_line_and_exit_2(masses, tmp_path, capsys,
                                                             arguments, expected):

@@ -486,9 +486,8 @@ def _step_control_problems(scene: Scene, backend: str, usable: dict, chosen: dic
     if not master.adaptive:
         return
     if not BACKENDS[backend].snapshots:
-        problems.append(f"{scene.file}: step auto (an error-controlled step) runs on the "
-                        f"in-process backend only; the {backend} backend keeps no snapshot "
-                        "of its FMUs' states yet")
+        problems.append(f"{scene.file}: step auto (an error-controlled step) cannot run on "
+                        f"the {backend} backend: it keeps no snapshot of its FMUs' states")
     if master.min_step is not None and master.min_step > master.step:
         problems.append(f"{scene.file}: min_step {master.min_step:g} s is longer than the "
                         f"output interval {master.step:g} s that every step lands on")

@@ -131,6 +131,20 @@ class Subsystem(ABC):
         with self._holding(snapshot):
             self._free_saved()
 
+    # (the same by a key, for a backend whose subsystems live in another process: the
+    #  states stay with the instances, the driver holds the key)
+    def keep_snapshot(self, key) -> None:
+        """:meth:`snapshot`, kept here under ``key``."""
+        self.__dict__.setdefault("_kept", {})[key] = self.snapshot()
+
+    def rollback_to(self, key) -> None:
+        """:meth:`rollback` to the snapshot kept under ``key``."""
+        self.rollback(self._kept[key])
+
+    def drop_snapshot(self, key) -> None:
+        """:meth:`discard` the snapshot kept under ``key``."""
+        self.discard(self._kept.pop(key))
+
     def statistics(self) -> dict:
         """FMI function (or core method) -> [calls, seconds]."""
         return {name: list(entry) for name, entry in self.counters.items()}

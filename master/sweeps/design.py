@@ -31,7 +31,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from dsim.master.errors import InputError
-from dsim.master.settings import SETTINGS, convert
+from dsim.master.settings import SETTINGS, convert_setting
 
 #: designs drawn by scipy.stats.qmc
 QMC = ("lhs", "sobol", "halton")
@@ -205,7 +205,7 @@ class Design:
             if not factor.is_parameter:
                 values = factor.values if factor.kind == "list" else (factor.low, factor.high)
                 for value in values:
-                    _, problem = convert(SETTINGS[factor.name], value, f"sweep: {factor.name}")
+                    _, problem = convert_setting(factor.name, value, f"sweep: {factor.name}")
                     if problem:
                         problems.append(problem)
         if self.sampled:

@@ -31,7 +31,7 @@ import numpy as np
 from dsim.master.api import prepare, simulate
 from dsim.master.errors import InputError
 from dsim.master.recording.results import read_columns
-from dsim.master.settings import SETTINGS, convert
+from dsim.master.settings import SETTINGS, convert_setting
 from dsim.master.sweeps.design import SALIB, Design, Factor, parse_vary, split
 from dsim.master.sweeps.folder import open_folder, spec, write_outputs
 from dsim.master.sweeps.kpi import parse_all, unresolved
@@ -134,7 +134,7 @@ def check(sweep: Sweep) -> None:
                             f"{', '.join(SETTINGS)}; a model parameter is "
                             "COMPONENT.VARIABLE)")
             continue
-        _, problem = convert(SETTINGS[name], value, f"sweep: {name}") if value is not None \
+        _, problem = convert_setting(name, value, f"sweep: {name}") if value is not None \
             else (None, None)
         if problem:
             problems.append(problem)
@@ -153,13 +153,23 @@ def check(sweep: Sweep) -> None:
         raise InputError(list(dict.fromkeys(problems)))
 
 
+#: how close each coupling comes, best first (a sweep's tightest point is of the first)
+COUPLING_RANK = {"strong": 0, "iterative": 1}
+
+
 def tightest(configurations: list[dict]) -> int:
-    """Index of the tightest point: iterative, the smallest step, the smallest
-    tolerance (the default reference of a sweep)."""
+    """Index of the tightest point (the default reference of a sweep): the strong
+    coupling before the iterative one before the others (which exchange connections
+    once per step), an error-controlled step (step auto) at the smallest error
+    tolerance before any fixed step, then the smallest step and tolerance."""
     def key(k):
         settings = configurations[k]
-        return (settings.get("coupling", "iterative") != "iterative",
-                float(settings.get("step", 0.0) or 0.0),
+        step = settings.get("step", 0.0) or 0.0
+        auto = isinstance(step, str) and step.strip().lower() == "auto"
+        return (COUPLING_RANK.get(settings.get("coupling", "iterative"), 2),
+                not auto,
+                float(settings.get("error_tolerance") or 1e-6) if auto else 0.0,
+                0.0 if auto else float(step),
                 float(settings.get("tolerance", 0.0) or 0.0))
     return min(range(len(configurations)), key=key)
 

@@ -65,6 +65,8 @@ class _Cluster:
     subsystem lives and the last simulated time (to name it when a worker dies)."""
 
     def __init__(self, connection, hosts, owners):
+        #: the last snapshot's key (RayBackend.snapshot)
+        self.snapshots = 0
         self.connection = connection
         self.hosts = hosts
         #: per worker: the names of its subsystems
@@ -454,6 +456,26 @@ class RayBackend(Recovery, Backend):
         for calls in steps:
             calls.append(("exchange", (time, step_size)))
         return [results[-1] for results in self._run(steps, time)]
+
+    snapshots = True
+
+    def snapshot(self):
+        """Every subsystem's state kept in its worker under a new key (the key is the
+        handle).  A worker lost while snapshots live cannot be started again from its
+        checkpoint (the journal since then names snapshots it never made): from the
+        first snapshot on, a lost worker ends the run."""
+        cluster = self._cluster
+        cluster.snapshots += 1
+        key = cluster.snapshots
+        cluster.restarts_left = 0
+        self._each("keep_snapshot", [key] * len(self.members), answer=False)
+        return key
+
+    def rollback(self, snapshot) -> None:
+        self._each("rollback_to", [snapshot] * len(self.members), answer=False)
+
+    def discard(self, snapshot) -> None:
+        self._each("drop_snapshot", [snapshot] * len(self.members), answer=False)
 
     def hold_inputs(self, ramps) -> None:
         self._each("hold_inputs", [r[0] for r in ramps], [r[1] for r in ramps],
