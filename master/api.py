@@ -26,7 +26,7 @@ from dsim.master.settings import resolve
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
-            **settings):
+            substeps=None, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -49,14 +49,17 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     ``COMPONENT.NAME`` (one) to values (docs/third_party.md).  ``allow_outside``: a
     folder (or several) whose files the scene may name besides its own, for scenes
     whose FMUs sit beside them and that the user trusts (docs/security.md).
+    ``substeps``: communication steps per macro step of components exchanged once per
+    step, their inputs held (``{"controller": 10}``; ``"auto"``: each from its FMU's
+    DefaultExperiment stepSize; docs/third_party.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     with collector_paused():  # 10,000 components: millions of objects, few cycles
         return _prepare(scene, load_libraries, strict, parameters, outputs,
-                        output_interval, solver, allow_outside, settings)
+                        output_interval, solver, allow_outside, settings, substeps)
 
 
 def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval, solver,
-             allow_outside, settings):
+             allow_outside, settings, substeps=None):
     """:func:`prepare`'s work."""
     parameters = require_mapping(parameters)
     chosen = settings.get("parameter_set")
@@ -81,7 +84,7 @@ def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval
         changes["step_from"] = "the step setting (--step)"
     return make_plan(replace(scene, **changes), options.get("backend", "in-process"),
                      {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries, strict,
-                     outputs, output_interval)
+                     outputs, output_interval, substeps)
 
 
 def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,

@@ -646,14 +646,63 @@ def _coupled(scene: Scene, glued: tuple, numbers, chosen: dict, warnings: list):
     return coupling, (glued if scene.joints else iterated), iterated
 
 
+def _substeps(scene: Scene, asked, glued, iterated, specs, problems: list) -> tuple:
+    """``specs`` with the substeps ``asked`` (component path -> a whole number >= 1, or
+    ``"auto"``: every component exchanged once per step, from its FMU's
+    DefaultExperiment stepSize); what is wrong is appended to ``problems``."""
+    if not asked:
+        return specs
+    if isinstance(asked, str):
+        asked = {"*": asked}
+    if not isinstance(asked, dict):
+        problems.append(f"substeps: give COMPONENT=N pairs or auto, not {asked!r}")
+        return specs
+    stepped = set(glued) | set(iterated)
+    paths = [c.path for c in scene.components]
+    chosen = {}
+    # every component's (auto) first, then one component's on top
+    for name, value in sorted(asked.items(), key=lambda item: item[0] != "*"):
+        if name == "*" or str(value).strip().lower() == "auto":
+            if name != "*" or str(value).strip().lower() != "auto":
+                problems.append(f"substeps: '{name}={value}': auto is for every component "
+                                "(--substeps auto)")
+                continue
+            for index, component in enumerate(scene.components):
+                step = getattr(describe(component.source).defaultExperiment, "stepSize",
+                               None) if index not in stepped else None
+                if step and 0 < float(step) < scene.master.step:
+                    chosen[component.path] = math.ceil(scene.master.step / float(step) - 1e-9)
+            continue
+        if name not in paths:
+            problems.append(f"substeps: no component '{name}' (components: "
+                            f"{', '.join(paths[:8])}{', ...' if len(paths) > 8 else ''})")
+            continue
+        try:
+            if isinstance(value, bool) or float(value) != int(float(value)):
+                raise ValueError
+            count = int(float(value))
+        except (TypeError, ValueError, OverflowError):
+            count = 0
+        if count < 1:
+            problems.append(f"substeps: '{name}={value}': give a whole number >= 1")
+        elif paths.index(name) in stepped:
+            problems.append(f"substeps: component '{name}' is stepped with the others in a "
+                            "joint or an iterated connection; substeps are for a component "
+                            "exchanged once per step")
+        else:
+            chosen[name] = count
+    return tuple(replace(spec, substeps=chosen.get(spec.name, 1)) for spec in specs)
+
+
 def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
               load_libraries: bool = True, strict: bool = False, outputs=None,
-              output_interval=None) -> Plan:
+              output_interval=None, substeps=None) -> Plan:
     """Check everything that can be checked without instantiating an FMU; raise
     InputError listing every problem.  ``load_libraries=False``: no FMU library is
     loaded, not even in a child process (its bytes are checked).  ``strict``: every
     warning is a problem too.  ``outputs``, ``output_interval``: what to record
-    (:mod:`dsim.master.recording.selection`)."""
+    (:mod:`dsim.master.recording.selection`); ``substeps``: communication steps per
+    macro step of components exchanged once per step (:func:`_substeps`)."""
     backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
     scene, step_control = _step_control(scene, output_interval)
     checked = _checked(scene, backend, backend_options, load_libraries, strict,
@@ -681,6 +730,10 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         text_index = [text_index[i] for i in text_selected]
     joined = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
     coupling, glued, iterated = _coupled(scene, joined, moves["numbers"], chosen, warnings)
+    problems = []
+    specs = _substeps(scene, substeps, glued, iterated if coupling == "strong" else (), specs,
+                      problems)
+    _refuse(problems, warnings)
     loops = find_loops(scene, moves["numbers"], chosen)
     components = scene.components
     return Plan(

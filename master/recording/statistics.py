@@ -108,6 +108,8 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
         "parameters": dict(scene.overrides),
         # the unit of each column of the results CSV (docs/results.md, "Units")
         "units": recorded_units(plan, counts.columns),
+        # components stepped several times per macro step (--substeps)
+        "substeps": {spec.name: spec.substeps for spec in plan.specs if spec.substeps > 1},
         "recording": {"outputs": list(plan.outputs),
                       "output_interval": plan.output_interval,
                       "every_steps": plan.record_every},

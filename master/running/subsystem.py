@@ -16,6 +16,8 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from dsim.master.running.timeline import size_to
+
 Kinematics = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
@@ -177,10 +179,21 @@ class Subsystem(ABC):
         self._dirty = False
         return self.kinematics()
 
+    #: communication steps per macro step of a subsystem exchanged once per step (its
+    #: inputs held over them: ``--substeps``)
+    substeps = 1
+
     def exchange(self, time: float, step_size: float) -> np.ndarray:
-        """One plain step (a subsystem in no joint: never saved nor restored), then
-        its outputs."""
-        self.do_step(time, step_size)
+        """One plain step (a subsystem in no joint: never saved nor restored), in
+        :attr:`substeps` equal steps where there are several, then its outputs."""
+        if self.substeps == 1:
+            self.do_step(time, step_size)
+        else:
+            end, size, t = time + step_size, step_size / self.substeps, time
+            for _ in range(self.substeps - 1):
+                self.do_step(t, size)
+                t = t + size
+            self.do_step(t, size_to(t, end, size))  # the last lands where one step would
         return self.read_outputs()
 
     def exchange_with(self, values, time: float, step_size: float) -> np.ndarray:

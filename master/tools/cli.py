@@ -354,9 +354,18 @@ def _run_choices(args) -> dict:
             raise InputError(f"--solver {text}: give NAME=VALUE (rtol=1e-10, "
                              "m.method=cvode)")
         solver[name.strip()] = value.strip()
+    substeps = {}
+    for text in args.substeps or ():
+        name, sep, value = text.partition("=")
+        if text.strip().lower() == "auto":
+            name, value = "*", "auto"
+        elif not sep:
+            raise InputError(f"--substeps {text}: give COMPONENT=N (controller=10) or auto")
+        substeps[name.strip()] = value.strip()
     return {"parameters": given_parameters(args.set_file, args.set),
             "outputs": args.outputs, "output_interval": args.output_interval,
-            "solver": solver, "allow_outside": args.allow_outside}
+            "solver": solver, "allow_outside": args.allow_outside,
+            "substeps": substeps or None}
 
 
 def _add_run_choices(run_parser) -> None:
@@ -368,6 +377,11 @@ def _add_run_choices(run_parser) -> None:
                             "(nested components by their dotted path) or JOINT.k0=VALUE "
                             f"({' '.join(JOINT_COEFFICIENTS)}: those of the joint's law); "
                             "again for more (`dsim info --all` lists what can be set)")
+    run_parser.add_argument("--substeps", action="append", metavar="COMPONENT=N",
+                            help="N communication steps of a component per macro step, "
+                            "its inputs held over them (a component exchanged once per "
+                            "step); auto: each from its FMU's DefaultExperiment stepSize; "
+                            "again for more")
     run_parser.add_argument("--allow-outside", action="append", metavar="DIR",
                             help="let the scene name files (FMUs, parameter sets) in DIR "
                             "too, outside its own folder: only for files you trust "

@@ -29,9 +29,12 @@ def open_subsystem(spec: SubsystemSpec) -> Subsystem:
     initialization mode with its parameters set."""
     major = spec.fmi_version.split(".")[0]
     if spec.interface == "ModelExchange":
-        return ModelExchangeSubsystem(spec)
-    if major == "1":
-        return CoSimulation1Subsystem(spec)
-    if major == "3":
-        return CoSimulation3Subsystem(spec)
-    return FmuSubsystem(spec)
+        subsystem = ModelExchangeSubsystem(spec)
+    elif major == "1":
+        subsystem = CoSimulation1Subsystem(spec)
+    elif major == "3":
+        subsystem = CoSimulation3Subsystem(spec)
+    else:
+        subsystem = FmuSubsystem(spec)
+    subsystem.substeps = spec.substeps
+    return subsystem

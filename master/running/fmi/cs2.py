@@ -345,6 +345,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
         self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
 
     def exchange(self, time, step_size):
+        if self.substeps != 1:  # several steps per macro step
+            return Subsystem.exchange(self, time, step_size)
         if self.ended_at is not None:
             self._raise_ended()
         self.time = time
@@ -362,7 +364,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
         backend's kernel instead; this is the path of the others)."""
         writes, reads = self._write_direct, self._reads[0] if self._read_direct else None
         if values is None or writes is None or reads is None or not writes.size \
-                or not reads.size or self._initializing:
+                or not reads.size or self._initializing or self.substeps != 1:
             return super().exchange_with(values, time, step_size)
         self._read_after(reads, self._put_and_step(writes, values, time, step_size))
         return reads.array.copy()
@@ -424,6 +426,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
         The kernel times each call into its ``seconds`` and counts them when
         :meth:`statistics` asks (``kernel.sync``)."""
         writes = self._write_direct
+        if self.substeps != 1:  # several steps per macro step: the generic exchange
+            return None
         if self._initializing or (inputs is not None and (
                 writes is None or len(inputs) != writes.size)) or (len(outputs) and (
                 not self._read_direct or len(outputs) != self._reads[0].size)):

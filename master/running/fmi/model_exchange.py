@@ -360,10 +360,6 @@ class ModelExchangeSubsystem(FmpyAdapter):
         self._start = self._end.copy()
         self._ramp = False
 
-    def exchange(self, time, step_size):
-        self.do_step(time, step_size)
-        return self.read_outputs()
-
     def statistics(self) -> dict:
         counters = super().statistics()
         if self.integrator is not None:

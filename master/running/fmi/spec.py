@@ -46,3 +46,6 @@ class SubsystemSpec:
     #: the Model Exchange integrator's settings as (name, value) pairs (method,
     #: rtol, atol, max_step: :mod:`dsim.master.running.fmi.integrator`)
     solver: tuple = ()
+    #: communication steps of this FMU per macro step, its inputs held over them (a
+    #: component exchanged once per step: ``--substeps``)
+    substeps: int = 1
