@@ -116,6 +116,8 @@ NODE_MARKERS = {
     # slow: 5 to 20 s each
     "tests/test_validate_and_regress.py::test_every_shipped_scene_matches_its_baseline": ("slow",),
     "tests/test_imports.py::test_every_module_imports_alone_in_a_fresh_interpreter": ("slow",),
+    "tests/test_step_control.py::test_an_fmu_that_cannot_go_back_in_co_simulation_runs_its_model_exchange": ("slow",),
+    "tests/test_coupling_error.py::test_a_strong_run_close_to_its_closed_form_does_not_warn": ("slow",),
     "tests/test_error_paths.py::test_an_error_path_ends_with_its_exit_code_and_one_line_never_a_signal": ("slow",),
     "tests/test_sweep.py::test_a_sweep_over_fidelity_sets_ranks_them_against_the_finest": ("slow",),
     "tests/test_stability.py::test_fixed_joints_pass_the_four_bar_singular_points_on_the_penalized_measure": ("slow",),
