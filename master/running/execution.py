@@ -279,6 +279,9 @@ class Execution:
         if plan.transfer is not None and plan.transfer.size and plan.step_control is None:
             self._watch = self._coupling_error_watch()
         if plan.step_control is not None:
+            #: the connected sources the estimate weighs, each once (:meth:`_estimated`)
+            self._sources = np.unique(plan.transfer.gather) if plan.transfer is not None \
+                else np.zeros(0, int)
             self.controller = StepController(
                 plan.step_control, self._take, self._estimated, self._estimated_labels(),
                 self.backend, self.coupling, self.scene.stop_time - self.scene.start_time,
@@ -349,8 +352,6 @@ class Execution:
     def _estimated_labels(self) -> list[str]:
         """The names of :meth:`_estimated`'s entries."""
         reads = [f"{spec.name}.{name}" for spec in self.plan.specs for name in spec.reads]
-        self._sources = np.unique(self.plan.transfer.gather) if self.plan.transfer else \
-            np.zeros(0, int)
         labels = [reads[i] for i in self._sources]
         if self.layout.size:
             for index, (u, v, _) in zip(self.plan.glued, self.coupling.glued.kinematics()):
