@@ -112,6 +112,19 @@ class Plan:
         return tuple(f"{path}.{name}" for path, name in self.recorded)
 
     @property
+    def read_names(self) -> tuple[str, ...]:
+        """``component.variable`` of every value the run reads after a step (recorded
+        outputs and connection sources), in the order of its flat outputs."""
+        return tuple(f"{spec.name}.{name}" for spec in self.specs for name in spec.reads)
+
+    @property
+    def sources(self) -> np.ndarray:
+        """Where in the flat outputs each value that a connection moves every step is,
+        each once, in order."""
+        return np.unique(self.transfer.gather) if self.transfer is not None else \
+            np.zeros(0, int)
+
+    @property
     def non_matching(self) -> bool:
         """Whether a joint glues node sets of different sizes (needs positions)."""
         return any(len(a) != len(b) for a, b in self.sides.values())
@@ -160,10 +173,10 @@ def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
                 component.source, chosen[component.path]):
             chosen[component.path] = MODEL_EXCHANGE
             warnings.append(f"{where}: cannot save its state in co-simulation "
-                            "(canGetAndSetFMUstate is false), and {why} takes steps back: it "
-                            "runs through its Model Exchange interface, which dsim "
+                            f"(canGetAndSetFMUstate is false), and {why} takes steps back: "
+                            "it runs through its Model Exchange interface, which dsim "
                             "integrates (implementation=\"CoSimulation\" on the component "
-                            "keeps co-simulation)".replace("{why}", why))
+                            "keeps co-simulation)")
         usable[component.path] = description.by_name
         tolerated = description_warning(component.source)
         if tolerated:
@@ -477,8 +490,7 @@ def _step_control(scene: Scene, output_interval) -> tuple[Scene, StepControl | N
     return replace(scene, master=replace(master, step=interval)), control
 
 
-def _step_control_problems(scene: Scene, backend: str, usable: dict, chosen: dict,
-                           problems: list) -> None:
+def _step_control_problems(scene: Scene, backend: str, chosen: dict, problems: list) -> None:
     """What an error-controlled run cannot do with this scene: a backend that keeps no
     snapshots, an FMU that cannot go back to a saved state or take steps of any size,
     a smallest step longer than the output interval."""
@@ -529,7 +541,7 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     _check_connectors(scene, usable, problems, warnings)
     _check_parameters(scene, usable, problems, warnings)
     _capabilities(scene, usable, problems, chosen)
-    _step_control_problems(scene, backend, usable, chosen, problems)
+    _step_control_problems(scene, backend, chosen, problems)
     for component in scene.components:
         problems += [f"{component.location}: {problem}" for problem in
                      (solver_problem(name, value) for name, value in component.solver) if problem]
@@ -658,22 +670,24 @@ def _substeps(scene: Scene, asked, glued, iterated, specs, problems: list) -> tu
         problems.append(f"substeps: give COMPONENT=N pairs or auto, not {asked!r}")
         return specs
     stepped = set(glued) | set(iterated)
-    paths = [c.path for c in scene.components]
+    position = {c.path: i for i, c in enumerate(scene.components)}
     chosen = {}
     # every component's (auto) first, then one component's on top
     for name, value in sorted(asked.items(), key=lambda item: item[0] != "*"):
-        if name == "*" or str(value).strip().lower() == "auto":
-            if name != "*" or str(value).strip().lower() != "auto":
-                problems.append(f"substeps: '{name}={value}': auto is for every component "
-                                "(--substeps auto)")
-                continue
+        auto = str(value).strip().lower() == "auto"
+        if name == "*" and auto:
             for index, component in enumerate(scene.components):
-                step = getattr(describe(component.source).defaultExperiment, "stepSize",
-                               None) if index not in stepped else None
+                step = None if index in stepped else getattr(
+                    describe(component.source).defaultExperiment, "stepSize", None)
                 if step and 0 < float(step) < scene.master.step:
                     chosen[component.path] = math.ceil(scene.master.step / float(step) - 1e-9)
             continue
-        if name not in paths:
+        if name == "*" or auto:
+            problems.append(f"substeps: '{name}={value}': auto is for every component "
+                            "(--substeps auto)")
+            continue
+        if name not in position:
+            paths = list(position)
             problems.append(f"substeps: no component '{name}' (components: "
                             f"{', '.join(paths[:8])}{', ...' if len(paths) > 8 else ''})")
             continue
@@ -685,7 +699,7 @@ def _substeps(scene: Scene, asked, glued, iterated, specs, problems: list) -> tu
             count = 0
         if count < 1:
             problems.append(f"substeps: '{name}={value}': give a whole number >= 1")
-        elif paths.index(name) in stepped:
+        elif position[name] in stepped:
             problems.append(f"substeps: component '{name}' is stepped with the others in a "
                             "joint or an iterated connection; substeps are for a component "
                             "exchanged once per step")
@@ -753,5 +767,6 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         outputs=tuple([outputs] if isinstance(outputs, str) else outputs or ()),
         output_interval=None if output_interval is None else float(output_interval),
         loops=loops, loop_positions=_loop_positions(loops, paths, moves["writes"]),
-        iterated=iterated, step_control=step_control, units=column_units(checked["usable"], recorded, layout.labels,
+        iterated=iterated, step_control=step_control,
+        units=column_units(checked["usable"], recorded, layout.labels,
                                               layout.joint_of, checked["sides"]))

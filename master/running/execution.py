@@ -276,16 +276,15 @@ class Execution:
         self.coupling.solve_loops(self.plan.scene.start_time)
         for note in getattr(self.coupling.loop_solver, "notes", ()):
             self.warn(note)
-        if plan.transfer is not None and plan.transfer.size and plan.step_control is None:
+        #: the connected sources, each once: what the coupling error watch follows and
+        #: the error-controlled step's estimate weighs
+        self._sources = plan.sources
+        if len(self._sources) and plan.step_control is None:
             self._watch = self._coupling_error_watch()
         if plan.step_control is not None:
-            #: the connected sources the estimate weighs, each once (:meth:`_estimated`)
-            self._sources = np.unique(plan.transfer.gather) if plan.transfer is not None \
-                else np.zeros(0, int)
             self.controller = StepController(
                 plan.step_control, self._take, self._estimated, self._estimated_labels(),
-                self.backend, self.coupling, self.scene.stop_time - self.scene.start_time,
-                settings.step)
+                self.backend, self.coupling, settings.step)
 
     def _start_sensitivity(self, glued, layout, forces):
         """In initialization mode, d a / d f of every glued subsystem (when the explicit
@@ -316,14 +315,16 @@ class Execution:
         each marked iterated where the strong coupling iterates the connection."""
         plan = self.plan
         transfer = plan.transfer
-        reads = [f"{spec.name}.{name}" for spec in plan.specs for name in spec.reads]
-        iterated_inputs = np.zeros(transfer.size, dtype=bool)
-        if plan.coupling == "strong":
+        reads = plan.read_names
+        sources = self._sources
+        iterated = np.zeros(len(sources), dtype=bool)
+        if plan.coupling == "strong":  # a source is iterated when all it feeds is
+            fed = np.zeros(transfer.size, dtype=bool)
             for index, begin, end in transfer.targets:
-                if index in plan.iterated:
-                    iterated_inputs[begin:end] = True
-        sources = np.unique(transfer.gather)
-        iterated = [bool(np.all(iterated_inputs[transfer.gather == s])) for s in sources]
+                fed[begin:end] = index in plan.iterated
+            exchanged = np.zeros(max(len(reads), 1), dtype=bool)
+            exchanged[transfer.gather[~fed]] = True
+            iterated = ~exchanged[sources]
         watch = CouplingErrorWatch(sources, [reads[s] for s in sources], iterated)
         watch.add(self.coupling.outputs)
         return watch
@@ -351,7 +352,7 @@ class Execution:
 
     def _estimated_labels(self) -> list[str]:
         """The names of :meth:`_estimated`'s entries."""
-        reads = [f"{spec.name}.{name}" for spec in self.plan.specs for name in spec.reads]
+        reads = self.plan.read_names
         labels = [reads[i] for i in self._sources]
         if self.layout.size:
             for index, (u, v, _) in zip(self.plan.glued, self.coupling.glued.kinematics()):
@@ -360,7 +361,7 @@ class Execution:
                     if values is not None:
                         labels += [f"{spec.name}.{p.port} {kind} {p.dof}"
                                    for p in spec.port_dofs[:len(values)]]
-        return labels if labels else reads
+        return labels if labels else list(reads)
 
     def _row(self) -> np.ndarray:
         """The recorded values of the step (outputs, then joint forces): a new array."""

@@ -9,17 +9,17 @@ The estimate is step doubling (Richardson), as MasterSim and PyFMI's master take
 from one snapshot of every FMU's state and of the coupling's own (joint states,
 predictor history), the step of size h is taken once whole and, after a rollback, as
 two halves; the accepted solution is the halves'.  The difference d of the two, over
-every value the coupling reads (recorded outputs and connection sources) and every
-joint force, estimates the local error of the whole coupled step: the FMUs' own
-integration, the interface forces' and connections' approximation over the step, and
-the Newton tolerance, with nothing assumed about any FMU.  Its measure is
+what the execution gives (the connected values and the glued ports' positions and
+velocities: not the joint forces, known only to the Newton tolerance over a
+flexibility that grows as 1 / h**2), estimates the local error of the whole coupled
+step: the FMUs' own integration, the interface's approximation over the step, and the
+Newton tolerance, with nothing assumed about any FMU.  Its measure is
 
-    err = sqrt(mean((d_i / (E + E |y_i|))^2)) * T / h
+    err = sqrt(mean((d_i / (E + E |y_i|))^2))
 
 (the weighted RMS norm of MasterSim and scipy's solvers, with ``E`` for both the
-absolute and the relative part, scaled by T / h, T the run's span: an error per unit
-step, so that local errors that add up over the run stay within E over the whole run
-rather than within E per step).  A step passes when err <= 1.
+absolute and the relative part: a local error per step).  A step passes when
+err <= 1.
 
 Step sizes are the interval's span over a power of two, h = S / 2**k: the interface
 flexibility and the strong coupling's Jacobian are kept per step size, so a run that
@@ -86,21 +86,19 @@ class StepController:
     ``time`` (s) by ``size`` (s) to ``end`` and returns its
     :class:`~dsim.master.running.couplings.base.StepReport`; ``values()`` gives the
     quantities the estimate weighs (one flat array), ``labels`` their names; the
-    ``backend`` and ``coupling`` keep and restore snapshots.  ``span`` is the run's
-    (s)."""
+    ``backend`` and ``coupling`` keep and restore snapshots; ``interval`` is the
+    output interval (s)."""
 
     def __init__(self, control: StepControl, take, values, labels, backend, coupling,
-                 span: float, interval: float):
+                 interval: float):
         self.control = control
         self._take, self._values, self.labels = take, values, tuple(labels)
         self._backend, self._coupling = backend, coupling
-        self._span = span
         self._coarsest, self._finest, self._level = levels(interval, control)
         self._previous = None  # the last accepted estimate (the PI controller's memory)
-        #: accepted and rejected steps, the sizes taken (s) and where the largest
-        #: accepted estimate was
-        self.accepted = self.rejected = self.at_smallest = 0
-        self.smallest, self.largest, self.covered = math.inf, 0.0, 0.0
+        #: steps taken again, steps accepted above the tolerance at the smallest step,
+        #: and where the largest accepted estimate was
+        self.rejected = self.at_smallest = 0
         self.worst = {"estimate": 0.0, "time": None, "quantity": None}
         #: the start (s) and size (s) of every accepted step, in order
         self.times, self.sizes = array("d"), array("d")
@@ -197,9 +195,6 @@ class StepController:
             self._backend.discard(snapshot)
 
     def _accepted(self, t, whole, error, ratio, at_floor) -> None:
-        self.accepted += 1
-        self.smallest, self.largest = min(self.smallest, whole), max(self.largest, whole)
-        self.covered += whole
         self.times.append(t)
         self.sizes.append(whole)
         if ratio is not None and error > self.worst["estimate"]:
@@ -226,11 +221,12 @@ class StepController:
     def statistics(self) -> dict:
         """Accepted and rejected steps, the smallest, largest and mean step (s), and the
         largest accepted estimate (in tolerances) with where and when it was."""
+        sizes = self.sizes[:]  # (a copy: an abandoned run asks from another thread)
         return {"error_tolerance": self.control.tolerance,
-                "accepted_steps": self.accepted, "rejected_steps": self.rejected,
-                "smallest_step": self.smallest if self.accepted else None,
-                "largest_step": self.largest if self.accepted else None,
-                "mean_step": self.covered / self.accepted if self.accepted else None,
+                "accepted_steps": len(sizes), "rejected_steps": self.rejected,
+                "smallest_step": min(sizes) if sizes else None,
+                "largest_step": max(sizes) if sizes else None,
+                "mean_step": sum(sizes) / len(sizes) if sizes else None,
                 "largest_estimate": self.worst["estimate"],
                 "largest_estimate_time": self.worst["time"],
                 "largest_estimate_quantity": self.worst["quantity"],
