@@ -280,6 +280,45 @@ def test_an_algebraic_loop_is_solved_at_every_communication_point(kinds, tmp_pat
     assert "algebraic loop 1: " in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("interface, x2_start, damped", [
+    ("CoSimulation", 8.4, False), ("ModelExchange", 8.4, False),
+    ("CoSimulation", -0.7, True)])
+def test_a_nonlinear_loop_across_two_fmus_converges_at_the_start(kinds, tmp_path, interface,
+                                                                 x2_start, damped):
+    """OMSimulator's equationPair: 2 x1^2 + 5 x2 = 42 in one FMU, x1 - 6 x2 = 4 in
+    the other, from their inputs' start values (x1 = 4, x2 = 8.4 as OMSimulator's; the
+    Jacobian measured once, a chord iteration, ends 20 iterations at a residual of 5.1).
+    Newton with the Jacobian measured again when the residual stops falling fast
+    reaches the root of 2.4 x1^2 + x1 - 54.4 = 0 that OMSimulator finds, at every row.
+    From x2 = -0.7 the first Jacobian is nearly singular (x1 = -0.2 is fed back, and
+    1 + 4.8 x1 = 0.04): the full correction makes the residual grow, and a halved one
+    is taken."""
+    from dataclasses import replace
+
+    from tests.third_party.kinds.build import EQUATION_PAIR, Var
+
+    second = replace(EQUATION_PAIR["equation2"], variables=(
+        Var("x2", 0, "input", x2_start, description="input"),
+        *EQUATION_PAIR["equation2"].variables[1:]))
+    one = kinds(EQUATION_PAIR["equation1"])
+    two = kinds(second, defines=(f"X2_START={x2_start!r}",))
+    path = scene(tmp_path / "pair.ssp", {"equation1": (one, interface, ""),
+                                         "equation2": (two, interface, "")},
+                 [("equation1", "x2", "equation2", "x2"),
+                  ("equation2", "x1", "equation1", "x1")], stop=0.02, step=0.01)
+    result = dsim.simulate(path, out=tmp_path / "pair.csv")
+    assert result.ok, result.statistics["message"]
+    x1 = (-1 + np.sqrt(1 + 4 * 2.4 * 54.4)) / 4.8
+    x2 = (x1 - 4) / 6
+    # the loop's tolerance (1e-10 on each input, by default) times the loop's gains
+    # (|d x1 / d x2| = 6, |d x2 / d x1| = 0.8 x1 < 4)
+    assert np.max(np.abs(result["equation2.x1"] - x1)) < 6e-10
+    assert np.max(np.abs(result["equation1.x2"] - x2)) < 4e-10
+    loops = result.statistics["algebraic_loops"]
+    assert loops["corrections"] <= 10, loops
+    assert (loops["damped_corrections"] > 0) == damped, loops
+
+
 def test_a_loop_free_causal_chain_finds_no_loop(kinds, tmp_path, capsys):
     """The two-mass halves pass x1 and v1 one way and F back, but no output depends on
     an input directly around the cycle (mass 1's x1, v1 are states): no loop."""

@@ -424,6 +424,22 @@ def _loop_positions(loops, paths: list[str], writes: dict) -> tuple:
                  for loop in loops)
 
 
+def _start_without_loops(paths: list[str], loops, moves: dict, specs, links) -> tuple:
+    """The specs, links and transfer of the initialization passes with the connections
+    into the algebraic loops' inputs left out: passed around a loop, pass after pass,
+    start values are a fixed-point iteration that may run far from the FMUs' start
+    values (OMSimulator's equationPair: x1 from 4 to -7048
+    in two passes, and Newton then finds the other root); left out, each loop input
+    keeps its start value, its guess, until the loop solver solves the loop after
+    initialization."""
+    solved = {name for loop in loops for name in loop.inputs}
+    kept = [link for link in links if link.end not in solved]
+    transfer, writes = build_transfer(paths, moves["reads"],
+                                      [link for link in kept if link.kind != "String"])
+    specs = tuple(replace(spec, start_writes=tuple(writes[spec.name])) for spec in specs)
+    return specs, kept, transfer
+
+
 def _variable_step(source, interface: str) -> bool:
     """Whether a component takes communication steps of any size (Model Exchange: the
     master integrates it, so always)."""
@@ -749,13 +765,17 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
                       problems)
     _refuse(problems, warnings)
     loops = find_loops(scene, moves["numbers"], chosen)
+    start_links, start_transfer = checked["links"], moves["start_transfer"]
+    if loops:
+        specs, start_links, start_transfer = _start_without_loops(paths, loops, moves, specs,
+                                                                  start_links)
     components = scene.components
     return Plan(
         scene=scene, coupling=coupling, backend=backend, specs=specs,
         recorded=tuple(recorded), record_index=np.array(record_index, dtype=int),
         transfer=moves["transfer"], glued=glued, sides=checked["sides"],
-        ports=checked["ports"], start_transfer=moves["start_transfer"],
-        start_passes=_passes(paths, checked["links"]), warnings=tuple(warnings),
+        ports=checked["ports"], start_transfer=start_transfer,
+        start_passes=_passes(paths, start_links), warnings=tuple(warnings),
         flexibility_at_start=bool(scene.joints) and coupling == "explicit" and any(
             not can_roll_back(components[i].source, chosen[components[i].path])
             for i in glued),

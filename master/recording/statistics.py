@@ -92,6 +92,9 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
         "least_squares_factorizations": coupling.get("least_squares_factorizations", 0),
         "least_squares_steps": coupling.get("least_squares_steps", 0),
         "roundoff_steps": coupling.get("roundoff_steps", 0),
+        # the algebraic loops' Newton (None without loops): solves, corrections,
+        # Jacobians measured, damped corrections, residual evaluations
+        "algebraic_loops": coupling.get("algebraic_loops"),
         "do_steps_per_step": do_steps / steps if steps else 0.0,
         # an error-controlled run (step auto): its steps and its largest estimate
         "step_control": counts.step_control,

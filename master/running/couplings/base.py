@@ -111,11 +111,14 @@ class Coupling(ABC):
         """What the coupling counted over the run, by the statistics' names: flexibility
         refreshes and factorizations, and (a coupling that cuts steps or solves in the
         least-squares sense says more) step cuts, least-squares factorizations and
-        steps, steps accepted at the round-off floor."""
+        steps, steps accepted at the round-off floor; and the algebraic loops'
+        solver's counts (None without loops)."""
         return {"lambda_refreshes": self.refreshes,
                 "lambda_factorizations": self.factorizations, "step_cuts": 0,
                 "least_squares_factorizations": 0, "least_squares_steps": 0,
-                "roundoff_steps": 0}
+                "roundoff_steps": 0,
+                "algebraic_loops": None if self.loop_solver is None
+                else self.loop_solver.counts()}
 
     def state(self) -> dict:
         """What a macro step changes in the coupling (outputs, forces, and a
