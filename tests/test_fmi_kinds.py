@@ -144,6 +144,29 @@ def test_a_time_event_is_hit_exactly(kinds, tmp_path):
     assert np.max(np.abs(result["e.x"] - np.where(t < 0.5, t, 1.0 - t))) < 1e-12
 
 
+@pytest.mark.parametrize("interface", ["ModelExchange", "CoSimulation"])
+def test_an_fmi3_enumeration_output_is_read_through_either_interface(kinds, tmp_path,
+                                                                     capsys, interface):
+    """FMI 3.0 reads Enumerations with fmi3GetInt64: the time event model's rate as an
+    Enumeration output (Up = 1 before T = 0.5 s, Down = -1 after) is recorded through
+    Model Exchange as through co-simulation (it failed there, exit 2: the adapter asked
+    fmpy for a getEnumeration that FMI 3.0 has not)."""
+    from tests.third_party.kinds.build import add_enumeration_output
+
+    fmu = shutil.copy(kinds("time_event", "3.0", defines=("ENUM_VR=10", "ENUM_OF=2")),
+                      tmp_path / "time_event.fmu")
+    add_enumeration_output(fmu, "direction", 10, "Direction", {"Up": 1, "Down": -1})
+    path = scene(tmp_path / "enum.ssp", {"e": (fmu, interface, "")}, stop=1.0, step=0.1)
+    out = tmp_path / "enum.csv"
+    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 0, capsys.readouterr()
+    result = dsim.simulate(path)
+    assert result.ok, result.statistics["message"]
+    time = result["time"]
+    np.testing.assert_array_equal(result["e.direction"], np.where(time < 0.5 - 1e-9, 1, -1))
+    np.testing.assert_allclose(result["e.x"], np.where(time < 0.5, time, 1.0 - time),
+                               atol=1e-12)
+
+
 def _two_mass(kinds, folder: Path, interface: str, coupling: str, step: float):
     mass1, mass2 = kinds("mass1"), kinds("mass2")
     path = scene(folder / f"two_{interface}_{coupling}_{step}.ssp",

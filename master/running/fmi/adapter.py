@@ -21,6 +21,16 @@ from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+#: the FMI types read and written with another type's functions, by FMI version:
+#: FMI 1.0 and 2.0 Enumerations with the Integer ones, FMI 3.0's with the Int64 ones
+ACCESSED_AS = {"1": {"Enumeration": "Integer"}, "2": {"Enumeration": "Integer"},
+               "3": {"Enumeration": "Int64"}}
+
+
+def accessor(fmu, verb: str, fmi_type: str, fmi_version: str):
+    """fmpy's ``get`` or ``set`` (``verb``) method of ``fmi_type`` values on ``fmu``, an
+    FMU of ``fmi_version`` ("1.0", "2.0", "3.0")."""
+    return getattr(fmu, verb + ACCESSED_AS[fmi_version[0]].get(fmi_type, fmi_type))
 
 
 class FmpyAdapter(Checkpoint, Subsystem):

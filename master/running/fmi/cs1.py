@@ -15,7 +15,7 @@ import ctypes
 from fmpy.fmi1 import FMU1Slave
 
 from dsim.master.errors import SimulationError
-from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter, accessor
 from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import CALLBACKS1
 
@@ -41,11 +41,11 @@ class CoSimulation1Subsystem(FmpyAdapter):
         """FMI 1.0 has no initialization mode: values are set before fmiInitializeSlave."""
 
     def _getter(self, fmi_type):
-        method = getattr(self.fmu, "get" + {"Enumeration": "Integer"}.get(fmi_type, fmi_type))
+        method = accessor(self.fmu, "get", fmi_type, "1.0")
         return lambda vrs, count: method(vrs)
 
     def _setter(self, fmi_type):
-        return getattr(self.fmu, "set" + {"Enumeration": "Integer"}.get(fmi_type, fmi_type))
+        return accessor(self.fmu, "set", fmi_type, "1.0")
 
     _initialized = False
 

@@ -15,7 +15,7 @@ import ctypes
 
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64
 
-from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter, accessor
 from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import logger3
 
@@ -44,10 +44,10 @@ class CoSimulation3Subsystem(FmpyAdapter):
                                          stopTime=self.spec.stop_time)
 
     def _getter(self, fmi_type):
-        return getattr(self.fmu, "get" + {"Enumeration": "Int64"}.get(fmi_type, fmi_type))
+        return accessor(self.fmu, "get", fmi_type, "3.0")
 
     def _setter(self, fmi_type):
-        return getattr(self.fmu, "set" + {"Enumeration": "Int64"}.get(fmi_type, fmi_type))
+        return accessor(self.fmu, "set", fmi_type, "3.0")
 
     def finish_initialization(self) -> None:
         self._checked("exit initialization mode", self.fmu.exitInitializationMode)

@@ -31,7 +31,7 @@ from fmpy.fmi2 import FMU2Model
 from fmpy.fmi3 import FMU3Model
 
 from dsim.master.errors import SimulationError
-from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter, accessor
 from dsim.master.running.fmi.integrator import SolverSettings, make_integrator
 from dsim.master.running.fmi.library import raw, sharing
 from dsim.master.running.fmi.messages import CALLBACKS2, logger3
@@ -109,13 +109,13 @@ class ModelExchangeSubsystem(FmpyAdapter):
             self.fmu.enterInitializationMode()
 
     def _getter(self, fmi_type):
+        method = accessor(self.fmu, "get", fmi_type, self.spec.fmi_version)
         if self.fmi3:
-            return getattr(self.fmu, "get" + fmi_type)
-        method = getattr(self.fmu, "get" + {"Enumeration": "Integer"}.get(fmi_type, fmi_type))
+            return method
         return lambda vrs, count: method(vrs)
 
     def _setter(self, fmi_type):
-        return getattr(self.fmu, "set" + ({"Enumeration": "Integer"}.get(fmi_type, fmi_type)))
+        return accessor(self.fmu, "set", fmi_type, self.spec.fmi_version)
 
     def _update_discrete_states(self):
         """One pass of the event iteration: (more passes needed, terminate, states

@@ -468,6 +468,38 @@ def build_fmu(folder, model, fmi_version: str = "2.0",
     return fmu
 
 
+def add_enumeration_output(fmu: Path, name: str, vr: int, type_name: str,
+                           items: dict) -> Path:
+    """Declare in the FMI 3.0 ``fmu`` (built with ``defines=("ENUM_VR=<vr>",
+    "ENUM_OF=<a Real's vr>")``, which makes fmi3.c answer fmi3GetInt64 there) a discrete
+    Enumeration output ``name`` at ``vr`` of the EnumerationType ``type_name`` with
+    ``items`` (name -> value); rewrites the archive in place."""
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {info.filename: archive.read(info) for info in archive.infolist()}
+    text = entries["modelDescription.xml"].decode()
+    listed = "".join(f'<Item name="{item}" value="{value}"/>' for item, value in items.items())
+    text = text.replace("  <DefaultExperiment", f'  <TypeDefinitions><EnumerationType '
+                        f'name="{type_name}">{listed}</EnumerationType></TypeDefinitions>\n'
+                        "  <DefaultExperiment", 1)
+    text = text.replace("  </ModelVariables>", f'    <Enumeration name="{name}" '
+                        f'valueReference="{vr}" declaredType="{type_name}" causality="output" '
+                        'variability="discrete" initial="calculated"/>\n  </ModelVariables>', 1)
+    # the ModelStructure's order: Outputs, derivatives, InitialUnknowns, EventIndicators
+    output = f'<Output valueReference="{vr}" dependencies="" dependenciesKind=""/>\n    '
+    unknown = f'<InitialUnknown valueReference="{vr}"/>\n    '
+    before = min(text.find(tag) for tag in ("<ContinuousStateDerivative", "<InitialUnknown",
+                                            "</ModelStructure>") if tag in text)
+    text = text[:before] + output + text[before:]
+    before = min(text.find(tag) for tag in ("<EventIndicator", "</ModelStructure>")
+                 if tag in text)
+    text = text[:before] + unknown + text[before:]
+    entries["modelDescription.xml"] = text.encode()
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        for entry, data in entries.items():
+            archive.writestr(entry, data)
+    return fmu
+
+
 def build_memcheck(folder, model, fmi_version: str = "2.0", can_save_state: bool = True,
                    name: str | None = None) -> Path:
     """Compile memcheck.c with the skeleton of ``fmi_version``, core.c and ``model``

@@ -5,6 +5,7 @@
  * with core.c's RK4 integrator and handles events inside the step.  FMU states are
  * copies of the instance's Core; with -DNO_STATE the FMU-state functions return
  * fmi3Error.  Compile with -DMODEL_GUID='"{...}"' (the instantiationToken). */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -180,7 +181,32 @@ NONE_OF_TYPE(Int16, fmi3Int16)
 NONE_OF_TYPE(UInt16, fmi3UInt16)
 NONE_OF_TYPE(Int32, fmi3Int32)
 NONE_OF_TYPE(UInt32, fmi3UInt32)
+#ifdef ENUM_VR
+/* -DENUM_VR=<vr> -DENUM_OF=<a Real's vr>: one Enumeration output at ENUM_VR, the Real
+ * at ENUM_OF rounded (FMI 3.0 reads and writes Enumerations with the Int64 functions) */
+fmi3Status fmi3GetInt64(fmi3Instance c, const fmi3ValueReference vr[], size_t n,
+                        fmi3Int64 values[], size_t nValues) {
+    INSTANCE(c);
+    if (nValues != n || (n > 0 && (!vr || !values)))
+        return failed(m, "fmi3GetInt64", CORE_BAD_ARGUMENT, (unsigned)nValues);
+    for (size_t i = 0; i < n; i++) {
+        const fmi3ValueReference of = ENUM_OF;
+        double value;
+        if (vr[i] != ENUM_VR) return failed(m, "fmi3GetInt64", CORE_UNKNOWN_VR, vr[i]);
+        CHECK("fmi3GetInt64", core_get_reals(&m->core, &of, 1, &value, &bad_));
+        values[i] = (fmi3Int64)llround(value);
+    }
+    return fmi3OK;
+}
+fmi3Status fmi3SetInt64(fmi3Instance c, const fmi3ValueReference vr[], size_t n,
+                        const fmi3Int64 values[], size_t nValues) {
+    INSTANCE(c); (void)values; (void)nValues;
+    if (n == 0) return fmi3OK;
+    return failed(m, "fmi3SetInt64", CORE_NOT_SETTABLE, vr ? vr[0] : 0);
+}
+#else
 NONE_OF_TYPE(Int64, fmi3Int64)
+#endif
 NONE_OF_TYPE(UInt64, fmi3UInt64)
 NONE_OF_TYPE(Boolean, fmi3Boolean)
 NONE_OF_TYPE(String, fmi3String)
