@@ -7,6 +7,7 @@ The FMUs are written in C for these tests (tests/third_party/kinds) and compiled
 tests/test_fmi_kinds_fmus.py shows each passes fmpy's validation and runs alone."""
 from __future__ import annotations
 
+import json
 import shutil
 import zipfile
 from pathlib import Path
@@ -340,6 +341,31 @@ def test_a_nonlinear_loop_across_two_fmus_converges_at_the_start(kinds, tmp_path
     loops = result.statistics["algebraic_loops"]
     assert loops["corrections"] <= 10, loops
     assert (loops["damped_corrections"] > 0) == damped, loops
+
+
+def test_a_loop_that_fails_at_the_start_time_is_a_failed_run(kinds, tmp_path, capsys):
+    """The equationPair loop given 2 iterations fails after the FMUs' initialization, at
+    the start time: a failure of the run (exit 1, one line, the statistics and the CSV
+    written, no row converged), not bad input (it was exit 2, nothing written)."""
+    from tests.third_party.kinds.build import EQUATION_PAIR
+
+    one, two = (kinds(EQUATION_PAIR[name]) for name in ("equation1", "equation2"))
+    path = scene(tmp_path / "pair.ssp", {"equation1": (one, "", ""),
+                                         "equation2": (two, "", "")},
+                 [("equation1", "x2", "equation2", "x2"),
+                  ("equation2", "x1", "equation1", "x1")], stop=0.02, step=0.01)
+    out = tmp_path / "pair.csv"
+    assert main(["run", str(path), "--out", str(out), "--max-iterations", "2",
+                 "--quiet"]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 2, lines  # the failure, and where the converged rows are
+    assert "step 0 (t = 0 s): algebraic loop" in lines[0]
+    assert "did not converge in 2 iterations" in lines[0]
+    statistics = json.loads(out.with_suffix(".stats.json").read_text())
+    assert statistics["status"] == "failed" and statistics["steps"] == 0
+    assert "did not converge in 2 iterations" in statistics["message"]
+    assert out.read_text().splitlines()[0].startswith("time,")
+    assert len(out.read_text().splitlines()) == 1
 
 
 def test_a_loop_free_causal_chain_finds_no_loop(kinds, tmp_path, capsys):

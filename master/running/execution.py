@@ -58,8 +58,10 @@ class Execution:
     Use :meth:`run` to go to the end, or :meth:`start`, then :meth:`step` until it
     returns False, then :meth:`finish`.  :meth:`stop` (from an observer, another
     thread or a signal handler) ends the run after the current step, as
-    interrupted.  Bad input found while starting raises InputError; a failure
-    during the run ends it as failed, and :meth:`finish` returns the result.
+    interrupted.  Bad input found while starting (up to the end of the FMUs'
+    initialization) raises InputError; a failure after it, at the start time (its
+    outputs, its algebraic loops) or during the run, ends it as failed, and
+    :meth:`finish` returns the result.
     """
 
     def __init__(self, plan, observers=(), keep_signals: bool = True):
@@ -89,6 +91,9 @@ class Execution:
         #: Newton iterations -> how many steps took that many
         self._iterations: dict[int, int] = defaultdict(int)
         self._refreshes = 0
+        #: every subsystem has left initialization mode: what fails from then on is a
+        #: failure of the run (exit 1), not bad input
+        self._initialized = False
         self._phases = {"setup": 0.0, "steps": 0.0, "observers": 0.0, "finish": 0.0}
         self._wall_start = None
         self._columns: tuple[str, ...] = ()
@@ -183,14 +188,19 @@ class Execution:
                 plan.specs, progress=self._instantiated, **(plan.backend_options or {}))
             self._notify("preparing", "initialising", 0, 0)
             self._initialize(layout, joints)
-        except BaseException as error:
-            for observer in started:
-                observer.aborted()
-            if self.backend is not None:
-                self.backend.close()
-            self.status = "aborted"
-            if isinstance(error, SimulationError):  # the consistent start failed
+        except SimulationError as error:
+            if not self._initialized:  # in initialization mode: the consistent start
+                self._abort(started)   # failed, the scene's start is bad input
                 raise InputError(str(error)) from None
+            # after initialization (the outputs read at the start time, the algebraic
+            # loops solved there): the run failed at its start, exit 1
+            self._fail(error.located(0, self.time))
+            self._phases["setup"] = clock.perf_counter() - self._wall_start
+            for message in self.plan.warnings:
+                self.warn(message)
+            return
+        except BaseException:
+            self._abort(started)
             raise
         self.status = "running"
         kernel = getattr(self.coupling, "kernel", None)
@@ -224,6 +234,15 @@ class Execution:
             self._fail(error.located(0, self.time))
         except OutputError as error:
             self._fail(error)
+
+    def _abort(self, started) -> None:
+        """The start failed on bad input: the ``started`` observers aborted, the
+        subsystems released."""
+        for observer in started:
+            observer.aborted()
+        if self.backend is not None:
+            self.backend.close()
+        self.status = "aborted"
 
     def _carry_start_values(self) -> None:
         """In initialization mode, carry connected values along every chain of
@@ -264,6 +283,7 @@ class Execution:
             self.warn(warning)
         sensitivity = self._start_sensitivity(glued, layout, forces)
         self.backend.finish_initialization()
+        self._initialized = True
         if plan.non_matching and settings.start == "rest":
             layout, joints = plan.assemble(self._positions(glued, layout))
         for message in check_start(settings.start, glued, layout, joints, forces, reported,
