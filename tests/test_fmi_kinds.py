@@ -449,7 +449,8 @@ def test_an_event_in_an_iterated_step_without_fmu_state_fails_in_one_line(kinds,
     assert result.steps == 45 and len(result["time"]) == 46
 
 
-def test_fmi1_fmus_exchange_causally_and_converge_like_the_exchange(kinds, tmp_path):
+def test_fmi1_fmus_exchange_causally_and_converge_like_the_exchange(kinds, tmp_path,
+                                                                    capsys):
     """The two-mass halves as FMI 1.0 co-simulation FMUs, connected causally: they run
     (fmiInitializeSlave before their first output), first order in the step like any
     exchange; asked for the strong coupling they are exchanged, and the run says so."""
@@ -468,6 +469,13 @@ def test_fmi1_fmus_exchange_causally_and_converge_like_the_exchange(kinds, tmp_p
     assert errors[0] < 0.2 and 1.5 < errors[0] / errors[1] < 3.0
     strong = dsim.simulate(path, coupling="strong")
     assert strong.ok and any("cannot roll back" in w for w in strong.statistics["warnings"])
+    # --strict refuses that warning as every other, before running (it ran, exit 0)
+    out = tmp_path / "strict.csv"
+    assert main(["run", str(path), "--coupling", "strong", "--strict", "--out", str(out),
+                 "--quiet"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "cannot roll back" in lines[0]
+    assert lines[0].endswith("(a warning; refused with --strict)") and not out.exists()
 
 
 def test_the_model_database_shows_each_fmus_version_and_interfaces(kinds, tmp_path):

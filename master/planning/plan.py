@@ -761,6 +761,9 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     joined = tuple(i for i, c in enumerate(scene.components) if interfaces[c.path])
     coupling, glued, iterated = _coupled(scene, joined, moves["numbers"], chosen, warnings)
     problems = []
+    if strict:  # the coupling's own warnings (those of the checks are refused already)
+        problems += [f"{warning} (a warning; refused with --strict)" for warning in warnings]
+        warnings = []
     specs = _substeps(scene, substeps, glued, iterated if coupling == "strong" else (), specs,
                       problems)
     _refuse(problems, warnings)
