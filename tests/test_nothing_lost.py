@@ -132,6 +132,11 @@ def test_a_signal_ends_the_run_after_a_step_with_everything_written(
     header, data = read_csv(target)
     stats = json.loads(target.with_suffix(".stats.json").read_text())
     assert stats["status"] == "interrupted" and stats["steps"] == data.shape[0] - 1 > 10
+    # what ended it, as the command said it (the statistics said "message": null)
+    name = signal.Signals(signal_number).name
+    assert stats["message"] == (f"interrupted by {name} (stopped at t = "
+                                f"{stats['time_reached']:g} s, step {stats['steps']} of "
+                                f"{stats['planned_steps']})")
     assert np.allclose(np.diff(data[:, 0]), 1e-3)
     assert sorted(p.name for p in target.parent.iterdir()) == ["run.csv", "run.stats.json"]
 

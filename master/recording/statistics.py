@@ -64,7 +64,7 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
         "scene": scene.name,
         "file": str(scene.file),
         "status": counts.status,
-        "message": str(counts.error) if counts.error else None,
+        "message": counts.message or (str(counts.error) if counts.error else None),
         "start_time": scene.start_time,
         "stop_time": scene.stop_time,
         "time_reached": counts.time,

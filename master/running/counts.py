@@ -39,3 +39,6 @@ class RunCounts:
     #: a fixed-step run's estimate of its connections' coupling error
     #: (:meth:`CouplingErrorWatch.statistics`), or None
     coupling_error: dict | None = None
+    #: what ended a failed or interrupted run (the error; the signal or stop, where and
+    #: when), None for a completed one
+    message: str | None = None

@@ -594,12 +594,7 @@ class Execution:
             self.warnings += [f"releasing the subsystems: {error}"
                               for error in self.backend.close()]
         self._phases["finish"] = clock.perf_counter() - started
-        message = ""
-        if self.status == "failed":
-            message = str(self.error)
-        elif self.status == "interrupted":
-            message = (f"{self._stop_requested} (stopped at t = {self.time:g} s, "
-                       f"step {self.index} of {self.planned_steps})")
+        message = self._end_message()
         result = RunResult(self.status, message, self.time, self.index,
                            warnings=self.warnings, error=self.error, signal=self.signal)
         result.statistics = run_statistics(self.plan, self.counts(),
@@ -611,6 +606,16 @@ class Execution:
                 result.warnings.append(f"{type(observer).__name__}: {error}")
             result.files.update(getattr(observer, "files", {}))
         return result
+
+    def _end_message(self) -> str:
+        """What ended the run: a failed run's error, an interrupted run's reason with
+        where it stopped; "" for a run still going or completed."""
+        if self.status == "failed":
+            return str(self.error)
+        if self.status == "interrupted":
+            return (f"{self._stop_requested} (stopped at t = {self.time:g} s, "
+                    f"step {self.index} of {self.planned_steps})")
+        return ""
 
     def counts(self, ask: bool = True) -> RunCounts:
         """What the run counted so far (:class:`~dsim.master.running.counts.RunCounts`);
@@ -634,7 +639,8 @@ class Execution:
             step_control=self.controller.statistics() if self.controller else None,
             coupling_error=self._watch.statistics() if self._watch is not None else None,
             subsystems=subsystems,
-            lost_workers=backend.losses() if backend is not None else [])  # the driver's
+            lost_workers=backend.losses() if backend is not None else [],  # the driver's
+            message=self._end_message() or None)
 
     def run(self, handle_signals: bool = True) -> RunResult:
         """Start (unless started), step to the end and finish.  With
