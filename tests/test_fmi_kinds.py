@@ -368,6 +368,35 @@ def test_a_loop_that_fails_at_the_start_time_is_a_failed_run(kinds, tmp_path, ca
     assert len(out.read_text().splitlines()) == 1
 
 
+def test_the_run_summary_prints_only_what_the_coupling_does(kinds, tmp_path, capsys):
+    """A causal run takes no Newton iteration and measures no Lambda: its summary says
+    neither (it said "iterations 0.00 per step (max 0), Lambda refreshes 0"), and says
+    the algebraic loops' corrections where it solves loops; the strong coupling's says
+    its iterations."""
+    from tests.third_party.kinds.build import EQUATION_PAIR
+
+    one, two = (kinds(EQUATION_PAIR[name]) for name in ("equation1", "equation2"))
+    pair = scene(tmp_path / "pair.ssp", {"equation1": (one, "", ""),
+                                         "equation2": (two, "", "")},
+                 [("equation1", "x2", "equation2", "x2"),
+                  ("equation2", "x1", "equation1", "x1")], stop=0.02, step=0.01)
+    halves = scene(tmp_path / "halves.ssp", {"mass1": (kinds("mass1"), "CoSimulation", ""),
+                                             "mass2": (kinds("mass2"), "CoSimulation", "")},
+                   [("mass1", "x1", "mass2", "x1"), ("mass1", "v1", "mass2", "v1"),
+                    ("mass2", "F", "mass1", "F")], stop=0.05, step=0.01)
+
+    def work(path, *options) -> str:
+        assert main(["run", str(path), "--out", str(tmp_path / "o.csv"), *options]) == 0
+        out = capsys.readouterr().out.splitlines()
+        return next(line for line in out if line.startswith(("steps ", "iterations ")))
+
+    assert work(halves) == "steps       doSteps per FMU per step 1.00"
+    assert work(pair) == ("steps       algebraic loops 9 corrections (7 Jacobians), "
+                          "doSteps per FMU per step 1.00")
+    assert work(halves, "--coupling", "strong").startswith("iterations  ")
+    assert "Lambda refreshes" in work(halves, "--coupling", "strong")
+
+
 def test_a_loop_free_causal_chain_finds_no_loop(kinds, tmp_path, capsys):
     """The two-mass halves pass x1 and v1 one way and F back, but no output depends on
     an input directly around the cycle (mass 1's x1, v1 are states): no loop."""

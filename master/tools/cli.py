@@ -39,6 +39,25 @@ from dsim.master.tools.plot import overlay_files
 from dsim.master.tools.process_exit import end_process
 
 
+def _work_line(data: dict, components: int) -> str:
+    """The summary's line of what each step took, only what applies: Newton iterations
+    and Lambda (the interface flexibility or the iterated connections' Jacobian)
+    refreshes for a coupling that iterates, not the causal one; the algebraic loops'
+    corrections where the scene has loops; the doSteps per FMU."""
+    parts = []
+    if data["coupling"] != "causal":
+        parts += [f"{data['iterations']['mean_per_step']:.2f} per step "
+                  f"(max {data['iterations']['max_per_step']})",
+                  f"Lambda refreshes {data['lambda_refreshes']}"]
+    loops = data.get("algebraic_loops")
+    if loops:
+        parts.append(f"algebraic loops {loops['corrections']} corrections "
+                     f"({loops['jacobians']} Jacobians)")
+    parts.append(f"doSteps per FMU per step {data['do_steps_per_step'] / components:.2f}")
+    label = "steps" if data["coupling"] == "causal" else "iterations"
+    return f"{label:<12}" + ", ".join(parts)
+
+
 def _summary(result, plot: Path | None) -> str:
     data = result.statistics
     components = max(len(data["components"]), 1)
@@ -52,10 +71,7 @@ def _summary(result, plot: Path | None) -> str:
         + (f" (ended by {data['ended_by']['component']} at t = "
            f"{data['ended_by']['time']:g} s; the last row at {data['time_reached']:g} s)"
            if data.get("ended_by") else ""),
-        f"iterations  {data['iterations']['mean_per_step']:.2f} per step "
-        f"(max {data['iterations']['max_per_step']}), "
-        f"Lambda refreshes {data['lambda_refreshes']}, "
-        f"doSteps per FMU per step {data['do_steps_per_step'] / components:.2f}",
+        _work_line(data, components),
         f"wall time   {data['wall_seconds']:.3f} s "
         f"({data['seconds_in_fmus']:.3f} s inside FMUs)",
     ]
