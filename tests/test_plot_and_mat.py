@@ -33,3 +33,33 @@ def test_plot_overlays_signals_of_several_results(built, tmp_path, capsys):
     err = capsys.readouterr().err.splitlines()
     assert "no column matches nothing.like.this" in err[0]
     assert "would overwrite an input" in err[1]
+
+
+def test_plot_gives_each_run_its_colour_and_shows_display_units(built, tmp_path):
+    """Two runs of the crank slider (--stop 0.05 and 0.1): each curve its own colour,
+    the run told by its line style (the runs of one signal were one colour); the
+    crank angle, which the FMU declares in rad with displayUnit="deg", drawn in deg
+    (value * 180/pi) on an axis labelled so, as the run's own plot draws it; the
+    angular velocity (no display unit) stays in rad/s."""
+    from dsim.master.recording.results import (in_display_units, overlay_curves,
+                                                read_columns, read_display_units,
+                                                read_units)
+    from dsim.master.tools.plot import overlay_files
+
+    files = []
+    for stop in ("0.05", "0.1"):
+        files.append(tmp_path / f"run_{stop}.csv")
+        assert main(["run", str(built["ssp"] / "crank_slider_rigid.ssp"), "--stop", stop,
+                     "--quiet", "--out", str(files[-1])]) == 0
+    display = read_display_units(files[1])
+    assert display["crank.theta"]["unit"] == "deg" and "crank.omega" not in display
+    raw = read_columns(files[1])
+    signals, units = in_display_units(raw, read_units(files[1]), display)
+    np.testing.assert_allclose(signals["crank.theta"], np.degrees(raw["crank.theta"]),
+                               rtol=1e-15)
+    assert units["crank.theta"] == "deg" and units["crank.omega"] == "rad/s"
+    overlay = overlay_files(files, ["crank.theta", "crank.omega"], tmp_path / "o.png")
+    assert overlay.labels == ["angle (deg)", "angular velocity (rad/s)"]
+    curves = overlay_curves({"a": raw, "b": raw}, ["crank.theta"])
+    assert [c[3]["color"] for c in curves] == ["C0", "C1"]
+    assert [c[3]["linestyle"] for c in curves] == ["-", "--"]

@@ -25,8 +25,8 @@ from dsim.master.reading.fmi_description import (CO_SIMULATION, MODEL_EXCHANGE,
                                                 description_warning)
 from dsim.master.reading.ports import NEEDED, component_ports, joint_port_dofs
 from dsim.master.reading.ssp_values import TYPES
-from dsim.master.reading.units import (column_units, conversion, fmu_units,
-                                        joint_unit_problem, variable_unit)
+from dsim.master.reading.units import (column_display_units, column_units, conversion,
+                                       fmu_units, joint_unit_problem, variable_unit)
 from dsim.master.recording.selection import record_every, select_columns
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.connections import (Transfer, build_text_transfer, build_transfer,
@@ -97,6 +97,9 @@ class Plan:
     #: the unit of every numeric column (``time``, outputs, joint forces; '' where the
     #: FMU declares none), as the FMUs declare them
     units: dict = None
+    #: the output columns whose FMU variable declares a display unit: column ->
+    #: {"unit", "factor", "offset"} (plots show value * factor + offset in it)
+    display_units: dict = None
     #: an error-controlled run's settings (``step="auto"``; the scene's step is then
     #: the output interval), or None: a fixed step
     step_control: StepControl | None = None
@@ -792,4 +795,6 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         loops=loops, loop_positions=_loop_positions(loops, paths, moves["writes"]),
         iterated=iterated, step_control=step_control,
         units=column_units(checked["usable"], recorded, layout.labels,
-                                              layout.joint_of, checked["sides"]))
+                                              layout.joint_of, checked["sides"]),
+        display_units=column_display_units(checked["usable"], recorded,
+                                           {c.path: c.source for c in components}))

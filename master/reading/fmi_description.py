@@ -77,6 +77,9 @@ class Variable:
     #: the array's shape and this element's place in it (FMI 3.0; () for a scalar)
     shape: tuple[int, ...] = ()
     element: int = 0
+    #: the unit the FMU would show the value in (its own, or its declared type's
+    #: displayUnit; None: its unit)
+    display_unit: str | None = None
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,9 @@ class UnitDefinition:
     exponents: dict | None
     factor: float = 1.0
     offset: float = 0.0
+    #: its DisplayUnits as (name, factor, offset): display value = factor * value +
+    #: offset
+    display: tuple[tuple[str, float, float], ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -234,7 +240,9 @@ def _description(md) -> FmuDescription:
     units = tuple(UnitDefinition(u.name, None if u.baseUnit is None else
                                  {b: getattr(u.baseUnit, b) for b in _BASE},
                                  *(() if u.baseUnit is None else
-                                   (u.baseUnit.factor, u.baseUnit.offset)))
+                                   (u.baseUnit.factor, u.baseUnit.offset)),
+                                 display=tuple((d.name, float(d.factor), float(d.offset))
+                                               for d in u.displayUnits or () if d.name))
                   for u in md.unitDefinitions)
     return FmuDescription(
         fmiVersion=md.fmiVersion, modelName=md.modelName or "", guid=md.guid or "",
@@ -299,6 +307,8 @@ def _scalars(v, kind: str, major: int) -> list[Variable]:
     common = dict(valueReference=v.valueReference, type=kind, causality=causality,
                   variability=variability, initial=v.initial, unit=unit, min=low, max=high,
                   nominal=v.nominal, description=v.description or "", fmi_type=v.type,
+                  display_unit=(getattr(v, "displayUnit", None)
+                                or getattr(declared, "displayUnit", None)),
                   items=items, derivative_of=(v.derivative.name if v.derivative is not None
                                               else None))
     shape = tuple(_extent(d) for d in getattr(v, "dimensions", []) or [])

@@ -7,6 +7,8 @@ is three numbers and two tables, which no maintained package reads from SSP and 
 """
 from __future__ import annotations
 
+import math
+
 from dsim.master.reading.fmi_description import describe as describe_fmu
 from dsim.master.reading.ssp_values import BASE_UNITS
 from dsim.master.scene import Unit
@@ -115,3 +117,47 @@ def column_units(usable: dict, recorded, labels, joint_of, sides: dict) -> dict[
                  for side in sides.get(joint, ((), ())) for p in side if p.dof == dof]
         units[label] = next((u for u in found if u), "")
     return units
+
+
+#: display units an FMU may name without defining them: (unit, display unit) ->
+#: (factor, offset), display value = factor * value + offset
+KNOWN_DISPLAY = {("rad", "deg"): (180.0 / math.pi, 0.0),
+                 ("rad/s", "deg/s"): (180.0 / math.pi, 0.0),
+                 ("rad/s2", "deg/s2"): (180.0 / math.pi, 0.0),
+                 ("rad/s", "rpm"): (30.0 / math.pi, 0.0), ("K", "degC"): (1.0, -273.15)}
+
+
+def display_unit(variable, definitions: dict) -> dict | None:
+    """How the FMU would show ``variable`` (its ``displayUnit``): {"unit": the display
+    unit, "factor", "offset"} with display value = factor * value + offset, from the
+    FMU's DisplayUnit of the variable's unit (``definitions``: unit name ->
+    UnitDefinition) or a known pair (rad -> deg); None when it declares none, or one
+    it does not define and dsim does not know."""
+    shown, unit = getattr(variable, "display_unit", None), variable.unit
+    if not shown or not unit or shown == unit:
+        return None
+    defined = definitions.get(unit)
+    for name, factor, offset in (defined.display if defined is not None else ()):
+        if name == shown:
+            return {"unit": shown, "factor": factor, "offset": offset}
+    if (unit, shown) in KNOWN_DISPLAY:
+        factor, offset = KNOWN_DISPLAY[unit, shown]
+        return {"unit": shown, "factor": factor, "offset": offset}
+    return None
+
+
+def column_display_units(usable: dict, recorded, sources: dict) -> dict[str, dict]:
+    """The display unit (:func:`display_unit`) of every recorded output column that
+    declares one: ``usable``: component -> variable name -> Variable; ``recorded``:
+    (component, variable) pairs; ``sources``: component -> its FMU."""
+    result, definitions = {}, {}
+    for path, name in recorded:
+        variable = usable.get(path, {}).get(name)
+        if variable is None or not getattr(variable, "display_unit", None):
+            continue
+        if path not in definitions:
+            definitions[path] = {u.name: u for u in describe_fmu(sources[path]).unitDefinitions}
+        shown = display_unit(variable, definitions[path])
+        if shown is not None:
+            result[f"{path}.{name}"] = shown
+    return result

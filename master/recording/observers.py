@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from dsim.master.recording.output_files import OutputError, OutputFile, check_fits
-from dsim.master.recording.results import mat_bytes, plot_signals, set_title
+from dsim.master.recording.results import in_display_units, mat_bytes, plot_signals, set_title
 from dsim.master.recording.selection import recorded_rows
 
 
@@ -415,9 +415,11 @@ class PlotWriter(FileWriter):
         if result.steps == 0:
             return None
         image = io.BytesIO()
+        signals, units = in_display_units(result.signals, self.units,
+                                          result.statistics.get("display_units"))
         # the title says the scene and the values given for this run (--set)
-        plot_signals(result.signals, image, self.title or set_title(
-            self.scene, result.statistics.get("parameters")), units=self.units)
+        plot_signals(signals, image, self.title or set_title(
+            self.scene, result.statistics.get("parameters")), units=units)
         return image.getvalue()
 
 

@@ -164,7 +164,10 @@ def read_csv(path) -> tuple[list[str], np.ndarray]:
 QUANTITIES = {"m": "position", "m/s": "velocity", "m/s2": "acceleration", "rad": "angle",
               "rad/s": "angular velocity", "rad/s2": "angular acceleration", "N": "force",
               "N.m": "moment", "s": "time", "kg": "mass", "Pa": "stress", "J": "energy",
-              "W": "power", "K": "temperature", "V": "voltage", "A": "current"}
+              "W": "power", "K": "temperature", "V": "voltage", "A": "current",
+              # the display units of dsim's FMUs and those dsim knows (reading/units.py)
+              "deg": "angle", "deg/s": "angular velocity", "deg/s2": "angular acceleration",
+              "rpm": "angular velocity", "MPa": "stress", "degC": "temperature"}
 #: most panels of one figure, and most curves of one panel (more is unreadable)
 MAX_PANELS = 6
 MAX_CURVES = 8
@@ -229,6 +232,23 @@ def set_title(scene: str, parameters: dict | None = None, width: int = 100) -> s
     return "\n".join(lines[:3]) + (" ..." if len(lines) > 3 else "")
 
 
+def in_display_units(signals: dict, units: dict | None,
+                     display: dict | None) -> tuple[dict, dict | None]:
+    """``signals`` and their ``units`` (column -> unit) with every column that has a
+    display unit (``display``: column -> {"unit", "factor", "offset"}, the statistics'
+    "display_units") shown in it: value * factor + offset, an angle in rad as deg."""
+    if not display:
+        return signals, units
+    shown, units = dict(signals), dict(units or {})
+    for name, to in display.items():
+        values = shown.get(name)
+        if values is None or values.dtype == object:
+            continue
+        shown[name] = values * float(to["factor"]) + float(to.get("offset", 0.0))
+        units[name] = str(to["unit"])
+    return shown, units
+
+
 def _panels(panels, png_path, title: str = "", note: str = "") -> None:
     """Panels over time, one under the other, legends right of the data: ``panels`` is
     a list of (y label, [(curve label, time, values[, matplotlib style]), ...], what
@@ -285,29 +305,37 @@ def plot_signals(signals: dict, png_path, title: str = "", max_curves: int = MAX
     return panels
 
 
-#: line styles that tell the results of an overlay apart (colours tell the signals)
+#: line styles that tell the results of an overlay apart (colours tell the curves)
 STYLES = ("-", "--", ":", "-.")
+
+
+def overlay_curves(results: dict, names: list[str]) -> list[tuple]:
+    """The curves of one panel of an overlay: each signal of ``names`` from each result
+    (``results``: label -> signals) that has it, as (legend label, time, values,
+    matplotlib style): every curve of the panel its own colour (the runs of one signal
+    too), and one line style per result."""
+    several = len(results) > 1
+    curves = []
+    for name in names:
+        for j, (label, signals) in enumerate(results.items()):
+            if name in signals:
+                curves.append((f"{name} ({label})" if several else name, signals["time"],
+                               signals[name], {"color": f"C{len(curves) % 10}",
+                                               "linestyle": STYLES[j % len(STYLES)]}))
+    return curves
 
 
 def plot_overlay(results: dict, names: list[str], png_path, title: str = "",
                  units: dict | None = None, max_curves: int = MAX_CURVES) -> list[Panel]:
     """The signals ``names`` of several runs (``results``: label -> signals) in one
-    panel per unit, as :func:`plot_signals` groups them: one colour per signal, one
-    line style per result, at most ``max_curves`` signals a panel.  Returns the panels
-    drawn."""
+    panel per unit, as :func:`plot_signals` groups them: every curve of a panel its own
+    colour, one line style per result (:func:`overlay_curves`), at most ``max_curves``
+    signals a panel.  Returns the panels drawn."""
     panels, left = unit_panels(names, units, max_curves)
-    several = len(results) > 1
     drawn = []
     for panel in panels:
-        curves = []
-        for k, name in enumerate(panel.names):
-            for j, (label, signals) in enumerate(results.items()):
-                if name in signals:
-                    curves.append((f"{name} ({label})" if several else name,
-                                   signals["time"], signals[name],
-                                   {"color": f"C{k % 10}", "linestyle": STYLES[j % 4]}))
         text = _left_out_text(panel).replace("--outputs", "their names")
-        drawn.append((panel.label, curves, text))
+        drawn.append((panel.label, overlay_curves(results, panel.names), text))
     note = (f"{len(left)} more signals in other units not drawn: choose them by name"
             if left else "")
     _panels(drawn, png_path, title, note)
@@ -372,15 +400,27 @@ def read_units(csv_path) -> dict[str, str]:
     return {str(k): str(v) for k, v in units.items()} if isinstance(units, dict) else {}
 
 
+def read_display_units(csv_path) -> dict[str, dict]:
+    """Column -> display unit ({"unit", "factor", "offset"}) of a results CSV, from the
+    statistics JSON beside it ({} when it has none)."""
+    display = read_statistics(csv_path).get("display_units")
+    if not isinstance(display, dict):
+        return {}
+    return {str(k): v for k, v in display.items()
+            if isinstance(v, dict) and {"unit", "factor"} <= set(v)}
+
+
 def plot_results(csv_path, png_path, title: str = "", max_curves: int = MAX_CURVES) -> None:
-    """:func:`plot_signals` of a results CSV, with the units and the ``--set`` values
-    of the statistics JSON beside it."""
+    """:func:`plot_signals` of a results CSV, in the display units and with the units
+    and the ``--set`` values of the statistics JSON beside it."""
     header, data = read_csv(csv_path)
     statistics = read_statistics(csv_path)
-    plot_signals({name: data[:, i] for i, name in enumerate(header)}, png_path,
+    signals, units = in_display_units({name: data[:, i] for i, name in enumerate(header)},
+                                      read_units(csv_path), read_display_units(csv_path))
+    plot_signals(signals, png_path,
                  title or set_title(statistics.get("scene", Path(csv_path).stem),
                                     statistics.get("parameters")),
-                 max_curves, read_units(csv_path))
+                 max_curves, units)
 
 
 def save_figure(figure, png_path) -> None:

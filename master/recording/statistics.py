@@ -43,6 +43,14 @@ def recorded_units(plan, columns=()) -> dict[str, str]:
             + tuple(plan.text_columns)}
 
 
+def recorded_display_units(plan, units: dict) -> dict[str, dict]:
+    """Column of the results CSV (``units``: what :func:`recorded_units` gives) -> the
+    display unit its FMU variable declares ({"unit", "factor", "offset"}: plots show
+    value * factor + offset in it); only the columns that declare one."""
+    display = plan.display_units or {}
+    return {name: dict(display[name]) for name in units if name in display}
+
+
 def run_statistics(plan, counts, wall_seconds: float, components: dict | None = None) -> dict:
     """The statistics of a run of ``plan`` from its
     :class:`~dsim.master.running.counts.RunCounts` (seconds, counts); ``components``:
@@ -60,6 +68,7 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
     steps = counts.steps
     phases = counts.phases
     coupling = counts.coupling
+    units = recorded_units(plan, counts.columns)
     return {
         "scene": scene.name,
         "file": str(scene.file),
@@ -109,8 +118,10 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
         # chosen, the values given on top (docs/parameters.md) and what was recorded
         "parameter_sets": list(scene.parameter_sets),
         "parameters": dict(scene.overrides),
-        # the unit of each column of the results CSV (docs/results.md, "Units")
-        "units": recorded_units(plan, counts.columns),
+        # the unit of each column of the results CSV (docs/results.md, "Units"), and
+        # the display unit of those whose FMU declares one (plots show them in it)
+        "units": units,
+        "display_units": recorded_display_units(plan, units),
         # components stepped several times per macro step (--substeps)
         "substeps": {spec.name: spec.substeps for spec in plan.specs if spec.substeps > 1},
         "recording": {"outputs": list(plan.outputs),
