@@ -611,6 +611,45 @@ def test_annotations_before_connectors_are_a_warning(ender, tmp_path, capsys):
     assert main(["validate", "--strict", str(folder)]) == 2
 
 
+def _binding(values: dict) -> str:
+    """One ssd:ParameterBindings of an inline parameter set of Real ``values``."""
+    parameters = "".join(f'<ssv:Parameter name="{name}"><ssv:Real value="{value!r}"/>'
+                         "</ssv:Parameter>" for name, value in values.items())
+    return ("<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>"
+            f'<ssv:ParameterSet version="1.0" name="set"><ssv:Parameters>{parameters}'
+            "</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>"
+            "</ssd:ParameterBinding></ssd:ParameterBindings>")
+
+
+def test_an_element_repeated_where_ssp_allows_one_is_merged_in_order(ender, tmp_path,
+                                                                      capsys):
+    """As OMSimulator's importStartValues1 writes a system: its Annotations before its
+    Connectors, and two ssd:ParameterBindings (SSP 1.0 allows one): read with one
+    warning, the bindings merged in document order (the second's F = 2 N over the
+    first's 8 N: x = t^2 on 1 kg; the first's m = 1 kg kept); --strict refuses it.  It
+    was refused as not valid SSP 1.0."""
+    from tests.scene_files import pack
+
+    part = component("a", "resources/ender.fmu", outputs=("P.u_x",))
+    text = ssd("repeated", [part], stop=0.3, master='step="0.1"').replace(
+        '<ssd:System name="root">',
+        '<ssd:System name="root"><ssd:Annotations><ssc:Annotation type="org.openmodelica">'
+        "<note/></ssc:Annotation></ssd:Annotations><ssd:Connectors><ssd:Connector "
+        'name="C1" kind="input"><ssc:Real/></ssd:Connector></ssd:Connectors>'
+        + _binding({"a.m": 1.0, "a.F": 8.0}) + _binding({"a.F": 2.0}))
+    archive = pack(scene_folder(tmp_path / "scene", text, {"ender.fmu": ender}),
+                   tmp_path / "repeated.ssp")
+    assert main(["validate", str(archive)]) == 0
+    warnings = capsys.readouterr().err.strip().splitlines()
+    assert len(warnings) == 1, warnings
+    assert "ssd:ParameterBindings 2 times in system 'root'" in warnings[0]
+    assert "merged in order" in warnings[0]
+    result = dsim.simulate(archive)
+    assert result.ok, result.statistics["message"]
+    np.testing.assert_allclose(result["a.P.u_x"], result["time"] ** 2, atol=1e-12)
+    assert main(["validate", "--strict", str(archive)]) == 2
+
+
 # --- FMUs outside the scene: refused in one line, or trusted with --allow-outside -----
 
 def _outside_scene(root: Path, fmu: Path, source: str = "../../fmi2/ender.fmu",

@@ -131,10 +131,17 @@ def _check_schema(root, shown: str, schema_name: str, problems: list, warnings: 
         for element, version in zip(versioned, originals):
             element.set("version", version)
     errors = list(schema.error_log)
+    repeated = _merge_repeated(root) if errors else []
     if errors and _only_out_of_order(root, schema):
-        # what the elements say is the same in either order (OMSimulator reads it too)
-        warnings.append(f"{shown} line {errors[0].line}: elements out of the order SSP 1.0 "
-                        f"gives ({errors[0].message}): read as if in order")
+        # what the elements say is the same in either order, and a repeated element's
+        # content is the same in one (OMSimulator reads both)
+        if not repeated:
+            warnings.append(f"{shown} line {errors[0].line}: elements out of the order "
+                            f"SSP 1.0 gives ({errors[0].message}): read as if in order")
+        else:
+            warnings.append(f"{shown} line {errors[0].line}: {'; '.join(repeated)} (SSP 1.0 "
+                            "allows one; the elements read as if in order, the repeated "
+                            "ones' content merged in order)")
         return
     if versioned:
         unknown = [e for e in errors if any(text in e.message for text in UNKNOWN_CONTENT)]
@@ -151,6 +158,39 @@ SSD_ORDER = {name: rank for rank, name in enumerate((
     "ParameterBindings", "Elements", "Connections", "SignalDictionaries", "SystemGeometry",
     "GraphicalElements", "ParameterValues", "ParameterMapping", "ConnectorGeometry",
     "ConnectionGeometry", "Annotations"), start=1)}
+
+
+#: the SSD containers SSP 1.0 allows once per parent, whose children the reader reads
+#: whichever of several holds them
+ONCE = ("Connectors", "ParameterBindings", "Elements", "Connections", "Annotations",
+        "SignalDictionaries", "GraphicalElements", "Units", "Enumerations")
+
+
+def _merge_repeated(root) -> list[str]:
+    """Merge, in place, every SSD container that SSP 1.0 allows once but a parent holds
+    several times (OMSimulator writes two ssd:ParameterBindings in one system): the
+    later ones' children appended to the first, in document order, the later ones
+    removed.  What was merged, one text per parent and element ("ssd:ParameterBindings
+    2 times in system 'root'")."""
+    merged = []
+    for parent in list(root.iter()):
+        seen: dict[str, list] = {}
+        for child in parent:
+            if not isinstance(child.tag, str):
+                continue
+            name = etree.QName(child)
+            if name.namespace == NS["ssd"] and name.localname in ONCE:
+                seen.setdefault(name.localname, []).append(child)
+        for local, found in seen.items():
+            if len(found) < 2:
+                continue
+            for later in found[1:]:
+                found[0].extend(list(later))
+                parent.remove(later)
+            what = etree.QName(parent).localname
+            named = f" '{parent.get('name')}'" if parent.get("name") is not None else ""
+            merged.append(f"ssd:{local} {len(found)} times in {what.lower()}{named}")
+    return merged
 
 
 def _only_out_of_order(root, schema: etree.XMLSchema) -> bool:
