@@ -5,6 +5,7 @@ Integer/Real mismatches, an element order that changes nothing, FMUs outside the
 scene (--allow-outside) and one error per cause.  Every archive is built here."""
 from __future__ import annotations
 
+import json
 import shutil
 import uuid
 import zipfile
@@ -24,7 +25,9 @@ from tests.third_party.build import Variable, compile_library, model_description
 #: integrated exactly over each step (the force held): x = x0 + v t + F t^2 / (2 m).  At
 #: t = T_end it ends the simulation as the standard says: the step that reaches T_end
 #: advances to T_end only, returns fmi2Discard, and fmi2GetBooleanStatus(fmi2Terminated)
-#: is true, fmi2GetRealStatus(fmi2LastSuccessfulTime) T_end.
+#: is true, fmi2GetRealStatus(fmi2LastSuccessfulTime) T_end.  T_end at the start time
+#: ends it as it leaves initialization (fmi2ExitInitializationMode returns fmi2Discard,
+#: its status terminated).
 ENDER_C = r"""
 #include <math.h>
 #include <stdlib.h>
@@ -56,7 +59,13 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean td, fmi2Real tol, fm
     ((Model *)c)->time = t0; return fmi2OK;
 }
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return fmi2OK; }
-fmi2Status fmi2ExitInitializationMode(fmi2Component c) { accelerate(c); return fmi2OK; }
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Model *m = c;
+    accelerate(m);
+    /* T_end at the start: ended as it leaves initialization (status fmi2Terminated) */
+    if (m->r[T_END] <= m->time) { m->terminated = 1; return fmi2Discard; }
+    return fmi2OK;
+}
 fmi2Status fmi2Terminate(fmi2Component c) { return fmi2OK; }
 fmi2Status fmi2Reset(fmi2Component c) { return fmi2OK; }
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
@@ -394,6 +403,38 @@ def test_every_fmi_version_and_interface_ends_the_run_the_same(ends, tmp_path, v
     np.testing.assert_allclose(result["e.x"], time ** 2, atol=1e-12)
     ended = result.statistics["ended_by"]
     assert ended["component"] == "e" and ended["time"] == pytest.approx(t_end, abs=1e-9)
+
+@pytest.mark.parametrize("version, interface", [("2.0", "ModelExchange"),
+                                                ("3.0", "ModelExchange"),
+                                                ("2.0", "CoSimulation")])
+def test_an_fmu_that_ends_the_simulation_in_initialization_ends_at_the_start(
+        ends, ender, tmp_path, capsys, version, interface):
+    """Model Exchange: terminateSimulation from the event iteration that leaving
+    initialization mode starts (T_end = 0, the start time); FMI 2.0 co-simulation:
+    fmi2ExitInitializationMode returns fmi2Discard and its status says terminated.
+    Either ends the run normally at the start time: exit 0, one row, the statistics and
+    a warning saying which component ended it (it was exit 2, "the FMU asked to end the
+    simulation" or "cannot be initialised")."""
+    if interface == "ModelExchange":
+        part = component("e", "resources/ends.fmu", {"T_end": 0.0}, outputs=("x",))
+        part = part.replace('source="resources/ends.fmu"', 'source="resources/ends.fmu" '
+                            f'implementation="{interface}"')
+        fmus = {"ends.fmu": ends(version, (interface,))}
+    else:
+        part = component("e", "resources/ender.fmu", {"F": 2.0, "T_end": 0.0},
+                         outputs=("P.u_x",))
+        fmus = {"ender.fmu": ender}
+    folder = scene_folder(tmp_path / "scene", ssd("ends", [part], stop=1.0,
+                                                  master='step="0.1"'), fmus)
+    out = tmp_path / "out.csv"
+    assert main(["run", str(folder), "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "component 'e' ended the simulation at t = 0 s: the run ends at t = 0 s" in err
+    assert len(out.read_text().strip().splitlines()) == 2  # the header and one row
+    statistics = json.loads(out.with_suffix(".stats.json").read_text())
+    assert statistics["status"] == "completed" and statistics["steps"] == 0
+    assert statistics["ended_by"] == {"component": "e", "time": 0.0}
+
 
 # --- a scene without FMU components --------------------------------------------------
 

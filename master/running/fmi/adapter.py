@@ -100,7 +100,9 @@ class FmpyAdapter(Checkpoint, Subsystem):
     def _checked(self, label: str, function, *args):
         """Call ``function`` (an fmpy method), counted and timed under ``label``; a
         failure is InputError while initialising (the instance freed), else
-        SimulationError naming the component, the call and what the FMU logged."""
+        SimulationError naming the component, the call and what the FMU logged; None
+        when it failed in a way that is no error (an FMU that ended the simulation)."""
+        result = None
         try:
             result = self._timed(label, function, *args)
         except (InputError, SimulationError):

@@ -18,6 +18,12 @@ class Checkpoint:
     #: the time (s) this FMU reached when it ended the simulation itself, its step
     #: complete: the next step raises :class:`Terminated` (the run keeps this step)
     ended_at = None
+    #: the start time, when the FMU ended the simulation as it left initialization
+    #: (a restore never goes back before that end)
+    _ended_at_start = None
+    #: the calls that end initialization, where an FMU may say it ended the simulation
+    #: (fmi2Discard, its status fmi2Terminated)
+    END_OF_INITIALIZATION = ("fmi2ExitInitializationMode", "fmiInitializeSlave")
     #: what this instance's instantiation added to ``sys.path`` (an FMU that embeds
     #: Python), held until it is freed (:mod:`~dsim.master.running.fmi.python_path`)
     _python_path: tuple = ()
@@ -63,6 +69,8 @@ class Checkpoint:
         (to ``end``, s) the FMU discarded because it ended the simulation is no error
         (:meth:`_ended`)."""
         reason = logged_error(self.name)
+        if status == 2 and label in self.END_OF_INITIALIZATION and self._ended_in(label):
+            return
         if status == 4:
             # FMI allows no further call after Fatal, not even a free (and pythonfmu 0.7
             # has released the instance's Python objects when it returns it: its
@@ -85,6 +93,20 @@ class Checkpoint:
         error = StepFailure if label == self.DO_STEP and status == 2 else SimulationError
         raise error(f"component '{self.name}': {label} failed: {detail}"
                     + (f" ({reason})" if reason else ""), time=self.time)
+
+    def _ended_in(self, label: str) -> bool:
+        """After ``label`` (the call that ends initialization) returned Discard: whether
+        the FMU says it ended the simulation there (its status terminated); the run then
+        ends normally at the start time, its first row kept (the first step raises
+        :class:`Terminated`)."""
+        try:
+            reached = self._termination()
+        except Exception:  # no answer: the Discard is an initialization failure
+            return False
+        if reached is None:
+            return False
+        self.ended_at = self._ended_at_start = self.spec.start_time
+        return True
 
     def _release(self) -> None:
         """Free the instance that failed in initialization (fmpy then closes the

@@ -248,7 +248,9 @@ class FmuSubsystem(Checkpoint, Subsystem):
 
     # --- the checkpoint every FMI call passes ----------------------------------------
     def _call(self, label: str, function, *args):
-        """Call through fmpy's convenience layer (set-up, rare calls)."""
+        """Call through fmpy's convenience layer (set-up, rare calls); None when the
+        call failed in a way that is no error (an FMU that ended the simulation)."""
+        result = None
         try:
             result = self._timed(label, function, *args)
         except (InputError, SimulationError):
@@ -308,7 +310,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
 
     def restore_state(self):
         self._set_state(self._state)
-        self.ended_at = None  # back before the end: the step is taken again
+        # back before the end: the step is taken again (unless it ended at the start)
+        self.ended_at = self._ended_at_start
 
     def checkpoint(self) -> dict:
         """The state saved by the last :meth:`save_state` as bytes

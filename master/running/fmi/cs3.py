@@ -61,7 +61,8 @@ class CoSimulation3Subsystem(FmpyAdapter):
 
     def restore_state(self):
         self._checked(self.SET_STATE, self.fmu.setFMUState, self._state)
-        self.ended_at = None  # back before the end: the step is taken again
+        # back before the end: the step is taken again (unless it ended at the start)
+        self.ended_at = self._ended_at_start
 
     def _free_saved(self):
         if self._state is not None:

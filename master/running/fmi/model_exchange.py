@@ -220,14 +220,15 @@ class ModelExchangeSubsystem(FmpyAdapter):
         then continuous-time mode."""
         for _ in range(1000):
             more, stop, _, next_event = self._update_discrete_states()
-            if stop and not self._initializing and self._stepped:
+            if stop and self._stepped:
                 # the FMU ends the simulation at an event of a step: the step ends it
                 # (:meth:`_integrate`)
                 self._stop_asked = True
                 break
-            if stop:
-                raise SimulationError(f"component '{self.name}': the FMU asked to end the "
-                                      f"simulation at t = {self.time:g} s", time=self.time)
+            if stop:  # at the start, leaving initialization: the run ends normally
+                # there, its first row kept (the first step raises Terminated)
+                self.ended_at = self._ended_at_start = self.time
+                break
             if not more:
                 break
         else:
@@ -284,7 +285,8 @@ class ModelExchangeSubsystem(FmpyAdapter):
 
     def restore_state(self):
         time, x, start, next_event = self._saved
-        self.ended_at, self._stop_asked = None, False  # back before the end
+        # back before the end (unless the FMU ended the simulation at the start)
+        self.ended_at, self._stop_asked = self._ended_at_start, False
         if self.can_save:
             setter = self.fmu.setFMUState if self.fmi3 else self.fmu.setFMUstate
             self._checked(self.SET_STATE, setter, self._fmu_state)
