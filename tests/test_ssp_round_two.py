@@ -747,6 +747,32 @@ def test_allow_outside_trusts_one_folder(ender, tmp_path, capsys):
     assert len(lines) == 1 and "no such folder" in lines[0]
 
 
+def test_sweep_and_regress_take_allow_outside_as_run_does(ender, tmp_path, capsys):
+    """dsim sweep and dsim regress refused --allow-outside (a usage error); now every
+    point and every case trusts the folder as dsim run does (without it, the scene is
+    refused in one line, exit 2, as by dsim run)."""
+    folder = _outside_scene(tmp_path, ender)
+    trusted = str(tmp_path / "fmi2")
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(folder), "--step", "0.1,0.05", "--out", str(out)]) == 2
+    assert "is outside the scene" in capsys.readouterr().err
+    assert main(["sweep", str(folder), "--step", "0.1,0.05", "--out", str(out),
+                 "--allow-outside", trusted, "--target-error", "1"]) == 0
+    said = capsys.readouterr().out
+    assert "2 points (2 completed)" in said and f"--allow-outside {trusted}" in said
+    for point in ("point_001", "point_002"):
+        time, x = np.loadtxt(out / f"{point}.csv", delimiter=",", skiprows=1,
+                             usecols=(0, 1), unpack=True)
+        np.testing.assert_allclose(x, time ** 2, atol=1e-12)
+    scenes = folder.parent  # root/scenes: the loader scene, its baseline stored beside
+    assert main(["regress", str(scenes), "--update", "--no-kernel-study",
+                 "--allow-outside", trusted]) == 0
+    assert main(["regress", str(scenes)]) == 1  # refused without the trust: an error
+    assert "is outside the scene" in capsys.readouterr().err
+    assert main(["regress", str(scenes), "--allow-outside", trusted]) == 0
+    assert "loader: passed" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("attack", ["dotdot", "symlink", "link_in_trusted", "absolute"])
 def test_allow_outside_trusts_nothing_beyond_its_folder(ender, tmp_path, capsys, attack):
     """With --allow-outside fmi2: a ../ escape to another folder, a link in the scene to

@@ -132,9 +132,10 @@ def forced_core(kernel: str) -> str:
     return "/".join(sorted(cores)) or "?"
 
 
-def command_line(scene, settings: dict, out) -> list[str]:
+def command_line(scene, settings: dict, out, allow_outside=()) -> list[str]:
     """``python -m dsim.master.tools.cli run SCENE --out OUT`` with the case's settings as
-    options (values exactly as given: a float's repr round-trips)."""
+    options (values exactly as given: a float's repr round-trips) and an
+    ``--allow-outside`` per folder of ``allow_outside``."""
     unknown = [k for k in settings if k not in SETTINGS]
     if unknown:
         raise InputError(f"settings {', '.join(unknown)} are not settings of dsim run "
@@ -144,6 +145,8 @@ def command_line(scene, settings: dict, out) -> list[str]:
         if value is not None:
             options += [SETTINGS[keyword].option, repr(value) if isinstance(value, float)
                         else str(value)]
+    for folder in allow_outside:
+        options += ["--allow-outside", str(Path(folder).resolve())]
     return [sys.executable, "-m", "dsim.master.tools.cli", "run", str(Path(scene).resolve()),
             "--out", str(out), "--quiet"] + options
 
@@ -160,12 +163,14 @@ class KernelRun:
 
 
 def run_with_kernel(scene, settings: dict, kernel: str, out: Path,
-                    timeout: float = 600.0) -> KernelRun:
-    """Run the case in a subprocess with ``OPENBLAS_CORETYPE=kernel``."""
+                    timeout: float = 600.0, allow_outside=()) -> KernelRun:
+    """Run the case in a subprocess with ``OPENBLAS_CORETYPE=kernel`` (``allow_outside``:
+    the folders it may name files in besides its own)."""
     core = forced_core(kernel)
     start = time.perf_counter()
     try:
-        done = subprocess.run(command_line(scene, settings, out), env=kernel_environment(kernel),
+        done = subprocess.run(command_line(scene, settings, out, allow_outside),
+                              env=kernel_environment(kernel),
                               capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return KernelRun(kernel, core, None, time.perf_counter() - start,
@@ -252,11 +257,12 @@ def choose_kernels(requested=None, flags=None) -> list[str]:
 
 
 def study(scene, settings: dict, baseline_csv, kernels=None, jobs: int | None = None,
-          timeout: float = 600.0, keep=None) -> Study:
+          timeout: float = 600.0, keep=None, allow_outside=()) -> Study:
     """Run the case under each kernel (default: every one the CPU supports, less those
     that are the same code as the kernel this process runs) and measure the spread
     of every column among those runs and ``baseline_csv`` (the run with the default
-    kernel).  ``keep``: a folder for the kernels' CSVs (default: a temporary one)."""
+    kernel).  ``keep``: a folder for the kernels' CSVs (default: a temporary one);
+    ``allow_outside``: the folders the scene may name files in besides its own."""
     start = time.perf_counter()
     cores = openblas_cores()
     if not cores:
@@ -283,7 +289,8 @@ def study(scene, settings: dict, baseline_csv, kernels=None, jobs: int | None = 
         workers = max(1, min(len(chosen), jobs or os.cpu_count() or 1))
         with ThreadPoolExecutor(workers) as pool:
             runs = list(pool.map(lambda name: run_with_kernel(
-                scene, settings, name, folder / f"{stem}.{name}.csv", timeout), chosen))
+                scene, settings, name, folder / f"{stem}.{name}.csv", timeout,
+                allow_outside), chosen))
         result.runs = runs
         for run in runs:
             if run.csv is None:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -48,6 +48,8 @@ class Case:
     atol: float = 0.0
     columns: list | None = None
     noise: dict = field(default_factory=dict)
+    #: folders whose files the scene may name besides its own (``--allow-outside``)
+    allow_outside: tuple = ()
 
 
 @dataclass
@@ -80,11 +82,12 @@ def _scenes(folder: Path) -> dict[str, Path]:
     return found
 
 
-def find_cases(folder, baselines=None, only=(), update: bool = False
+def find_cases(folder, baselines=None, only=(), update: bool = False, allow_outside=()
                ) -> tuple[list[Case], list[str]]:
     """The cases of ``folder`` that have a baseline (``baselines`` defaults to
     ``folder/baselines``; with ``update`` every scene, a missing baseline to be
-    written), and the names of the scenes that have none."""
+    written), and the names of the scenes that have none.  ``allow_outside``: folders
+    whose files the scenes may name besides their own (docs/security.md)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: no such folder")
@@ -102,7 +105,8 @@ def find_cases(folder, baselines=None, only=(), update: bool = False
         if not (baselines / f"{name}.csv").is_file() and not spec.is_file() and not update:
             without.append(name)
             continue
-        cases.append(_case(name, scene, baselines))
+        cases.append(replace(_case(name, scene, baselines),
+                             allow_outside=tuple(allow_outside or ())))
     return cases, without
 
 
@@ -155,7 +159,8 @@ def run_case(case: Case, results: Path, update: bool = False, rtol=None,
     start = time.perf_counter()
     out = results / f"{case.name}.csv"
     try:
-        result = simulate(case.scene, out=out, handle_signals=False, **case.settings)
+        result = simulate(case.scene, out=out, handle_signals=False,
+                          allow_outside=list(case.allow_outside) or None, **case.settings)
     except InputError as error:
         return Outcome(case, "error", "; ".join(error.problems),
                        seconds=time.perf_counter() - start)
@@ -190,8 +195,8 @@ def _store_study(case: Case, kernels: KernelChoice) -> str:
     spec = case.baseline.with_suffix(".json")
     record = json.loads(spec.read_text()) if spec.is_file() else {
         **DEFAULTS, "settings": case.settings}
-    measured = study(case.scene, case.settings, case.baseline, kernels.kernels) \
-        if kernels.enabled else None
+    measured = study(case.scene, case.settings, case.baseline, kernels.kernels,
+                     allow_outside=case.allow_outside) if kernels.enabled else None
     if measured is None or measured.skipped:
         said = measured.skipped if measured else "no kernel study (asked not to)"
         if record.get("noise"):

@@ -71,10 +71,12 @@ class StopFlag:
         return self.number
 
 
-def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) -> None:
+def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish,
+               where: dict | None = None) -> None:
     """Run every configuration (``(k, settings and parameters)`` pairs, with the
     ``fixed`` settings) as a Ray task; call ``finish(k, PointRun)`` for each as it
-    ends, its files written in ``out`` as ``point_{k + 1:03d}``."""
+    ends, its files written in ``out`` as ``point_{k + 1:03d}``.  ``where``: more
+    keywords of every point's run (the sweep's ``allow_outside`` folders)."""
     connection = connect(fixed.get("address"))
     ray = connection.ray
     # the flag on the driver's own node: anywhere else its node may be lost (Ray put it
@@ -118,7 +120,7 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
             while waiting and len(pending) < width and not caught and not head_lost:
                 k, settings = waiting.pop()
                 pending[task.remote(str(scene), shipped, {**point_settings, **settings},
-                                    f"point_{k + 1:03d}", stop)] = k
+                                    f"point_{k + 1:03d}", stop, where or {})] = k
             if not pending:
                 break
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
@@ -274,8 +276,9 @@ class _StopWhenAsked(Observer):
             self.execution.stop(f"interrupted by {signal.Signals(number).name}", number)
 
 
-def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
-    """A point in a Ray worker: (PointRun, {suffix: file bytes})."""
+def _run_remote(scene: str, shipped, settings: dict, name: str, flag, where=None):
+    """A point in a Ray worker: (PointRun, {suffix: file bytes}); ``where``: more
+    keywords of its run (``allow_outside``)."""
 
     if shipped is not None:
         scene = landed(shipped)
@@ -284,7 +287,7 @@ def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
         statistics = results.with_suffix(".stats.json")
         start = clock.perf_counter()
         try:
-            plan = prepare(scene, **keywords(settings))
+            plan = prepare(scene, **keywords(settings), **(where or {}))
         except InputError as error:
             return PointRun(problems=list(error.problems)), {}
         watcher = _StopWhenAsked(flag)

@@ -67,6 +67,9 @@ class Sweep:
     samples: int | None = None
     seed: int | None = None
     kpis: list = field(default_factory=list)
+    #: folders whose files the scene may name besides its own (``--allow-outside``:
+    #: every point's run trusts them; docs/security.md)
+    allow_outside: tuple = ()
 
     def plan(self) -> Design:
         """The design: the grid's settings as lists, then the varied factors."""
@@ -232,24 +235,35 @@ def cheapest(points: list[Point], target: float) -> Point | None:
     return min(meeting, key=lambda p: p.wall_seconds) if meeting else None
 
 
-def command_line(scene, point: Point, fixed: dict) -> str:
-    """The ``dsim run`` command of a point."""
+def command_line(scene, point: Point, fixed: dict, allow_outside=()) -> str:
+    """The ``dsim run`` command of a point (``allow_outside``: the sweep's trusted
+    folders)."""
     words = ["dsim", "run", str(scene)]
     settings, parameters = split({**fixed, **point.settings})
     for key, value in settings.items():
         words += [SETTINGS[key].option, str(value)]
     for key, value in parameters.items():
         words += ["--set", f"{key}={value}"]
+    for folder in allow_outside:
+        words += ["--allow-outside", str(folder)]
     return " ".join(shlex.quote(w) for w in words)
 
 
-def run_point(scene, settings: dict, results: Path, bars: bool = False) -> PointRun:
+def trusted(sweep: Sweep) -> dict:
+    """The keywords of ``dsim.simulate``/``prepare`` that let the sweep's scene name
+    files in its ``allow_outside`` folders ({} when it has none)."""
+    return {"allow_outside": list(sweep.allow_outside)} if sweep.allow_outside else {}
+
+
+def run_point(scene, settings: dict, results: Path, bars: bool = False,
+              where: dict | None = None) -> PointRun:
     """Run one point (settings and dotted model parameters) in this process, its
     results CSV (and statistics) at ``results`` (``bars``: its progress bar on a
-    terminal)."""
+    terminal; ``where``: :func:`trusted`'s keywords)."""
     start = clock.perf_counter()
     try:
-        result = simulate(scene, out=results, progress=bars, **keywords(settings))
+        result = simulate(scene, out=results, progress=bars, **keywords(settings),
+                          **(where or {}))
     except InputError as error:
         return PointRun(problems=list(error.problems))
     return PointRun(result, wall_seconds=clock.perf_counter() - start, results=results)
@@ -305,7 +319,7 @@ def check_parameters(scene, sweep: Sweep, configurations: list[dict]) -> None:
     problems = []
     for trial in trials:
         try:
-            prepare(scene, load_libraries=False, **keywords(trial))
+            prepare(scene, load_libraries=False, **keywords(trial), **trusted(sweep))
         except InputError as error:
             problems += error.problems
     if problems:
@@ -399,7 +413,8 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     labels = [k.label for k in kpis]
     configurations = sweep.configurations()
     names = list(dict.fromkeys(k for c in configurations for k in c))
-    plan = prepare(scene, **keywords(sweep.fixed))  # bad input before any point runs
+    # bad input before any point runs
+    plan = prepare(scene, **keywords(sweep.fixed), **trusted(sweep))
     check_parameters(scene, sweep, configurations)
     check_columns(plan, sweep)
     reference_file, use_tightest = _reference_choice(sweep, plan)
@@ -452,11 +467,11 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     try:
         if parallel:
             run_points(scene, [(k, configurations[k]) for k in todo], sweep.fixed, out,
-                       plan.inputs, finish)
+                       plan.inputs, finish, trusted(sweep))
         else:
             for k in todo:
                 finish(k, run_point(scene, {**sweep.fixed, **configurations[k]},
-                                    out / f"point_{k + 1:03d}.csv", bars))
+                                    out / f"point_{k + 1:03d}.csv", bars, trusted(sweep)))
                 if interrupted:
                     break
         for k in sorted(finished):  # no point completed: nothing to compare with

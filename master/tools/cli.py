@@ -244,6 +244,7 @@ def _sweep_of(args):
         sweep.reference = args.reference if args.reference == TIGHTEST else Path(args.reference)
     if args.columns:
         sweep.columns = args.columns.split(",")
+    sweep.allow_outside = tuple(args.allow_outside or ())
     return sweep
 
 
@@ -308,7 +309,8 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
             print(f"target      the cheapest point with an error of at most "
                   f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
                   f"{best.wall_seconds:.2f} s)")
-            print(f"run it      {command_line(args.scene, best, sweep.fixed)}")
+            print(f"run it      "
+                  f"{command_line(args.scene, best, sweep.fixed, sweep.allow_outside)}")
 
 
 def _print_rankings(out: Path) -> None:
@@ -336,7 +338,8 @@ def _cmd_regress(args) -> int:
         raise InputError("--kernels and --no-kernel-study contradict each other: give one")
     kernels = KernelChoice(not args.no_kernel_study, choose_kernels(
         [k.strip() for k in args.kernels.split(",") if k.strip()]) if args.kernels else None)
-    cases, without = find_cases(args.folder, args.baselines, args.scene or (), args.update)
+    cases, without = find_cases(args.folder, args.baselines, args.scene or (), args.update,
+                                args.allow_outside)
     if not cases:
         raise InputError(f"{args.folder}: no scene has a baseline in "
                          f"{args.baselines or Path(args.folder) / 'baselines'} "
@@ -384,6 +387,15 @@ def _run_choices(args) -> dict:
             "substeps": substeps or None}
 
 
+def _add_allow_outside(parser) -> None:
+    """``--allow-outside DIR`` (run, validate, sweep, regress): folders the scene may name
+    files in besides its own (docs/security.md)."""
+    parser.add_argument("--allow-outside", action="append", metavar="DIR",
+                        help="let the scene name files (FMUs, parameter sets) in DIR too, "
+                        "outside its own folder: only for files you trust "
+                        "(docs/security.md); again for more")
+
+
 def _add_run_choices(run_parser) -> None:
     """Options that choose a run's model parameters and what it records (run,
     validate): docs/parameters.md, docs/results.md."""
@@ -398,10 +410,7 @@ def _add_run_choices(run_parser) -> None:
                             "its inputs held over them (a component exchanged once per "
                             "step); auto: each from its FMU's DefaultExperiment stepSize; "
                             "again for more")
-    run_parser.add_argument("--allow-outside", action="append", metavar="DIR",
-                            help="let the scene name files (FMUs, parameter sets) in DIR "
-                            "too, outside its own folder: only for files you trust "
-                            "(docs/security.md); again for more")
+    _add_allow_outside(run_parser)
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "
                             "name,value rows (.csv) or a JSON object (.json); --set wins "
@@ -520,6 +529,7 @@ def _add_sweep(commands) -> None:
                               "(repeatable; docs/doe.md)")
     sweep_parser.add_argument("--target-error", type=float, help="name the cheapest measured "
                               "point whose error is at most this, and its command line")
+    _add_allow_outside(sweep_parser)
     sweep_parser.set_defaults(handler=_cmd_sweep)
 
 
@@ -549,6 +559,7 @@ def _add_regress(commands) -> None:
                                 "for more)")
     regress_parser.add_argument("--rtol", type=float, help="override every case's rtol")
     regress_parser.add_argument("--atol", type=float, help="override every case's atol")
+    _add_allow_outside(regress_parser)
     regress_parser.set_defaults(handler=_cmd_regress)
 
 
