@@ -39,6 +39,16 @@ def test_version_comes_from_the_package_metadata(capsys):
     assert ended.value.code == 0 and capsys.readouterr().out.strip() == f"dsim {version('dsim')}"
 
 
+def test_the_package_description_says_what_dsim_runs():
+    """pyproject's description named FMI 2.0 only; dsim runs FMI 1.0, 2.0 and 3.0 FMUs,
+    both interfaces, from SSP files."""
+    tomllib = pytest.importorskip("tomllib")
+    root = Path(__file__).resolve().parent.parent
+    text = tomllib.loads((root / "pyproject.toml").read_text())["project"]["description"]
+    for said in ("FMI 1.0, 2.0 and 3.0", "co-simulation and Model Exchange", "SSP"):
+        assert said in text, text
+
+
 def test_a_subcommands_wrong_option_prints_that_subcommands_usage(built):
     done = subprocess.run([sys.executable, "-m", "dsim", "run",
                            str(built["ssp"] / "spring_mass_linear.ssp"), "--stpo", "1"],
