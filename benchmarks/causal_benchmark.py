@@ -1,7 +1,7 @@
 """Causal systems: dsim's per-step time against fmpy's own SSP runner and libcosim on
 the same .ssp.
 
-A ring of n first-order lag blocks (tests/third_party/block.c, compiled here with
+A ring of n first-order lag blocks (tests/support/third_party/block.c, compiled here with
 gcc into a real FMI 2.0 co-simulation FMU) connected causally, b1.y -> b2.u ->
 ... -> bn.y -> b1.u, no joints (n = 4: the four-FMU causal scene).  Every master runs
 the same archive: ``fmpy.ssp.simulation.simulate_ssp``, ``dsim.simulate`` (with its
@@ -40,7 +40,7 @@ from fmpy.ssp.simulation import simulate_ssp
 from benchmarks import machine
 import dsim
 from dsim.master.recording.observers import CsvRecorder, StepRecord, _csv_block
-from tests.third_party.build import c_fmu, causal_ring_ssp
+from tests.support.third_party.build import c_fmu, causal_ring_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = 1e-3
@@ -429,7 +429,7 @@ def main(argv=None) -> str:
         f"Written by `python -m benchmarks.causal_benchmark` on {date.today()} "
         f"({machine()}, Python {platform.python_version()}). A ring of n first-order "
         "lag blocks, each a plain-C FMI 2.0 co-simulation FMU compiled in the run "
-        "(tests/third_party/block.c), connected causally (no joints), step 1 ms. Both masters "
+        "(tests/support/third_party/block.c), connected causally (no joints), step 1 ms. Both masters "
         "run the same .ssp archive; so does libcosim (the C++ co-simulation library of the "
         "Open Simulation Platform, through libcosimpy from PyPI, its fixed-step algorithm) "
         "where it is installed. Times are CPU seconds of the process (every thread of it: "
