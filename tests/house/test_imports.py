@@ -7,7 +7,8 @@
 * nothing in the repository imports the folders' old top-level names (``master``,
   ``fmus``, ``build_fmus``, ``serve``, and ``dsim_serve``, serve/'s name before), which
   would load a module twice under two names.  The pythonfmu scripts are the exception:
-  inside an FMU, ``fmus`` is the top-level package beside them.
+  inside an FMU, ``fmus`` is the top-level package beside them;
+* tests and benchmarks share helpers only through ``tests.support``.
 """
 from __future__ import annotations
 
@@ -230,6 +231,28 @@ def test_nothing_imports_the_old_top_level_names():
                          else [])
                 offenders += [f"{path.relative_to(ROOT)}:{node.lineno}: {n}" for n in names
                               if n and n.split(".")[0] in OLD_NAMES]
+    assert offenders == []
+
+
+def test_tests_and_benchmarks_share_helpers_only_through_tests_support():
+    """A test module imports nothing from another test module (they would run its tests'
+    module-level set-up and tie two files together): what several of them use is in
+    tests/support, and benchmarks/ takes it from there too (docs/ci.md)."""
+    offenders = []
+    for path in sorted([*(ROOT / "tests").rglob("*.py"), *(ROOT / "benchmarks").rglob("*.py")]):
+        if "__pycache__" in path.parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                names = ["(relative) " + "." * node.level + (node.module or "")]
+                allowed = "support" in path.relative_to(ROOT).parts
+            else:
+                names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                         [node.module] if isinstance(node, ast.ImportFrom) else [])
+                names = [n for n in names if n and n.split(".")[0] == "tests"]
+                allowed = False
+            offenders += [f"{path.relative_to(ROOT)}:{node.lineno}: {n}" for n in names
+                          if not allowed and not n.startswith("tests.support")]
     assert offenders == []
 
 
