@@ -17,8 +17,7 @@ from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter,
 from dsim.master.recording.results import RunResult
 from dsim.master.running.backends.base import BACKEND_OPTIONS
 from dsim.master.running.collector import collector_paused
-from dsim.master.running import ray_cluster
-from dsim.master.running.backends import ray_spares
+from dsim.master.running.backends import BACKENDS
 from dsim.master.running.execution import Execution
 from dsim.master.scene import Scene
 from dsim.master.settings import resolve
@@ -104,15 +103,16 @@ def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress:
     keywords are as :func:`prepare` takes them.  Raises InputError for bad input, before
     anything runs.
     """
-    if settings.get("backend") == "ray":  # a script on its own Ray instance, or a
-        # cluster's address: the workers start while the scene is read and planned
-        ray_cluster.connect_ahead(settings.get("address"))
-        ray_spares.ahead()
+    # a cluster's workers start while the scene is read and planned (Backend.ahead)
+    backend = BACKENDS.get(settings.get("backend") or "")
+    if backend is not None:
+        backend.ahead(settings)
     try:
         return _simulate(scene, out, statistics, plot, mat, progress, observers,
                          handle_signals, force, settings)
     finally:
-        ray_cluster.release()  # a connection made ahead that no backend took
+        if backend is not None:
+            backend.release_ahead()  # a connection made ahead that no backend took
 
 
 def _simulate(scene, out, statistics, plot, mat, progress, observers, handle_signals,
