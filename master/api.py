@@ -25,7 +25,7 @@ from dsim.master.settings import resolve
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
-            substeps=None, **settings):
+            substeps=None, fmu_log: bool = False, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -50,11 +50,16 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     whose FMUs sit beside them and that the user trusts (docs/security.md).
     ``substeps``: communication steps per macro step of components exchanged once per
     step, their inputs held (``{"controller": 10}``; ``"auto"``: each from its FMU's
-    DefaultExperiment stepSize; docs/third_party.md).
+    DefaultExperiment stepSize; docs/third_party.md).  ``fmu_log``: every log category
+    of every FMU on and each message printed to stderr (default: only the warning and
+    error categories an FMU declares; docs/third_party.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     with collector_paused():  # 10,000 components: millions of objects, few cycles
-        return _prepare(scene, load_libraries, strict, parameters, outputs,
+        plan = _prepare(scene, load_libraries, strict, parameters, outputs,
                         output_interval, solver, allow_outside, settings, substeps)
+    if fmu_log:
+        plan = replace(plan, specs=tuple(replace(s, fmu_log=True) for s in plan.specs))
+    return plan
 
 
 def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval, solver,

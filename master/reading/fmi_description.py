@@ -130,6 +130,8 @@ class FmuDescription:
     defaultExperiment: object = None
     #: variables the FMU declares that dsim cannot exchange (Clock, Binary): name -> type
     unsupported: dict = field(default_factory=dict)
+    #: the names of the FMU's LogCategories, in its order
+    log_categories: tuple[str, ...] = ()
 
     @property
     def major(self) -> int:
@@ -245,7 +247,8 @@ def _description(md) -> FmuDescription:
         dependencies=dependencies, description=md.description or "",
         generationTool=md.generationTool or "", author=md.author or "",
         version=md.version or "", defaultExperiment=md.defaultExperiment,
-        unsupported=unsupported)
+        unsupported=unsupported,
+        log_categories=tuple(c.name for c in md.logCategories if c.name))
 
 
 _BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")

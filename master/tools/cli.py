@@ -365,7 +365,7 @@ def _run_choices(args) -> dict:
     return {"parameters": given_parameters(args.set_file, args.set),
             "outputs": args.outputs, "output_interval": args.output_interval,
             "solver": solver, "allow_outside": args.allow_outside,
-            "substeps": substeps or None}
+            "substeps": substeps or None, "fmu_log": args.fmu_log}
 
 
 def _add_run_choices(run_parser) -> None:
@@ -382,6 +382,11 @@ def _add_run_choices(run_parser) -> None:
                             "its inputs held over them (a component exchanged once per "
                             "step); auto: each from its FMU's DefaultExperiment stepSize; "
                             "again for more")
+    run_parser.add_argument("--fmu-log", action="store_true",
+                            help="every log category of every FMU on, each message printed "
+                            "to stderr as it comes (default: only the categories of "
+                            "warnings and errors an FMU declares, its last messages kept "
+                            "for the error messages)")
     run_parser.add_argument("--allow-outside", action="append", metavar="DIR",
                             help="let the scene name files (FMUs, parameter sets) in DIR "
                             "too, outside its own folder: only for files you trust "

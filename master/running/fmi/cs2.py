@@ -30,7 +30,8 @@ from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
 from dsim.master.running.fmi.checkpoint import Checkpoint
 from dsim.master.running.fmi import library
-from dsim.master.running.fmi.messages import CALLBACKS2, errors_logged, forget, logged_error
+from dsim.master.running.fmi.messages import (CALLBACKS2, ask_for_logging, errors_logged, forget,
+                                             logged_error)
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
@@ -213,6 +214,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
         self._initializing = True
         self._call("fmi2Instantiate", lambda: self._instantiating(
             lambda: self.fmu.instantiate(callbacks=CALLBACKS2, loggingOn=True)))
+        self._call("fmi2SetDebugLogging", lambda: ask_for_logging(
+            self.fmu, spec.name, description.log_categories, spec.fmu_log))
         self.handle = ctypes.c_void_p(self.fmu.component)
         self._forces = _Batch(self, "Real", [p.force for p in port_dofs])
         # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
