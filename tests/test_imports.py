@@ -330,3 +330,26 @@ def test_the_fmu_scripts_import_fmus_as_the_fmu_holds_it():
         roots = {(n.module or "").split(".")[0] for n in ast.walk(ast.parse(script.read_text()))
                  if isinstance(n, ast.ImportFrom) and not n.level}
         assert "fmus" in roots and "dsim" not in roots, script
+
+
+#: the modules of the master that may import fmpy: the FMI boundary (running/fmi/, the
+#: one description reader) and the SSP reader (fmpy's SSD schema, not FMI)
+FMPY_USERS = ("dsim.master.running.fmi", "dsim.master.reading.fmi_description",
+              "dsim.master.reading.ssp")
+
+
+def test_fmi_is_called_only_at_the_fmi_boundary():
+    """Nothing outside running/fmi/ and reading/fmi_description.py imports fmpy (the
+    causal kernel, once in the in-process backend, lives beside fused_step), so that
+    every FMI call is made, timed and checked in one place."""
+    modules = package_modules()
+    wrong = []
+    for name, path in modules.items():
+        if name.startswith(FMPY_USERS) or not name.startswith("dsim.master"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level
+                     else [])
+            wrong += [f"{name}:{node.lineno}: {n}" for n in names if n.split(".")[0] == "fmpy"]
+    assert wrong == []

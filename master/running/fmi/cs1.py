@@ -15,7 +15,8 @@ import ctypes
 from fmpy.fmi1 import FMU1Slave
 
 from dsim.master.errors import SimulationError
-from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.messages import STATUS
 from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import CALLBACKS1, ask_for_logging
 

@@ -15,7 +15,8 @@ import ctypes
 
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64
 
-from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.messages import STATUS
 from dsim.master.running.fmi.library import sharing
 from dsim.master.running.fmi.messages import ask_for_logging, logger3
 

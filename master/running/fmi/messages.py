@@ -23,7 +23,10 @@ _MESSAGES: dict[str, deque] = {}
 _ERRORS: dict[str, int] = {}
 #: the instances whose every message is printed as it comes (``--fmu-log``)
 _PRINTED: set[str] = set()
-STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+#: the status names every FMI version shares, by number (FMI 1.0, 2.0 and 3.0 agree)
+STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+#: the last status that is not a failure: a call that returns more failed
+WARNING = 1
 #: the words that mark a log category of what goes wrong (logStatusWarning,
 #: logStatusError, ... in the categories FMI 3.0 recommends and most tools declare)
 PROBLEM_WORDS = ("warning", "error", "fatal", "discard")
@@ -44,7 +47,7 @@ def record(name: str, status: int, message: bytes | str | None, category=None) -
     if name in _PRINTED:
         if isinstance(category, bytes):
             category = category.decode("utf-8", "replace")
-        level = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else status
+        level = STATUS.get(status, status)
         print(f"dsim: fmu {name}: [{level}] {category or ''}: {text}", file=sys.stderr,
               flush=True)
 

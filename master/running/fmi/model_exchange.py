@@ -31,7 +31,8 @@ from fmpy.fmi2 import FMU2Model
 from fmpy.fmi3 import FMU3Model
 
 from dsim.master.errors import SimulationError
-from dsim.master.running.fmi.adapter import STATUS, FmpyAdapter
+from dsim.master.running.fmi.adapter import FmpyAdapter
+from dsim.master.running.fmi.messages import STATUS
 from dsim.master.running.fmi.integrator import SolverSettings, make_integrator
 from dsim.master.running.fmi.library import raw, sharing
 from dsim.master.running.fmi.messages import CALLBACKS2, ask_for_logging, logger3
