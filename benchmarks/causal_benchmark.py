@@ -39,7 +39,8 @@ from fmpy.ssp.simulation import simulate_ssp
 
 from benchmarks import machine
 import dsim
-from dsim.master.recording.observers import CsvRecorder, StepRecord, _csv_block
+from dsim.master.recording.observers import CsvRecorder, StepRecord
+from dsim.master.recording.observers.csv_recorder import csv_block
 from tests.support.third_party.build import c_fmu, causal_ring_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -238,7 +239,7 @@ def flush_threads(ssp: Path, folder: Path, stop: float) -> dict:
 
 def csv_formats(ssp: Path, stop: float, repetitions: int) -> dict:
     """Microseconds per row of ways to write the ring's rows as dsim's CSV text, least of
-    ``repetitions``, each checked to give the same text: dsim's ``_csv_block`` (one
+    ``repetitions``, each checked to give the same text: dsim's ``csv_block`` (one
     ``map(repr)`` over a table of the block), ``repr`` of the table's ``tolist()`` with
     its brackets and spaces replaced, and numpy's ``astype(str)`` of the table (the
     same shortest round-trip digits)."""
@@ -257,9 +258,9 @@ def csv_formats(ssp: Path, stop: float, repetitions: int) -> dict:
         cells = np.column_stack((times, np.array([r.values for r in records]))).astype(str)
         return "\n".join(map(",".join, cells.tolist())) + "\n"
 
-    ways = {"map(repr) (dsim)": lambda: _csv_block(records), "repr of tolist()": listed,
+    ways = {"map(repr) (dsim)": lambda: csv_block(records), "repr of tolist()": listed,
             "numpy astype(str)": numpy_text}
-    expected = _csv_block(records)
+    expected = csv_block(records)
     costs = {}
     for name, way in ways.items():
         if way() != expected:
@@ -476,7 +477,7 @@ def main(argv=None) -> str:
         "show in no Python frame, and the clock readings that time them "
         "(`time.perf_counter`). What is left is the execution's step (`_kernel_step`), the "
         "finite check of the row, the recorder's queue (`stepped`) and the CSV rows, "
-        "formatted in blocks on the recorder's flush (`_csv_block`: one `repr` of each "
+        "formatted in blocks on the recorder's flush (`csv_block`: one `repr` of each "
         "double of a block of rows).",
         "",
         *profiled,

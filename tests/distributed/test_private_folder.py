@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 
 from dsim.master.running import private_folder as module
-from dsim.master.running.backends.ray_worker import fault_file
+from dsim.master.running.backends.ray.worker import fault_file
 from dsim.master.running.private_folder import private_folder
-from dsim.master.running.ray_cluster import Shipment, landed, ray_log
+from dsim.master.running.backends.ray.cluster import Shipment, landed, ray_log
 
 #: a user id that is not this process's (nobody), for a folder someone else made
 NOBODY = 65534
@@ -109,7 +109,7 @@ def test_empty_crash_reports_of_ended_workers_are_swept_a_crash_is_kept(shared_t
     import subprocess
     import sys
 
-    from dsim.master.running.backends.ray_worker import sweep_reports
+    from dsim.master.running.backends.ray.worker import sweep_reports
 
     ended = subprocess.Popen([sys.executable, "-c", "pass"])
     ended.wait()

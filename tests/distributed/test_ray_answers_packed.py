@@ -1,5 +1,5 @@
 """What travels between the Ray driver and a worker with thousands of subsystems: the
-answers as two arrays (master/running/backends/ray_worker.py, pack_answers: every vector
+answers as two arrays (master/running/backends/ray/worker.py, pack_answers: every vector
 back to the bit, None where an FMU lacks a kind, answers of another kind sent as they
 were), a batch of calls as one pickle whose loaded copy the driver keeps, and each
 checkpoint as the worker pickled it."""
@@ -7,7 +7,7 @@ import pickle
 
 import numpy as np
 
-from dsim.master.running.backends.ray_worker import pack_answers, unpack_answers
+from dsim.master.running.backends.ray.worker import pack_answers, unpack_answers
 
 
 def round_trip(answers):
@@ -52,7 +52,7 @@ def test_answers_of_other_kinds_or_forms_are_not_packed():
 
 
 def test_a_batch_travels_as_one_pickle_and_the_driver_keeps_the_values_sent():
-    from dsim.master.running.backends.ray_backend import _pickled, _unpacked
+    from dsim.master.running.backends.ray.backend import _pickled, _unpacked
 
     forces = np.array([1.5, -0.0, np.nan])
     batch = [(0, [("trial_step", (forces, 0.25, 1e-3))]), (1, [("@checkpoint", ())])]
@@ -69,7 +69,7 @@ def test_a_batch_travels_as_one_pickle_and_the_driver_keeps_the_values_sent():
 
 
 def test_the_driver_keeps_a_checkpoint_as_the_worker_pickled_it_and_marks_a_failed_one():
-    from dsim.master.running.backends.ray_backend import RayBackend, _Cluster
+    from dsim.master.running.backends.ray.backend import RayBackend, _Cluster
 
     cluster = _Cluster(None, [None], [["a", "b"]])
     cluster.unrestartable, cluster.restarts_left = [None], 1
@@ -103,8 +103,8 @@ def test_a_journal_of_a_subsystem_never_saved_is_boiled_down_not_kept_whole():
     """A worker with a subsystem in no joint (never saved): its journal is boiled down
     to each subsystem's calls since its checkpoint every few batches, as they were
     sent, a failed call marked."""
-    from dsim.master.running.backends.ray_backend import RayBackend, _Cluster
-    from dsim.master.running.backends.ray_recovery import LOG_BATCHES
+    from dsim.master.running.backends.ray.backend import RayBackend, _Cluster
+    from dsim.master.running.backends.ray.recovery import LOG_BATCHES
 
     cluster = _Cluster(None, [None], [["glued", "free"]])
     cluster.unrestartable, cluster.restarts_left = [None], 1

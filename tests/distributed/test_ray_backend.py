@@ -161,7 +161,7 @@ UP_FRONT = ("dsim: warning: a lost worker ends the run: component '{}': its FMU 
 def without_ray_log(lines: list[str]) -> list[str]:
     """``lines`` without the last one when it names the file of what Ray's processes
     said (a worker's death notice reaches the driver when it does), which then holds it."""
-    from dsim.master.running.ray_cluster import ray_log
+    from dsim.master.running.backends.ray.cluster import ray_log
 
     said = re.fullmatch(r"dsim: what Ray's own processes said meanwhile is in (\S+)",
                         lines[-1] if lines else "")
@@ -241,7 +241,7 @@ def test_an_fmu_that_refuses_its_parameters_is_the_same_line_on_the_ray_backend(
 def test_a_scene_file_reaches_a_worker_that_cannot_see_the_drivers_path(ray_local, tmp_path):
     """A mesh file of the scene goes through Ray's object store as the FMUs do: a
     worker on a node without the driver's file lands a copy of the same name."""
-    from dsim.master.running.ray_cluster import Shipment, landed
+    from dsim.master.running.backends.ray.cluster import Shipment, landed
 
     mesh = tmp_path / "plate.vtk"
     mesh.write_bytes(b"a mesh")
@@ -395,7 +395,7 @@ def test_with_no_restarts_a_killed_worker_ends_the_run_saying_so(built, ray_loca
 def test_a_frozen_worker_is_named_with_how_long_it_has_not_answered(built, ray_local):
     """SIGSTOP (a hung node, a worker cut off): what the progress line shows names the
     worker's components and the seconds waited; SIGCONT and the step goes on."""
-    from dsim.master.running.backends.ray_recovery import LATE_SECONDS
+    from dsim.master.running.backends.ray.recovery import LATE_SECONDS
 
     execution = Execution(dsim.prepare(built["ssp"] / "spring_mass_linear.ssp", stop=0.5,
                                        backend="ray"))

@@ -212,7 +212,7 @@ import json, sys
 import ray
 import dsim
 from dsim.master.errors import InputError
-from dsim.master.running.backends import ray_spares
+from dsim.master.running.backends.ray import spares as ray_spares
 
 started = []
 first = ray_spares.ahead
@@ -520,7 +520,7 @@ def test_a_lost_head_ends_a_sweep_within_seconds_its_lost_points_run_again(built
 SPARES_SCRIPT = """
 import json, os, sys, uuid
 import ray
-from dsim.master.running.backends import ray_pool
+from dsim.master.running.backends.ray import pool as ray_pool
 
 ray.init(address=sys.argv[1], logging_level="ERROR", log_to_driver=False)
 space = ray_pool.namespace()

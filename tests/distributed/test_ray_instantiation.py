@@ -11,9 +11,9 @@ import sys
 from collections import Counter
 
 import dsim
-from dsim.master.running.backends import ray_worker
-from dsim.master.running.backends.ray_backend import RayBackend, _shipped_files
-from dsim.master.running.ray_cluster import Shipment
+from dsim.master.running.backends.ray import worker as ray_worker
+from dsim.master.running.backends.ray.backend import RayBackend, _shipped_files
+from dsim.master.running.backends.ray.cluster import Shipment
 
 
 def test_a_worker_lands_each_shipped_file_once_and_gives_the_collector_back(

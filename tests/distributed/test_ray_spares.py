@@ -1,4 +1,4 @@
-"""Spare workers (master/running/backends/ray_spares.py) on the session's local Ray
+"""Spare workers (master/running/backends/ray/spares.py) on the session's local Ray
 instance: a run of a driver that joined Ray leaves as many fresh workers as it used,
 the next run takes them with its numbers unchanged to the last bit, a spare that died
 while it waited is replaced, and the isolated backend leaves none."""
@@ -7,7 +7,7 @@ import signal
 import time
 
 import dsim
-from dsim.master.running.backends import ray_spares
+from dsim.master.running.backends.ray import spares as ray_spares
 from tests.support.runs import same_run, workers
 
 
@@ -92,7 +92,7 @@ def test_the_environment_turns_spares_off_for_a_process():
     import subprocess
     import sys
 
-    code = "from dsim.master.running.backends import ray_spares; print(ray_spares.keeping())"
+    code = "from dsim.master.running.backends.ray import spares as ray_spares; print(ray_spares.keeping())"
     said = {value: subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                                   env={**os.environ, "DSIM_RAY_SPARES": value},
                                   check=True).stdout.strip()

@@ -107,14 +107,15 @@ def test_a_point_goes_on_when_the_sweeps_stop_flag_is_lost(ray_local):
     node of the cluster that held it: the point is not failed for it, it runs on (a
     rerun of a sweep with a point lost with its node failed that point when the flag
     had been on the lost node)."""
-    from dsim.master.sweeps.ray_points import POLL_SECONDS, StopFlag, _StopWhenAsked
+    from dsim.master.running.backends.ray.points import POLL_SECONDS, StopFlag, _StopRequested
 
     flag = ray_local.remote(StopFlag).options(num_cpus=0).remote()
     ray_local.get(flag.get.remote())
     ray_local.kill(flag)
-    watcher = _StopWhenAsked(flag)
+    stop_requested = _StopRequested(flag)
     deadline = time.monotonic() + 20 * POLL_SECONDS
+    answers = set()
     while time.monotonic() < deadline:  # asks, finds the answer an error, asks no more
-        watcher.stepped(None)
+        answers.add(stop_requested())
         time.sleep(POLL_SECONDS / 5)
-    assert watcher.execution is None and watcher.lost
+    assert answers == {0} and stop_requested.lost

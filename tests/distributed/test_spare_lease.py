@@ -1,11 +1,11 @@
-"""A cluster's spare worker waits for a run (master/running/backends/ray_lease.py):
+"""A cluster's spare worker waits for a run (master/running/backends/ray/lease.py):
 taken once, ended when its wait runs out untaken, and once taken when the driver that
 took it is gone; given back, it waits again.  With a job table and an end of the
 test's making, so that the times are the test's."""
 import threading
 import time
 
-from dsim.master.running.backends import ray_lease
+from dsim.master.running.backends.ray import lease as ray_lease
 
 
 class Ends:

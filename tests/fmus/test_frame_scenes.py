@@ -168,13 +168,13 @@ def test_the_fused_glued_trial_gives_the_same_bits_and_counts(built, tmp_path, m
     """A glued trial of an FMU runs as one call (restore, forces, step, positions): the
     run's results are byte-identical to the general path's, with the same FMI calls
     counted."""
-    from dsim.master.running.fmi.cs2 import FmuSubsystem
+    from dsim.master.running.fmi.cs2 import CoSimulation2Subsystem
     from dsim.master.running.subsystem import Subsystem
 
     runs = {}
     for path in ("fused", "general"):
         if path == "general":
-            monkeypatch.setattr(FmuSubsystem, "trial_step", Subsystem.trial_step)
+            monkeypatch.setattr(CoSimulation2Subsystem, "trial_step", Subsystem.trial_step)
         out = tmp_path / f"{path}.csv"
         statistics = simulate(built["ssp"] / "frame_split.ssp", out=out, stop=0.003,
                               handle_signals=False).statistics

@@ -6,7 +6,7 @@ from fmpy.validation import validate_fmu
 
 from dsim.master.reading.ports import PortDof, conventional_ports
 from dsim.master.running.fmi import SubsystemSpec
-from dsim.master.running.fmi.cs2 import FmuSubsystem
+from dsim.master.running.fmi.cs2 import CoSimulation2Subsystem
 
 #: how a child process that ran pythonfmu FMUs through fmpy ends: as the dsim command
 #: does (master/tools/process_exit.py), without the libraries' exit handlers, where
@@ -48,7 +48,7 @@ def test_rollback_through_the_fmu_is_bit_for_bit(built):
     parameters = {"n": ("Integer", 2), "m[1]": ("Real", 10.0), "m[2]": ("Real", 10.0),
                   "k[1]": ("Real", 100.0), "k1[1]": ("Real", 1000.0),
                   "c1[1]": ("Real", 1.4e4), "F0[2]": ("Real", 10.0)}
-    fmu = FmuSubsystem(SubsystemSpec(name="c", path=path, port_dofs=tuple(glued),
+    fmu = CoSimulation2Subsystem(SubsystemSpec(name="c", path=path, port_dofs=tuple(glued),
                                      parameters=parameters,
                                      reads=("x[1]", "x[2]", "v[2]", "a[2]"), writes=(),
                                      start_time=0.0, stop_time=1.0))

@@ -176,12 +176,83 @@ def test_each_folder_of_the_master_imports_only_the_folders_before_it():
             allowed = allowed | {"api"}  # the tools are callers of the API
         for other in imports(name, path, modules):
             target = _folder(other)
+            if target == "settings" and folder in BELOW_SETTINGS:
+                wrong.append(f"{name} -> {other} (nothing below planning reads settings)")
+                continue
             if target in (None, folder, "__init__", "errors", "scene", "settings",
                           "processes") or (
                     target in allowed):
                 continue
             wrong.append(f"{name} -> {other}")
     assert wrong == []
+
+
+#: the folders below planning: they take converted values, never dsim.master.settings
+BELOW_SETTINGS = {"recording", "reading", "running"}
+#: everything that knows Ray, reached from outside only through its package's names
+RAY = "dsim.master.running.backends.ray"
+
+
+def test_ray_is_reached_only_through_its_package():
+    """Ray lives in one folder (docs/architecture.md): outside it, a module of the
+    master imports the package ``running.backends.ray`` (the backends, the sweep's
+    entry) and none of its modules."""
+    modules = package_modules()
+    wrong = [f"{name} -> {other}" for name, path in modules.items()
+             if not (name == RAY or name.startswith(RAY + "."))
+             for other in imports(name, path, modules) if other.startswith(RAY + ".")]
+    assert wrong == []
+    assert any(RAY in imports(n, p, modules) for n, p in modules.items())  # it is used
+
+
+def _package(module: str, path: Path) -> str:
+    return module if path.name == "__init__.py" else module.rpartition(".")[0]
+
+
+def test_no_module_reads_another_packages_private_names():
+    """``from dsim.x.y import _name`` or ``y._name`` (y a module of the package) only
+    inside y's own package: a leading underscore is a package's own business, and a
+    module that reads another's breaks when that package changes (the statistics once
+    read the execution's private counters)."""
+    modules = package_modules()
+    wrong = []
+    for name, path in modules.items():
+        home = _package(name, path)
+        tree = ast.parse(path.read_text())
+        aliases = {}  # local name -> package module it is bound to
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and not node.level and node.module in modules:
+                for alias in node.names:
+                    full = f"{node.module}.{alias.name}"
+                    if full in modules:
+                        aliases[alias.asname or alias.name] = full
+                    elif (alias.name.startswith("_") and not alias.name.startswith("__")
+                          and _package(node.module, modules[node.module]) != home):
+                        wrong.append(f"{name}:{node.lineno}: {node.module}.{alias.name}")
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.asname and alias.name in modules:
+                        aliases[alias.asname] = alias.name
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.value.id in aliases and node.attr.startswith("_")
+                    and not node.attr.startswith("__")):
+                other = aliases[node.value.id]
+                if _package(other, modules[other]) != home:
+                    wrong.append(f"{name}:{node.lineno}: {other}.{node.attr}")
+    assert wrong == []
+
+
+def test_fmpys_private_names_are_used_in_one_module_only():
+    """fmpy's private names (``_loadFunctions``, ``_functions``) are used by
+    running/fmi/library.py and nowhere else, so that a new fmpy that changes them
+    breaks one module (tests/running/test_fmpy_private_names.py checks them)."""
+    users = []
+    for path in sorted((ROOT / "master").rglob("*.py")):
+        text = path.read_text()
+        if "_loadFunctions" in text or "._functions" in text:
+            users.append(path.relative_to(ROOT).as_posix())
+    assert users == ["master/running/fmi/library.py"]
 
 
 # One fresh interpreter imports the third-party libraries once, then forks a child per
@@ -290,3 +361,26 @@ def test_the_fmu_scripts_import_fmus_as_the_fmu_holds_it():
         roots = {(n.module or "").split(".")[0] for n in ast.walk(ast.parse(script.read_text()))
                  if isinstance(n, ast.ImportFrom) and not n.level}
         assert "fmus" in roots and "dsim" not in roots, script
+
+
+#: the modules of the master that may import fmpy: the FMI boundary (running/fmi/, the
+#: one description reader) and the SSP reader (fmpy's SSD schema, not FMI)
+FMPY_USERS = ("dsim.master.running.fmi", "dsim.master.reading.fmi_description",
+              "dsim.master.reading.ssp")
+
+
+def test_fmi_is_called_only_at_the_fmi_boundary():
+    """Nothing outside running/fmi/ and reading/fmi_description.py imports fmpy (the
+    causal kernel, once in the in-process backend, lives beside fused_step), so that
+    every FMI call is made, timed and checked in one place."""
+    modules = package_modules()
+    wrong = []
+    for name, path in modules.items():
+        if name.startswith(FMPY_USERS) or not name.startswith("dsim.master"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level
+                     else [])
+            wrong += [f"{name}:{node.lineno}: {n}" for n in names if n.split(".")[0] == "fmpy"]
+    assert wrong == []

@@ -1,5 +1,5 @@
 """The statistics JSON: indented for a small scene; with many components one line per
-top-level key and per component, the same data (master/recording/observers.py)."""
+top-level key and per component, the same data (master/recording/observers/statistics_writer.py)."""
 import json
 import math
 

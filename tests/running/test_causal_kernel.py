@@ -1,4 +1,4 @@
-"""The causal kernel (dsim.master.running.backends.inprocess.CausalKernel) against the
+"""The causal kernel (dsim.master.running.fmi.causal_kernel.CausalKernel) against the
 template step it replaces: a system without joints must give the same CSV, byte for
 byte, the same ending and the same FMI calls counted whether its steps go through the
 kernel or through the coupling's template step (one exchange_with per subsystem).

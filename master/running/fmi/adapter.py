@@ -20,7 +20,6 @@ from dsim.master.running.fmi.messages import errors_logged, forget, logged_error
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
-STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 
 
 class FmpyAdapter(Checkpoint, Subsystem):

@@ -15,7 +15,10 @@
  * do: a step that would end past the stopTime of fmi2SetupExperiment, by any amount
  * (round-off too), returns fmi2Error.  Compiled with -DINSTANTIATE_FAILS=3 (or 4) fmi2Instantiate
  * logs an error (a fatal error) and returns NULL; with -DNO_STATE it implements no
- * state saving. */
+ * state saving.  Compiled with -DCHATTY it logs CHATTY messages of category logEvents
+ * per step while that category is on (every category is at instantiation with logging
+ * on; fmi2SetDebugLogging chooses), counting them in the Integer output logged, as
+ * some tools' FMUs log every event. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -24,7 +27,7 @@
 
 /* value references: Real, Integer and Boolean variables are numbered separately */
 enum { R_GAIN, R_TAU, R_Y0, R_FAIL_TIME, R_U, R_Y, N_REALS };
-enum { I_FAILURE, I_EXTRA, I_COUNT, N_INTEGERS };
+enum { I_FAILURE, I_EXTRA, I_COUNT, I_LOGGED, N_INTEGERS };
 enum { B_ENABLE, B_POSITIVE, N_BOOLEANS };
 enum { S_LABEL, S_NOTE, S_STATUS, N_STRINGS };
 #define TEXT 256
@@ -38,6 +41,7 @@ typedef struct {
     double stop;      /* fmi2SetupExperiment's stopTime, when defined */
     int stop_defined;
     int failed;  /* a simulated failure happened: fmi2Terminate fails too */
+    int events;  /* the logEvents category is on */
     char name[128];
     fmi2CallbackFunctions cb;
 } Model;
@@ -50,7 +54,13 @@ static void log_message(Model *m, fmi2Status status, const char *text) {
 FMI2_Export const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 FMI2_Export const char *fmi2GetVersion(void) { return fmi2Version; }
 FMI2_Export fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n,
-                                           const fmi2String cats[]) { return fmi2OK; }
+                                           const fmi2String cats[]) {
+    Model *m = c;
+    m->events = on && n == 0;  /* no category named: all of them */
+    for (size_t k = 0; on && k < n; k++)
+        if (cats[k] && strcmp(cats[k], "logEvents") == 0) m->events = 1;
+    return fmi2OK;
+}
 
 FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid,
                                           fmi2String resources,
@@ -65,6 +75,7 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2St
     Model *m = calloc(1, sizeof(Model));
     if (!m) return NULL;
     m->cb = *functions;
+    m->events = logging;
     snprintf(m->name, sizeof m->name, "%s", name ? name : "block");
     m->r[R_GAIN] = 0.9; m->r[R_TAU] = 0.1; m->r[R_Y0] = 1.0; m->r[R_FAIL_TIME] = 1e300;
     m->b[B_ENABLE] = fmi2True;
@@ -220,6 +231,13 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
         r[R_Y] = target + (r[R_Y] - target) * exp(-h / r[R_TAU]);
     }
     m->i[I_COUNT] += 1;
+#ifdef CHATTY
+    for (int k = 0; m->events && m->cb.logger && k < CHATTY; k++) {
+        m->cb.logger(m->cb.componentEnvironment, m->name, fmi2OK, "logEvents",
+                     "block: event %d of the step to t = %g", k, t + h);
+        m->i[I_LOGGED] += 1;
+    }
+#endif
     m->b[B_POSITIVE] = r[R_Y] > 0.0;
     snprintf(m->s[S_STATUS], TEXT, "%.60s:%.120s:%d", m->s[S_LABEL], m->s[S_NOTE],
              m->i[I_COUNT]);

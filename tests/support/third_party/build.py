@@ -64,9 +64,12 @@ BLOCK_VARIABLES = (
 
 
 def model_description(identifier: str, variables, can_save_state: bool = True,
-                      variable_step: bool = True) -> str:
-    """modelDescription.xml of a C FMU (the start values must be the C code's own)."""
+                      variable_step: bool = True, log_categories=()) -> str:
+    """modelDescription.xml of a C FMU (the start values must be the C code's own),
+    declaring ``log_categories`` (names) when given."""
     listed = list(variables)
+    categories = "".join(f'<Category name="{c}"/>' for c in log_categories)
+    categories = f"\n  <LogCategories>{categories}</LogCategories>" if categories else ""
     outputs = "".join(f'<Unknown index="{i + 1}"/>' for i, v in enumerate(listed)
                       if v.causality == "output")
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -74,7 +77,7 @@ def model_description(identifier: str, variables, can_save_state: bool = True,
     variableNamingConvention="structured" numberOfEventIndicators="0">
   <CoSimulation modelIdentifier="{identifier}"
       canHandleVariableCommunicationStepSize="{str(variable_step).lower()}"
-      canGetAndSetFMUstate="{str(can_save_state).lower()}"/>
+      canGetAndSetFMUstate="{str(can_save_state).lower()}"/>{categories}
   <ModelVariables>
 {chr(10).join(v.xml() for v in listed)}
   </ModelVariables>
@@ -110,9 +113,11 @@ OSCILLATOR_VARIABLES = (
 
 
 def c_fmu(folder: Path, name: str, source: str = "block.c", variables=BLOCK_VARIABLES,
-          can_save_state: bool = True, variable_step: bool = True, defines=()) -> Path:
+          can_save_state: bool = True, variable_step: bool = True, defines=(),
+          log_categories=()) -> Path:
     """Compile ``source`` (a file of this folder) and pack ``folder/name.fmu``; its
-    model identifier is the source's stem."""
+    model identifier is the source's stem; ``log_categories``: the LogCategories its
+    description declares."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     identifier = Path(source).stem
@@ -122,23 +127,26 @@ def c_fmu(folder: Path, name: str, source: str = "block.c", variables=BLOCK_VARI
     fmu = folder / f"{name}.fmu"
     with zipfile.ZipFile(fmu, "w") as archive:
         archive.writestr("modelDescription.xml", model_description(
-            identifier, variables, can_save_state, variable_step))
+            identifier, variables, can_save_state, variable_step, log_categories))
         archive.write(library, f"binaries/linux64/{identifier}.so")
     library.unlink()
     return fmu
 
 
 def causal_ring_ssp(path: Path, fmu: Path, count: int, stop: float = 1.0,
-                    step: float = 1e-3) -> Path:
+                    step: float = 1e-3, integer_outputs=()) -> Path:
     """An .ssp of ``count`` block FMUs in a ring of causal connections (b1.y -> b2.u
     -> ... -> b<count>.y -> b1.u), every connector declared as fmpy's SSP runner
-    needs; no parameter bindings (every block runs on its start values)."""
+    needs (and the Integer outputs ``integer_outputs``, recorded); no parameter
+    bindings (every block runs on its start values)."""
     names = [f"b{i + 1}" for i in range(count)]
     components = "\n".join(
         f'      <ssd:Component name="{n}" source="resources/block.fmu">\n'
         '        <ssd:Connectors>\n'
         '          <ssd:Connector name="u" kind="input"><ssc:Real/></ssd:Connector>\n'
         '          <ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>\n'
+        + "".join(f'          <ssd:Connector name="{o}" kind="output"><ssc:Integer/>'
+                  '</ssd:Connector>\n' for o in integer_outputs) +
         '        </ssd:Connectors>\n'
         '      </ssd:Component>' for n in names)
     connections = "\n".join(

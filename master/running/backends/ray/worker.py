@@ -21,11 +21,11 @@ import numpy as np
 
 from dsim.master.processes import process_alive
 from dsim.master.running.backends.base import terminate_all
-from dsim.master.running.backends.ray_lease import Lease
+from dsim.master.running.backends.ray.lease import Lease
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.private_folder import private_folder
 from dsim.master.running.fmi import open_subsystem
-from dsim.master.running.ray_cluster import landed
+from dsim.master.running.backends.ray.cluster import landed
 
 #: the pseudo-methods of :meth:`Host.run` that take or restore a checkpoint, and that
 #: take a call again that raised an error the first time (a step an FMU discarded)
@@ -89,16 +89,16 @@ class Host:
         self.written = []
         self.initialized = []
         self._faults = None  # the crash report's file, from the first FMU on (open)
-        #: a spare kept in the cluster for a later command (ray_pool.py): its wait
+        #: a spare kept in the cluster for a later command (pool.py): its wait
         self._lease = Lease(spare_seconds) if spare_seconds is not None else None
 
     def ready(self) -> int:
-        """This worker's process id, once it has started (ray_spares.py)."""
+        """This worker's process id, once it has started (spares.py)."""
         return os.getpid()
 
     def claim(self, job: str) -> int | None:
         """Take this spare of the cluster for the driver of Ray job ``job``
-        (ray_pool.py): its process id, or None when another driver took it first,
+        (pool.py): its process id, or None when another driver took it first,
         its wait ran out, or it is no such spare."""
         taken = self._lease is not None and self._lease.take(job)
         return os.getpid() if taken else None
@@ -109,7 +109,7 @@ class Host:
 
     def open(self, specs, files) -> dict:
         """Instantiate the FMUs of ``specs`` from the shipped ``files`` (for each, its
-        FMU and its scene files by parameter, :class:`~dsim.master.running.ray_cluster.Shipment`);
+        FMU and its scene files by parameter, :class:`~dsim.master.running.backends.ray.cluster.Shipment`);
         where this worker runs."""
         import ray
 
@@ -174,7 +174,7 @@ class Host:
 
     def run_pickled(self, calls: bytes, first: int) -> bytes | tuple:
         """:meth:`run_packed` of a batch the driver sent as one pickle
-        (ray_backend._pickled: Ray's own serialization of thousands of arrays costs
+        (backend._pickled: Ray's own serialization of thousands of arrays costs
         the driver more).  Loaded here, in a worker that trusts its driver as Ray's
         own calls do (Ray pickles every call's arguments).  The answer goes back the
         same way, as bytes (checkpoints are a dict per subsystem), or as it is when

@@ -7,7 +7,7 @@ pins it there with Ray's node-affinity scheduling (``soft=False``: that node or 
 A placement group with the ``STRICT_SPREAD`` strategy would promise the same, but its
 bundles must reserve resources (dsim's workers reserve none, so that any number share a
 node) and a bundle cannot move to another node when a worker is started again after
-its node is lost (ray_recovery.py picks that node by the same rule, the least loaded).
+its node is lost (recovery.py picks that node by the same rule, the least loaded).
 
 The rule: the workers of placed components first, each on the node holding its Ray
 resource that has the fewest of this run's workers so far; then the workers of the

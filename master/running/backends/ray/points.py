@@ -1,9 +1,10 @@
 """``dsim sweep --backend ray``: the points of a sweep side by side, one per Ray worker.
 
 Each point is an independent run: a Ray task (one CPU) that runs it in-process
-inside its worker and returns its result, with its results CSV and statistics as
-bytes that the driver writes into the sweep's folder (so a worker on another
-machine needs no shared folder).  The driver keeps one point per CPU of the cluster
+inside its worker (the sweep's own function, :func:`dsim.master.sweeps.point.run_in_worker`)
+and returns its result, with its results CSV and statistics as bytes that the driver
+hands to the sweep, which writes them into its folder (so a worker on another
+machine needs no shared folder).  This module knows Ray, not what a point is.  The driver keeps one point per CPU of the cluster
 in flight, hands points on as they finish and submits the next.  SIGINT or SIGTERM
 on the driver raise a flag (a small actor) that every running point looks at
 between steps: it ends after its current step, as interrupted, with its converged
@@ -13,7 +14,7 @@ A point lost to the infrastructure is run again from its start: one lost with a 
 (a node of the cluster was lost meanwhile) up to ``restarts`` times (default 3), then
 it is ``lost`` (a rerun of the sweep runs it again); one whose worker died while every
 node stayed once more, and if it dies again it ``failed`` (its FMU ends its process).
-A lost head (its GCS) ends the sweep within seconds (the head watch of ray_cluster.py):
+A lost head (its GCS) ends the sweep within seconds (the head watch of cluster.py):
 the points under way are ``lost``, the finished ones kept; :class:`HeadLost` says which.
 """
 from __future__ import annotations
@@ -22,20 +23,14 @@ import atexit
 import os
 import signal
 import sys
-import tempfile
 import threading
 import time as clock
 from pathlib import Path
 
-from dsim.master.api import prepare
-from dsim.master.errors import InputError, SimulationError
-from dsim.master.recording.observers import CsvRecorder, Observer, StatisticsWriter
-from dsim.master.recording.output_files import write_whole
-from dsim.master.recording.results import RunResult
-from dsim.master.running.backends.ray_recovery import RESTARTS
-from dsim.master.running.execution import Execution
-from dsim.master.running.ray_cluster import Shipment, connect, landed, listening, watch_head
-from dsim.master.sweeps.point import PointRun, keywords
+from dsim.master.errors import SimulationError
+from dsim.master.running.backends.ray.cluster import (Shipment, connect, landed, listening,
+                                                      watch_head)
+from dsim.master.running.backends.ray.recovery import RESTARTS
 
 #: the settings that choose where the sweep runs, not how each point runs
 WHERE = ("backend", "address", "restarts")
@@ -71,10 +66,14 @@ class StopFlag:
         return self.number
 
 
-def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) -> None:
+def run_points(scene, configurations, fixed: dict, finish, work, ended) -> None:
     """Run every configuration (``(k, settings and parameters)`` pairs, with the
-    ``fixed`` settings) as a Ray task; call ``finish(k, PointRun)`` for each as it
-    ends, its files written in ``out`` as ``point_{k + 1:03d}``."""
+    ``fixed`` settings) as a Ray task: ``work(scene, settings, name, stop_requested)``
+    in a worker (a module-level function: Ray ships it by name), which returns
+    ``(run, files)``, files as ``{suffix: bytes}``; ``stop_requested()`` is 0 or the
+    number of the signal that interrupted the sweep.  ``finish(k, run, files)`` is
+    called on this process for each as it ends; ``ended(status, message)`` makes the
+    run of a point that did not run (lost, failed), with no files."""
     connection = connect(fixed.get("address"))
     ray = connection.ray
     # the flag on the driver's own node: anywhere else its node may be lost (Ray put it
@@ -117,8 +116,9 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
             # one point per CPU in flight: after an interrupt, none more
             while waiting and len(pending) < width and not caught and not head_lost:
                 k, settings = waiting.pop()
-                pending[task.remote(str(scene), shipped, {**point_settings, **settings},
-                                    f"point_{k + 1:03d}", stop)] = k
+                pending[task.remote(work, str(scene), shipped,
+                                    {**point_settings, **settings}, f"point_{k + 1:03d}",
+                                    stop)] = k
             if not pending:
                 break
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
@@ -126,22 +126,20 @@ def run_points(scene, configurations, fixed: dict, out: Path, inputs, finish) ->
                 if head_lost:
                     break
                 k = pending.pop(ref)
-                run = _collect(ray, ref, out / f"point_{k + 1:03d}.csv", inputs, nodes)
-                if isinstance(run, _LostPoint):
-                    run = _again(k, run, losses.setdefault(k, []), limit)
+                answer = _collect(ray, ref, nodes, ended)
+                if isinstance(answer, _LostPoint):
+                    run = _again(k, answer, losses.setdefault(k, []), limit, ended)
                     if run is None and not caught:
                         waiting.append((k, chosen[k]))  # next, before the others
                         continue
-                    run = run or PointRun(RunResult(
-                        "interrupted", "lost with its worker, not run again: the sweep was "
-                        "interrupted", 0.0, 0, statistics={}), wall_seconds=0.0)
-                finish(k, run)
+                    answer = (run or ended("interrupted", "lost with its worker, not run "
+                                           "again: the sweep was interrupted"), {})
+                finish(k, *answer)
         if head_lost:
             lost = sorted(k + 1 for k in pending.values())
             for k in sorted(pending.values()):
-                finish(k, PointRun(RunResult(
-                    "lost", f"{head_lost[0]} while the point ran; a rerun of the sweep runs "
-                    "it again", 0.0, 0, statistics={}), wall_seconds=0.0))
+                finish(k, ended("lost", f"{head_lost[0]} while the point ran; a rerun of "
+                                "the sweep runs it again"), {})
             named = ", ".join(map(str, lost)) or "none"
             raise HeadLost(f"{head_lost[0]}: the points under way are lost ({named}; a "
                            "rerun of the sweep into the same folder runs them and those "
@@ -181,40 +179,30 @@ class _LostPoint:
         self.said, self.node_lost = said, node_lost
 
 
-def _again(k: int, lost: _LostPoint, said: list[str], limit: int) -> PointRun | None:
+def _again(k: int, lost: _LostPoint, said: list[str], limit: int, ended):
     """None when point ``k`` is to run again after ``lost``, else how it ended: lost
     (with a node, over and over) or failed (its worker died twice, every node there)."""
     said.append(lost.said)
     if lost.node_lost:
         if len(said) <= limit:
             return None
-        return PointRun(RunResult("lost", f"lost with a node of the cluster {len(said)} "
-                                  f"times ({lost.said}); a rerun of the sweep runs it again",
-                                  0.0, 0, statistics={}), wall_seconds=0.0)
+        return ended("lost", f"lost with a node of the cluster {len(said)} times "
+                     f"({lost.said}); a rerun of the sweep runs it again")
     if len(said) < 2:
         return None  # a killed worker, or an FMU that ends its process: once more
-    return PointRun(RunResult("failed", "the worker process running the point died twice, "
-                              f"every node of the cluster there: the FMU ends its process "
-                              f"({lost.said})", 0.0, 0, statistics={}), wall_seconds=0.0)
+    return ended("failed", "the worker process running the point died twice, every node "
+                 f"of the cluster there: the FMU ends its process ({lost.said})")
 
 
-def _collect(ray, ref, results: Path, inputs, nodes: set) -> PointRun | _LostPoint:
-    """The point's run, its files written at ``results``; _LostPoint when its worker
-    was lost (killed, its FMU crashed, its node lost: one of ``nodes``, those there
-    when the sweep began)."""
+def _collect(ray, ref, nodes: set, ended):
+    """The point's ``(run, files)``; _LostPoint when its worker was lost (killed, its
+    FMU crashed, its node lost: one of ``nodes``, those there when the sweep began)."""
     try:
-        answer = ray.get(ref)
+        return ray.get(ref)
     except ray.exceptions.RayTaskError as error:  # dsim's own, a bug: said as it is
-        message = f"the point's task failed: {str(error).splitlines()[0]}"
-        return PointRun(RunResult("failed", message, 0.0, 0, statistics={}), wall_seconds=0.0)
+        return ended("failed", f"the point's task failed: {str(error).splitlines()[0]}"), {}
     except ray.exceptions.RayError as error:
         return _LostPoint(str(error).strip().splitlines()[0], _a_node_lost(ray, nodes))
-    run, files = answer
-    if run.result is not None:
-        for suffix, data in files.items():
-            write_whole(results.with_suffix(suffix), data, inputs)
-        run.results = results
-    return run
 
 
 def _a_node_lost(ray, nodes: set) -> bool:
@@ -240,64 +228,41 @@ def _a_node_lost(ray, nodes: set) -> bool:
     return False
 
 
-class _StopWhenAsked(Observer):
-    """Ends its run after the current step once the flag is up.  It asks every
-    ``POLL_SECONDS`` and looks at the answer without waiting for it: a task that
-    waits on Ray lends its CPU to another task, which would start a point too many."""
+class _StopRequested:
+    """``stop_requested()`` for a point's run: 0, or the number of the signal that
+    interrupted the sweep.  It asks the flag every ``POLL_SECONDS`` and looks at the
+    answer without waiting for it: a task that waits on Ray lends its CPU to another
+    task, which would start a point too many."""
 
     def __init__(self, flag):
         self.flag = flag
-        self.execution = None
         self._asked = None
         self._when = clock.monotonic()
         #: the flag is lost (with the driver's node, or the driver): nobody can ask
         #: this point to stop any more, and that is no reason for it to fail
         self.lost = False
 
-    def stepped(self, record):
+    def __call__(self) -> int:
         import ray
 
         if self.lost:
-            return
+            return 0
         if self._asked is None:
             if clock.monotonic() - self._when >= POLL_SECONDS:
                 self._asked, self._when = self.flag.get.remote(), clock.monotonic()
-            return
+            return 0
         if not ray.wait([self._asked], timeout=0)[0]:
-            return
+            return 0
         try:
             number, self._asked = ray.get(self._asked), None
         except ray.exceptions.RayError:
             self.lost, self._asked = True, None
-            return
-        if number:
-            self.execution.stop(f"interrupted by {signal.Signals(number).name}", number)
+            return 0
+        return number
 
 
-def _run_remote(scene: str, shipped, settings: dict, name: str, flag):
-    """A point in a Ray worker: (PointRun, {suffix: file bytes})."""
-
+def _run_remote(work, scene: str, shipped, settings: dict, name: str, flag):
+    """A point in a Ray worker: what ``work`` returns, ``(run, {suffix: file bytes})``."""
     if shipped is not None:
         scene = landed(shipped)
-    with tempfile.TemporaryDirectory(prefix="dsim-point-") as folder:
-        results = Path(folder) / f"{name}.csv"
-        statistics = results.with_suffix(".stats.json")
-        start = clock.perf_counter()
-        try:
-            plan = prepare(scene, **keywords(settings))
-        except InputError as error:
-            return PointRun(problems=list(error.problems)), {}
-        watcher = _StopWhenAsked(flag)
-        execution = Execution(plan, [CsvRecorder(results), StatisticsWriter(statistics),
-                                     watcher])
-        watcher.execution = execution
-        try:
-            result = execution.run(handle_signals=False)
-        except InputError as error:
-            return PointRun(problems=list(error.problems)), {}
-        wall = clock.perf_counter() - start
-        result._signals = result.signals  # read now: the folder goes with the task
-        result.files = {}
-        files = {path.suffix if path.suffix == ".csv" else ".stats.json": path.read_bytes()
-                 for path in (results, statistics) if path.is_file()}
-        return PointRun(result, wall_seconds=wall), files
+    return work(scene, settings, name, _StopRequested(flag))

@@ -1,4 +1,4 @@
-"""The worker side of a cluster's spare workers (ray_pool.py): how long a spare waits
+"""The worker side of a cluster's spare workers (pool.py): how long a spare waits
 to be taken, who took it, and its end when that driver is gone.
 
 A spare kept in a cluster outlives the command that started it (a detached Ray actor),

@@ -2,7 +2,7 @@
 "Spare workers").
 
 Every ``dsim run --address ...`` is a new process and a new Ray job: the spares a
-script keeps (ray_spares.py) end with it, so each command paid the start of its
+script keeps (spares.py) end with it, so each command paid the start of its
 workers (0.3 to 1.5 s a process on these machines) in its set-up.  A run that joined
 a running cluster itself (``--address``) therefore leaves its spares in the cluster
 instead, as detached Ray actors named in a namespace of the user's
@@ -10,7 +10,7 @@ instead, as detached Ray actors named in a namespace of the user's
 its scene.  A spare has hosted nothing: it is a worker process that has started and
 waits.  It ends itself when no run takes it within :func:`wait_seconds`
 (``DSIM_RAY_SPARE_SECONDS``, 600 by default), and, once taken, when the taking driver's
-Ray job ends (ray_lease.py): the run ends its workers itself, this is for a driver
+Ray job ends (lease.py): the run ends its workers itself, this is for a driver
 killed outright.  ``DSIM_RAY_SPARES=0`` turns them off, as it does a script's.
 
 Taking one is a call to the spare itself (:meth:`Host.claim`), which only the first
@@ -144,7 +144,7 @@ def won(ray, call) -> bool:
 def stock(ray, host, options: list[dict]) -> int:
     """Leave spares in the cluster for the next command: one per entry of
     ``options`` (the workers of a run that ended) of components without a placement
-    (the only ones a command claims before its scene is planned: ray_spares.ahead),
+    (the only ones a command claims before its scene is planned: spares.ahead),
     less the spares of that kind already there (not counting those this process
     took).  ``host``: the worker class.  How many it started."""
     options = [o for o in options if not o.get("resources")]

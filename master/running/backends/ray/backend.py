@@ -1,13 +1,13 @@
 """The subsystems in Ray actors: other processes, other machines (docs/distributed.md).
 
 Each worker process is a Ray actor (:class:`Host`) that builds its
-:class:`~dsim.master.running.fmi.cs2.FmuSubsystem` objects itself from their picklable specs, so an
+:class:`~dsim.master.running.fmi.cs2.CoSimulation2Subsystem` objects itself from their picklable specs, so an
 FMU's states never leave the process that holds the instance.  Every batched call of
 the couplings is one remote call per worker (restore, set forces, step and read
 kinematics of each of its subsystems in one message), launched for every worker
 before the first answer is awaited: the workers step side by side, the
 perturbation steps of the flexibility too.  The numbers are the in-process
-backend's to the last bit: the same FmuSubsystem code runs, only elsewhere.
+backend's to the last bit: the same CoSimulation2Subsystem code runs, only elsewhere.
 
 ``ray``: one worker per FMU instance, at most one per CPU of the cluster (beyond
 that, subsystems share workers, dealt round-robin); a component placed with
@@ -26,9 +26,9 @@ state, an FMU that crashed (it left a crash report) and a worker lost again on t
 same call end the run as before, with a line that says which it was.
 
 A run of a driver that joined a Ray instance it did not start takes the spare workers
-the run before left and, as it ends, starts new ones for the next (ray_spares.py); a
+the run before left and, as it ends, starts new ones for the next (spares.py); a
 run that joined a cluster's address itself leaves them in the cluster for the next
-command (ray_pool.py): never a process that hosted FMUs, only the start of a process
+command (pool.py): never a process that hosted FMUs, only the start of a process
 taken out of a set-up.
 """
 from __future__ import annotations
@@ -40,16 +40,17 @@ import time as clock
 
 from dsim.master.errors import InputError, SimulationError
 from dsim.master.running.backends.base import Backend
-from dsim.master.running.backends.ray_recovery import (CHECKPOINT_EVERY, RESTARTS, Recovery,
+from dsim.master.running.backends.ray.recovery import (CHECKPOINT_EVERY, RESTARTS, Recovery,
                                                        _cause, _first_line, _quoted,
                                                        _unrestartable, _who)
-from dsim.master.running.backends import ray_pool, ray_spares
+from dsim.master.running.backends.ray import pool, spares
 from dsim.master.running.collector import freeze, thaw
-from dsim.master.running.backends.ray_placement import Placement
-from dsim.master.running.backends.ray_worker import (CHECKPOINT, WORKER_OPTIONS, Host, deal,
+from dsim.master.running.backends.ray.placement import Placement
+from dsim.master.running.backends.ray.worker import (CHECKPOINT, WORKER_OPTIONS, Host, deal,
                                                      unpack_answers)
-from dsim.master.running.ray_cluster import (INSTALL, Shipment, address_problem, available,
-                                             connect, starts_ray)
+from dsim.master.running.backends.ray.cluster import (INSTALL, Shipment, address_problem,
+                                                      available, connect, connect_ahead,
+                                                      ray_log_line, release, starts_ray)
 
 #: seconds to wait for the workers to start and instantiate their FMUs
 START_SECONDS = 300.0
@@ -143,6 +144,23 @@ class RayBackend(Recovery, Backend):
         return found
 
     @classmethod
+    def ahead(cls, settings: dict) -> None:
+        """Join the cluster at the run's ``address`` and start spare workers while the
+        scene is read and planned (cluster.connect_ahead, spares.ahead)."""
+        connect_ahead(settings.get("address"))
+        spares.ahead()
+
+    @classmethod
+    def release_ahead(cls) -> None:
+        """End the connection :meth:`ahead` made when no run took it."""
+        release()
+
+    @classmethod
+    def log_line(cls) -> str | None:
+        """The line naming Ray's own log when its processes said anything (ray_log_line)."""
+        return ray_log_line()
+
+    @classmethod
     def from_specs(cls, specs, address=None, call_timeout=None, restarts=None,
                    progress=None, **options) -> "RayBackend":
         if progress is not None and starts_ray(address):  # seconds with nothing to show
@@ -172,10 +190,10 @@ class RayBackend(Recovery, Backend):
         shipment = Shipment(ray)
         remote = ray.remote(Host)
         hosts, assigned, members, worker_options = [], [], [None] * len(specs), []
-        started = []  # per worker, how the run got it (ray_spares.NEW, SPARE, ...)
+        started = []  # per worker, how the run got it (spares.NEW, SPARE, ...)
         groups = [(placement, indices, cls._workers(connection, placement, len(indices)))
                   for placement, indices in cls._groups(connection, specs)]
-        # each worker pinned to its node, chosen here (ray_placement.py)
+        # each worker pinned to its node, chosen here (placement.py)
         nodes = Placement(connection, [(placement, n) for placement, _, n in groups])
         spread = {}  # worker number in the group without a placement -> its components
         for placement, indices, count in groups:
@@ -243,36 +261,36 @@ class RayBackend(Recovery, Backend):
     def _keeps_spares(cls, connection) -> bool:
         """Whether runs of this kind on ``connection`` keep spare workers at all: not
         one worker per instance, nor inside a Ray worker (a sweep's point), nor when
-        they are turned off (ray_spares.keep)."""
-        return (ray_spares.keeping() and not cls.one_per_instance
-                and ray_spares.in_driver(connection.ray))
+        they are turned off (spares.keep)."""
+        return (spares.keeping() and not cls.one_per_instance
+                and spares.in_driver(connection.ray))
 
     @classmethod
     def _spares(cls, connection, leaving: bool = False) -> bool:
         """Whether this run takes (or, ``leaving``, leaves) this driver's spare workers
-        (ray_spares.py): it leaves none when it made its connection (the driver ends
+        (spares.py): it leaves none when it made its connection (the driver ends
         with the run, or Ray does), and takes those only when the connection was made
-        ahead of it (ray_cluster.connect_ahead)."""
+        ahead of it (cluster.connect_ahead)."""
         made_by_run = connection.owned and (leaving or not connection.ahead)
         return not made_by_run and cls._keeps_spares(connection)
 
     @classmethod
     def _leaves_in_cluster(cls, connection) -> bool:
         """Whether this run leaves its spares in the cluster for the next command
-        (ray_pool.py): it made its connection to a cluster's address itself."""
+        (pool.py): it made its connection to a cluster's address itself."""
         return bool(connection.owned and connection.address
                     and cls._keeps_spares(connection))
 
     @classmethod
     def _worker(cls, connection, remote, options: dict) -> tuple[object, str]:
-        """A worker with ``options``, and how the run got it (ray_spares.take)."""
+        """A worker with ``options``, and how the run got it (spares.take)."""
         if cls._spares(connection):
-            return ray_spares.take(connection.ray, remote, options)
-        return remote.options(**options).remote(), ray_spares.NEW
+            return spares.take(connection.ray, remote, options)
+        return remote.options(**options).remote(), spares.NEW
 
     def _open(self, opened, started: list[str]) -> list[dict]:
         """Wait for every worker to instantiate its FMUs: their places, each with how
-        the run got the worker (``started``, per worker: ray_spares.NEW, SPARE or
+        the run got the worker (``started``, per worker: spares.NEW, SPARE or
         CLUSTER_SPARE), which the statistics show.  A spare found dead is replaced by a
         new worker, once."""
         ray = self._cluster.connection.ray
@@ -280,7 +298,7 @@ class RayBackend(Recovery, Backend):
         places = []
         for h, ref in enumerate(opened):
             try:
-                place = self._place(h, ref, last=started[h] == ray_spares.NEW)
+                place = self._place(h, ref, last=started[h] == spares.NEW)
                 places.append({**place, "started": started[h]})
             except ray.exceptions.RayActorError:
                 # a spare that died while it waited for a run, before it held anything
@@ -289,7 +307,7 @@ class RayBackend(Recovery, Backend):
                 again = worker.open.remote(self._cluster.specs[h], self._cluster.files[h])
                 self._started({h: again})
                 places.append({**self._place(h, again, last=True),
-                               "started": ray_spares.NEW})
+                               "started": spares.NEW})
         return places
 
     def _started(self, opened: dict) -> None:
@@ -434,7 +452,7 @@ class RayBackend(Recovery, Backend):
 
     def begin_step(self) -> None:
         # a worker that may be started again sends each subsystem's saved state too,
-        # every CHECKPOINT_EVERY steps (ray_recovery.py)
+        # every CHECKPOINT_EVERY steps (recovery.py)
         saving = self._begun % CHECKPOINT_EVERY == 0
         self._begun += 1
         self._run([[("begin_step", ())] + ([(CHECKPOINT, ())] if saving and
@@ -551,10 +569,10 @@ class RayBackend(Recovery, Backend):
             for host in cluster.hosts:
                 ray.kill(host)
             if self._spares(cluster.connection, leaving=True):  # the driver's next run
-                ray_spares.stock(ray, ray.remote(Host), cluster.options)
+                spares.stock(ray, ray.remote(Host), cluster.options)
             elif self._leaves_in_cluster(cluster.connection):
                 try:
-                    ray_pool.stock(ray, Host, cluster.options)  # the next command's
+                    pool.stock(ray, Host, cluster.options)  # the next command's
                 except Exception:  # a spare not left costs the next command its start
                     pass
         finally:
@@ -611,6 +629,10 @@ class IsolatedBackend(RayBackend):
     one_per_instance = True
 
     @classmethod
+    def ahead(cls, settings: dict) -> None:
+        """Nothing: a local instance starts with the run (its workers are the FMUs')."""
+
+    @classmethod
     def problems(cls, **options) -> list[str]:
         found = super().problems(**options)
         if options.get("address"):
@@ -624,8 +646,8 @@ class IsolatedBackend(RayBackend):
 
 
 def _unpacked(answer) -> list:
-    """A worker's :meth:`~dsim.master.running.backends.ray_worker.Host.run_packed`
-    (or ``run_pickled``) answer as :meth:`~dsim.master.running.backends.ray_worker.Host.run` gives it."""
+    """A worker's :meth:`~dsim.master.running.backends.ray.worker.Host.run_packed`
+    (or ``run_pickled``) answer as :meth:`~dsim.master.running.backends.ray.worker.Host.run` gives it."""
     if type(answer) is bytes:  # Host.run_pickled's
         answer = pickle.loads(answer)
     head, packed, rest = answer
@@ -647,7 +669,7 @@ def _pickled(payload) -> bytes | None:
     bytes (chain_10000 on two workers: 1.49 to 1.60 s a step against 1.76 to 1.79 s,
     the driver's CPU 0.71 to 0.83 s against 0.98 to 1.03 s, in turn, 2026-11-27).  The
     driver keeps the bytes themselves as the values sent (the journal of
-    ray_recovery.py): nothing the caller changes after the call reaches them.  Written
+    recovery.py): nothing the caller changes after the call reaches them.  Written
     by hand: Ray has no option to pickle a call's arguments with the C pickler."""
     try:
         return pickle.dumps(payload, protocol=5)

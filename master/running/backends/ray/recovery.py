@@ -1,10 +1,10 @@
 """What the Ray backends do when a worker, a node or the head is lost
 (docs/distributed.md, "What survives what"): :class:`Recovery`, mixed into
-:class:`~dsim.master.running.backends.ray_backend.RayBackend`.
+:class:`~dsim.master.running.backends.ray.backend.RayBackend`.
 
 Every :data:`CHECKPOINT_EVERY` macro steps, at ``begin_step``, each worker that can be
 started again sends the saved state of its subsystems, serialized
-(:data:`~dsim.master.running.backends.ray_worker.CHECKPOINT`), and the driver keeps it
+(:data:`~dsim.master.running.backends.ray.worker.CHECKPOINT`), and the driver keeps it
 with the calls answered since (the journal: the batches as they were sent).  When a call finds
 its worker lost, a fresh worker (on a node that is left) instantiates the same FMUs,
 goes on from that state, takes the journal's calls again and answers the lost call: the
@@ -19,11 +19,11 @@ import time as clock
 
 from dsim.master.errors import SimulationError
 from dsim.master.reading.fmi_description import describe
-from dsim.master.running.backends.ray_spares import NEW
-from dsim.master.running.backends.ray_worker import (CHECKPOINT, FAILED, RESUME, Host,
+from dsim.master.running.backends.ray.spares import NEW
+from dsim.master.running.backends.ray.worker import (CHECKPOINT, FAILED, RESUME, Host,
                                                      crash_report)
-from dsim.master.running.ray_cluster import listening as _listening
-from dsim.master.running.ray_cluster import ray_log, watch_head
+from dsim.master.running.backends.ray.cluster import listening as _listening
+from dsim.master.running.backends.ray.cluster import ray_log, watch_head
 
 #: workers started again in one run, at most, when no ``restarts`` setting says
 RESTARTS = 3
@@ -45,7 +45,7 @@ LOG_BATCHES = 32
 
 
 class Recovery:
-    """The lost-worker half of :class:`~dsim.master.running.backends.ray_backend.RayBackend`
+    """The lost-worker half of :class:`~dsim.master.running.backends.ray.backend.RayBackend`
     (it has ``_cluster``: the workers, their specs, checkpoints and journal, the losses)."""
 
     # --- a lost worker ---------------------------------------------------------
@@ -314,7 +314,7 @@ class Recovery:
 
     def watch_head(self, on_lost) -> None:
         """Call ``on_lost(what)`` from a thread of its own when the cluster's head (its
-        GCS) stops answering (:func:`~dsim.master.running.ray_cluster.watch_head`)."""
+        GCS) stops answering (:func:`~dsim.master.running.backends.ray.cluster.watch_head`)."""
         cluster = self._cluster
         watch_head(cluster.connection.ray,
                    lambda what: on_lost(f"{what}: no worker can be reached"),

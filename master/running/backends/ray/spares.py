@@ -11,17 +11,17 @@ used, on the same nodes with the same options, and the next run takes them inste
 of starting its own: fresh processes that have hosted nothing, ready by the time the
 next scene is read and planned; a run with none kept (the first) starts its workers
 before its scene is read and planned (:func:`ahead`, from ``dsim.simulate``; a run given
-a cluster's address joins it first, ray_cluster.connect_ahead).  A run that made its own
+a cluster's address joins it first, cluster.connect_ahead).  A run that made its own
 connection ends it, and keeps no spare here: one that started Ray itself leaves none,
 one that joined a cluster's address leaves them in the cluster for the next command
-(ray_pool.py), and such a command takes those first (:func:`ahead`).
+(pool.py), and such a command takes those first (:func:`ahead`).
 
 Only a driver keeps spares (a sweep's point runs inside a Ray worker, and leaves
 none).  Spares are kept per Ray session (a new ``ray.init`` forgets the old ones), take
 no CPU of Ray's (``num_cpus=0``, as every worker of dsim's), and end with the driver or
 with :func:`drop`.  A spare found dead (its ready call failed) is not used; one that
 dies between being taken and being used is replaced by a new worker
-(ray_backend.RayBackend._open).
+(backend.RayBackend._open).
 """
 from __future__ import annotations
 
@@ -29,12 +29,12 @@ import os
 import sys
 from collections import Counter
 
-from dsim.master.running import ray_cluster
-from dsim.master.running.backends import ray_pool
-from dsim.master.running.backends.ray_pool import key
+from dsim.master.running.backends.ray import cluster
+from dsim.master.running.backends.ray import pool
+from dsim.master.running.backends.ray.pool import key
 
 #: session -> {options key -> [(actor, its ready call, claimed), ...]}; one session at a
-#: time; ``claimed``: a spare of the cluster (ray_pool.py), whose call is its claim
+#: time; ``claimed``: a spare of the cluster (pool.py), whose call is its claim
 _pool: dict[tuple, dict[tuple, list]] = {}
 #: whether runs leave spares: ``DSIM_RAY_SPARES=0`` in the environment, or :func:`keep`,
 #: turns them off (a shared cluster whose idle processes others need)
@@ -71,7 +71,7 @@ def settle(ray=None, timeout: float = 60.0) -> int:
     ready.  A script that times its runs calls it first, so that the spares' start does
     not slow what it times."""
     if ray is None:
-        ray = ray_cluster.ray_module()
+        ray = cluster.ray_module()
     return len(_started(ray, timeout))
 
 
@@ -101,8 +101,8 @@ def take(ray, remote, options: dict) -> tuple[object, str]:
     kept = _spares(ray).get(key(options), [])
     while kept:
         actor, ready, claimed = kept.pop()
-        if claimed:  # the cluster's (ray_pool.py): only if this driver won it
-            if ray_pool.won(ray, ready):
+        if claimed:  # the cluster's (pool.py): only if this driver won it
+            if pool.won(ray, ready):
                 return actor, CLUSTER_SPARE
             continue  # another's, or gone: not this driver's to end
         done, _ = ray.wait([ready], timeout=0)
@@ -135,17 +135,17 @@ def ahead(ray=None) -> int:
     planned: as many as the cluster has CPUs (the most workers a run of components
     without a placement uses), on the nodes such a run chooses, less those already
     kept; only in a driver connected to Ray that keeps spares.  A command that joined
-    a cluster first claims the spares an earlier command left there (ray_pool.py), and
+    a cluster first claims the spares an earlier command left there (pool.py), and
     when it found any starts none.  How many it took or started."""
-    if not ray_cluster.joined() or not keeping():
+    if not cluster.joined() or not keeping():
         return 0
     ray = ray or sys.modules["ray"]
     if not in_driver(ray):
         return 0
-    from dsim.master.running.backends.ray_placement import Placement
-    from dsim.master.running.backends.ray_worker import WORKER_OPTIONS, Host
+    from dsim.master.running.backends.ray.placement import Placement
+    from dsim.master.running.backends.ray.worker import WORKER_OPTIONS, Host
 
-    connection = ray_cluster.Connection(ray, owned=False)
+    connection = cluster.Connection(ray, owned=False)
     workers = connection.cpus("")
     if workers < 1:
         return 0
@@ -153,9 +153,9 @@ def ahead(ray=None) -> int:
     before = count()
     # the options RayBackend._start gives the workers of components without a placement
     options = [{**WORKER_OPTIONS, **nodes.options("", n)} for n in range(workers)]
-    if ray_cluster.made_ahead() is not None:  # joined a cluster's address for this run
+    if cluster.made_ahead() is not None:  # joined a cluster's address for this run
         spares = _spares(ray)
-        claimed = ray_pool.claim(ray, options)
+        claimed = pool.claim(ray, options)
         for example, actor, call in claimed:
             spares.setdefault(key(example), []).append((actor, call, True))
         if claimed:  # as many as the command before used: no more started ahead (on a
@@ -172,7 +172,7 @@ def pids(ray) -> set[int]:
             pid = ray.get(ready, timeout=0)
         except ray.exceptions.RayError:  # it died before it started
             continue
-        if type(pid) is int:  # not a claim another driver won (ray_pool.py)
+        if type(pid) is int:  # not a claim another driver won (pool.py)
             found.add(pid)
     return found
 
@@ -185,19 +185,19 @@ def count() -> int:
 def drop(ray=None) -> None:
     """End every spare worker (they end with the driver anyway)."""
     if ray is None:
-        ray = ray_cluster.ray_module()
+        ray = cluster.ray_module()
     for spares in _pool.values():
         for kept in spares.values():
             for actor, ready, claimed in kept:
-                if not claimed or ray_pool.won(ray, ready):  # never another's
+                if not claimed or pool.won(ray, ready):  # never another's
                     _kill(ray, actor)
     _pool.clear()
 
 
 def forget() -> None:
     """Let go of the spare workers of a Ray connection about to end: they end with it
-    (ray_cluster.Connection.close); the cluster's that a refused run claimed and did
-    not use are given back to wait for the next command (ray_pool.py)."""
+    (cluster.Connection.close); the cluster's that a refused run claimed and did
+    not use are given back to wait for the next command (pool.py)."""
     claimed = [(actor, ready) for spares in _pool.values() for kept in spares.values()
                for actor, ready, claimed in kept if claimed]
     _pool.clear()
@@ -206,12 +206,12 @@ def forget() -> None:
         job = ray.get_runtime_context().get_job_id()
         try:
             ray.get([actor.give_back.remote(job) for actor, _ in claimed],
-                    timeout=ray_pool.CLAIM_SECONDS)
+                    timeout=pool.CLAIM_SECONDS)
         except Exception:  # not given back: it ends once this driver's job has
             pass
 
 
-ray_cluster.BEFORE_SHUTDOWN.append(forget)
+cluster.BEFORE_SHUTDOWN.append(forget)
 
 
 def _kill(ray, actor) -> None:

@@ -77,7 +77,7 @@ def _host_port(address: str) -> tuple[str, int | None]:
 
 
 #: what lets go of the Ray objects it holds when this process's connection ends, before
-#: it ends (ray_spares.forget: the workers started ahead of a run and not taken): Ray
+#: it ends (spares.forget: the workers started ahead of a run and not taken): Ray
 #: objects left for after ``ray.shutdown`` are a handle into a core worker that is gone
 BEFORE_SHUTDOWN: list = []
 
@@ -91,7 +91,7 @@ class Connection:
         self.owned = owned
         self.address = address
         #: made before its run's scene was read (connect_ahead): workers were started
-        #: ahead for that run (ray_spares.ahead)
+        #: ahead for that run (spares.ahead)
         self.ahead = False
 
     def cpus(self, resource: str = "") -> int:
@@ -122,7 +122,7 @@ _ahead: list[Connection] = []
 
 def connect_ahead(address: str | None) -> Connection | None:
     """Join the cluster at ``address`` before the run's scene is read and planned, so
-    that its workers start meanwhile (ray_spares.ahead): the backend then takes this
+    that its workers start meanwhile (spares.ahead): the backend then takes this
     connection, and ends it as its own.  Only for an address (a running cluster, a
     fraction of a second to join): a new local instance takes seconds to start, a
     cost a scene refused as bad input should not pay.  None when there is no address
