@@ -195,7 +195,7 @@ def test_model_exchange_and_fmi3_fmus_run_in_ray_workers_as_here(kinds, tmp_path
                    "b": (kinds("oscillator", "3.0"), "CoSimulation", "")},
                   gluing='<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="flexible" '
                          'measure="displacement"><glue:Spring k0="50" k1="0"/>'
-                         '<glue:Damper c0="1" c1="0"/></glue:Joint>', stop=0.5)
+                         '<glue:Damper c0="1" c1="0"/></glue:Joint>', stop=0.1)
     here, there = dsim.simulate(glued), dsim.simulate(glued, backend="ray")
     assert here.ok and there.statistics["backend"] == "ray"
     same_run(here, there)
