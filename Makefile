@@ -52,7 +52,8 @@ quick: fmus
 
 # Debian packages some tests use, installed when missing and allowed (best effort: without
 # them those tests are skipped, and pytest -rs says so): Chromium for dsim serve's browser
-# tests, valgrind for the test of a pythonfmu FMU's process exit (test_pythonfmu_exit.py).
+# tests, valgrind for the test of a pythonfmu FMU's process exit
+# (tests/running/test_pythonfmu_exit.py).
 # $(call debian,PACKAGE,COMMANDS): install PACKAGE unless one of COMMANDS is on the PATH
 debian = for c in $(2); do command -v $$c >/dev/null 2>&1 && exit 0; done; \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
@@ -66,7 +67,7 @@ browser:
 
 # the screenshots of docs/serve.md, made by the browser tests
 screenshots: fmus browser
-	DSIM_SCREENSHOTS=docs/serve OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs tests/test_serve_browser.py
+	DSIM_SCREENSHOTS=docs/serve OMP_NUM_THREADS=1 $(BIN)/pytest -q -rs tests/serve/test_serve_browser.py
 
 # docs/figures/: one `dsim run --plot` per kind of shipped scene (SCENE:STOP, shortened where
 # a whole run takes minutes), the plots the README and docs/results.md show

@@ -1,7 +1,7 @@
 """Causal systems: dsim's per-step time against fmpy's own SSP runner and libcosim on
 the same .ssp.
 
-A ring of n first-order lag blocks (tests/third_party/block.c, compiled here with
+A ring of n first-order lag blocks (tests/support/third_party/block.c, compiled here with
 gcc into a real FMI 2.0 co-simulation FMU) connected causally, b1.y -> b2.u ->
 ... -> bn.y -> b1.u, no joints (n = 4: the four-FMU causal scene).  Every master runs
 the same archive: ``fmpy.ssp.simulation.simulate_ssp``, ``dsim.simulate`` (with its
@@ -39,8 +39,9 @@ from fmpy.ssp.simulation import simulate_ssp
 
 from benchmarks import machine
 import dsim
-from dsim.master.recording.observers import CsvRecorder, StepRecord, _csv_block
-from tests.third_party.build import c_fmu, causal_ring_ssp
+from dsim.master.recording.observers import CsvRecorder, StepRecord
+from dsim.master.recording.observers.csv_recorder import csv_block
+from tests.support.third_party.build import c_fmu, causal_ring_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = 1e-3
@@ -238,7 +239,7 @@ def flush_threads(ssp: Path, folder: Path, stop: float) -> dict:
 
 def csv_formats(ssp: Path, stop: float, repetitions: int) -> dict:
     """Microseconds per row of ways to write the ring's rows as dsim's CSV text, least of
-    ``repetitions``, each checked to give the same text: dsim's ``_csv_block`` (one
+    ``repetitions``, each checked to give the same text: dsim's ``csv_block`` (one
     ``map(repr)`` over a table of the block), ``repr`` of the table's ``tolist()`` with
     its brackets and spaces replaced, and numpy's ``astype(str)`` of the table (the
     same shortest round-trip digits)."""
@@ -257,9 +258,9 @@ def csv_formats(ssp: Path, stop: float, repetitions: int) -> dict:
         cells = np.column_stack((times, np.array([r.values for r in records]))).astype(str)
         return "\n".join(map(",".join, cells.tolist())) + "\n"
 
-    ways = {"map(repr) (dsim)": lambda: _csv_block(records), "repr of tolist()": listed,
+    ways = {"map(repr) (dsim)": lambda: csv_block(records), "repr of tolist()": listed,
             "numpy astype(str)": numpy_text}
-    expected = _csv_block(records)
+    expected = csv_block(records)
     costs = {}
     for name, way in ways.items():
         if way() != expected:
@@ -429,7 +430,7 @@ def main(argv=None) -> str:
         f"Written by `python -m benchmarks.causal_benchmark` on {date.today()} "
         f"({machine()}, Python {platform.python_version()}). A ring of n first-order "
         "lag blocks, each a plain-C FMI 2.0 co-simulation FMU compiled in the run "
-        "(tests/third_party/block.c), connected causally (no joints), step 1 ms. Both masters "
+        "(tests/support/third_party/block.c), connected causally (no joints), step 1 ms. Both masters "
         "run the same .ssp archive; so does libcosim (the C++ co-simulation library of the "
         "Open Simulation Platform, through libcosimpy from PyPI, its fixed-step algorithm) "
         "where it is installed. Times are CPU seconds of the process (every thread of it: "
@@ -476,7 +477,7 @@ def main(argv=None) -> str:
         "show in no Python frame, and the clock readings that time them "
         "(`time.perf_counter`). What is left is the execution's step (`_kernel_step`), the "
         "finite check of the row, the recorder's queue (`stepped`) and the CSV rows, "
-        "formatted in blocks on the recorder's flush (`_csv_block`: one `repr` of each "
+        "formatted in blocks on the recorder's flush (`csv_block`: one `repr` of each "
         "double of a block of rows).",
         "",
         *profiled,

@@ -107,7 +107,7 @@ def main(argv=None) -> str:
     parser.add_argument("--repetitions", type=int, default=2)
     parser.add_argument("--docs", default=str(ROOT / "docs" / "doe_benchmark.md"))
     args = parser.parse_args(argv)
-    from dsim.master.running.ray_cluster import connect
+    from dsim.master.running.backends.ray.cluster import connect
 
     started = time.perf_counter()
     connection = connect()  # one local instance; the Ray sweeps join it

@@ -392,7 +392,7 @@ def write_report(stop: float, path: Path = ROOT / "docs" / "frame_benchmark.md")
         "and the positions twice, a state restore, save and free; the output row), each "
         "pythonfmu's C into Python and back (it builds a Python list of the value "
         "references and of the values, and drains its log queue, every call).",
-        "4. The master: one call per FMU and trial (`FmuSubsystem.trial_step`: restore, "
+        "4. The master: one call per FMU and trial (`CoSimulation2Subsystem.trial_step`: restore, "
         "forces, step, positions, each still counted, timed and checked), the residual, "
         "the joint forces split per part and one solve with the factored gluing matrix per "
         "iteration (factored once for the whole run: every step has the same size to the "

@@ -1,7 +1,7 @@
 """Model Exchange: dsim's integration cost per communication step against fmpy's own
 Model Exchange simulation of the same FMU, measured in the same run.
 
-The FMUs are the C test models of tests/third_party/kinds (FMI 2.0 Model Exchange,
+The FMUs are the C test models of tests/support/third_party/kinds (FMI 2.0 Model Exchange,
 compiled here with gcc): the oscillator x = cos t and the bouncing ball (state
 events).  dsim runs each as the one component of a scene, communication step H,
 with its default integrator (DOP853) and with CVODE; fmpy runs
@@ -33,8 +33,8 @@ from fmpy import simulate_fmu
 
 from benchmarks import machine
 import dsim
-from tests.test_fmi_kinds import bouncing_height
-from tests.third_party.kinds.build import build_fmu
+from tests.support.closed_forms import bouncing_height
+from tests.support.third_party.kinds.build import build_fmu
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = 1e-3

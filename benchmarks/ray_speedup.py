@@ -267,7 +267,7 @@ def main(argv=None) -> str:
                         "ceiling is at least this (a shared machine: 1.8 of 2 cores)")
     parser.add_argument("--docs", default=str(ROOT / "docs" / "ray_benchmark.md"))
     args = parser.parse_args(argv)
-    from dsim.master.running.ray_cluster import connect
+    from dsim.master.running.backends.ray.cluster import connect
 
     started = time.perf_counter()
     connection = connect()  # one local instance, one CPU per core; the runs join it

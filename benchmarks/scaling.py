@@ -76,7 +76,7 @@ import ray
 import dsim
 import dsim.master.api
 from dsim.master.recording.observers import Observer
-from dsim.master.running.backends import ray_spares
+from dsim.master.running.backends.ray import spares as ray_spares
 from benchmarks.ray_speedup import ceiling_now
 ray.init(address="local", num_cpus=os.cpu_count(), include_dashboard=False,
          log_to_driver=False, logging_level="ERROR")

@@ -2,7 +2,7 @@
 fixed steps in each coupling, dsim's error-controlled step (``--step auto``) at several
 tolerances, and other masters at their fixed steps, on the same FMUs in the same run.
 
-The system is the two-mass oscillator split in two FMUs (tests/third_party/kinds,
+The system is the two-mass oscillator split in two FMUs (tests/support/third_party/kinds,
 compiled here with gcc into FMI 2.0 co-simulation FMUs): mass1 gives its position and
 speed, mass2 gives the coupling force back; m1 = m2 = 1 kg, k1 = k2 = 10 N/m, coupling
 spring 100 N/m, x1(0) = 0.1 m, from 0 to 2 s.  The error is max |x1 - exact| over every
@@ -130,7 +130,7 @@ def run_libcosim(ssp: Path, step: float, folder: Path):
 
 def measure(repeat: int) -> list[dict]:
     """Every configuration's error, CPU seconds and steps."""
-    from tests.third_party.kinds.build import build_fmu
+    from tests.support.third_party.kinds.build import build_fmu
 
     folder = Path(tempfile.mkdtemp(prefix="dsim-work-"))
     fmus = {name: build_fmu(folder / name, name, "2.0", interfaces=("CoSimulation",))

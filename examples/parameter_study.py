@@ -26,7 +26,7 @@ every sampled point too: the glued KPIs are compared with the twin's, and the
 twin's own ranking is the reference ranking.
 
 ``python -m examples.parameter_study`` runs the study (on Ray with ``--ray``) and
-writes the figure docs/parameter_study.png; the test (tests/test_doe.py) runs it on
+writes the figure docs/parameter_study.png; the test (tests/sweeps/test_doe.py) runs it on
 a local Ray cluster after killing a first attempt.
 """
 from __future__ import annotations

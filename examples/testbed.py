@@ -1,5 +1,5 @@
 """Two SpringMass FMUs glued at one joint, every parameter a knob: the testbed of the
-stability table (benchmarks/stability.py) and its tests (tests/test_stability.py).
+stability table (benchmarks/stability.py) and its tests (tests/running/test_stability.py).
 
 ``left`` is m1 on a spring kg to ground; ``right`` is m2 joined to m3 by a spring k
 and damper c, m3 loaded by F0 + Fa sin(omega t).  The joint ``j`` glues m1 to m2 on

@@ -17,8 +17,7 @@ from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter,
 from dsim.master.recording.results import RunResult
 from dsim.master.running.backends.base import BACKEND_OPTIONS
 from dsim.master.running.collector import collector_paused
-from dsim.master.running import ray_cluster
-from dsim.master.running.backends import ray_spares
+from dsim.master.running.backends import BACKENDS
 from dsim.master.running.execution import Execution
 from dsim.master.scene import Scene
 from dsim.master.settings import resolve
@@ -26,7 +25,7 @@ from dsim.master.settings import resolve
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
-            substeps=None, **settings):
+            substeps=None, fmu_log: bool = False, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -51,11 +50,16 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     whose FMUs sit beside them and that the user trusts (docs/security.md).
     ``substeps``: communication steps per macro step of components exchanged once per
     step, their inputs held (``{"controller": 10}``; ``"auto"``: each from its FMU's
-    DefaultExperiment stepSize; docs/third_party.md).
+    DefaultExperiment stepSize; docs/third_party.md).  ``fmu_log``: every log category
+    of every FMU on and each message printed to stderr (default: only the warning and
+    error categories an FMU declares; docs/third_party.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     with collector_paused():  # 10,000 components: millions of objects, few cycles
-        return _prepare(scene, load_libraries, strict, parameters, outputs,
+        plan = _prepare(scene, load_libraries, strict, parameters, outputs,
                         output_interval, solver, allow_outside, settings, substeps)
+    if fmu_log:
+        plan = replace(plan, specs=tuple(replace(s, fmu_log=True) for s in plan.specs))
+    return plan
 
 
 def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval, solver,
@@ -104,15 +108,16 @@ def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress:
     keywords are as :func:`prepare` takes them.  Raises InputError for bad input, before
     anything runs.
     """
-    if settings.get("backend") == "ray":  # a script on its own Ray instance, or a
-        # cluster's address: the workers start while the scene is read and planned
-        ray_cluster.connect_ahead(settings.get("address"))
-        ray_spares.ahead()
+    # a cluster's workers start while the scene is read and planned (Backend.ahead)
+    backend = BACKENDS.get(settings.get("backend") or "")
+    if backend is not None:
+        backend.ahead(settings)
     try:
         return _simulate(scene, out, statistics, plot, mat, progress, observers,
                          handle_signals, force, settings)
     finally:
-        ray_cluster.release()  # a connection made ahead that no backend took
+        if backend is not None:
+            backend.release_ahead()  # a connection made ahead that no backend took
 
 
 def _simulate(scene, out, statistics, plot, mat, progress, observers, handle_signals,

@@ -1,10 +1,8 @@
 """Shared fixtures: the FMUs and scene archives are built once per session
 (skipped when up to date), so `pytest` alone works on a fresh checkout."""
-from pathlib import Path
-
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.support.paths import ROOT
 
 
 @pytest.fixture(scope="session")
@@ -19,13 +17,22 @@ def built():
 
 @pytest.fixture(scope="session")
 def block_fmus(tmp_path_factory):
-    """The plain-C block FMU (tests/third_party/block.c) compiled with gcc, with and
+    """The plain-C block FMU (tests/support/third_party/block.c) compiled with gcc, with and
     without state saving."""
-    from tests.third_party.build import c_fmu
+    from tests.support.third_party.build import c_fmu
 
     folder = tmp_path_factory.mktemp("block")
     return {"state": c_fmu(folder, "block"),
             "nostate": c_fmu(folder, "block_nostate", can_save_state=False)}
+
+
+@pytest.fixture(scope="session")
+def ender(tmp_path_factory):
+    """The C FMU that ends the simulation itself (tests/support/ender.py), compiled with
+    gcc against fmpy's FMI 2.0 headers."""
+    from tests.support.ender import build_ender
+
+    return build_ender(tmp_path_factory.mktemp("ender"))
 
 
 @pytest.fixture(scope="session")
@@ -85,66 +92,115 @@ def pytest_sessionfinish(session, exitstatus):
 # A test gets the markers of its module (MODULE_MARKERS), `ray` if it uses the
 # session's Ray instance (the ray_local fixture), and those of its entry in NODE_MARKERS.
 
-#: module (file name) -> markers of every test in it
+#: a test file, or a folder (ending in /), relative to the repository -> markers of
+#: every test in it
 MODULE_MARKERS = {
-    "test_wheel.py": ("wheel",),
-    "test_kernels.py": ("kernels",),
-    "test_ray_backend.py": ("ray",),
-    "test_ray_cluster.py": ("ray",),
-    "test_ray_sweep.py": ("ray",),
-    "test_ssp_fuzz.py": ("fuzz",),
-    "test_serve_browser.py": ("serve", "browser"),
-    "test_serve_api.py": ("serve",),
-    "test_serve_processes.py": ("serve",),
-    "test_serve_security.py": ("serve",),
+    "tests/tools/test_wheel.py": ("wheel",),
+    "tests/checks/test_kernels.py": ("kernels",),
+    "tests/distributed/test_ray_backend.py": ("ray",),
+    "tests/distributed/test_ray_cluster.py": ("ray",),
+    "tests/distributed/test_ray_sweep.py": ("ray",),
+    "tests/reading/test_ssp_fuzz.py": ("fuzz",),
+    "tests/serve/": ("serve",),
+    "tests/serve/test_serve_browser.py": ("browser",),
 }
 
-#: "tests/FILE.py::FUNCTION" (every parametrization of it) or a full node id -> markers.
-#: Kept small: the tests that start Ray without the ray_local fixture (a dsim process
-#: run with --isolate or --backend ray), the kernel study of test_bands.py, and `slow`:
-#: the other tests that took over ~3 s in a full run on two cores (`--durations`,
+#: "tests/FOLDER/FILE.py::FUNCTION" (every parametrization of it) or a full node id ->
+#: markers.  Kept small: the tests that start Ray without the ray_local fixture (a dsim
+#: process run with --isolate or --backend ray), the kernel study of test_bands.py, and
+#: `slow`: the other tests that took over ~3 s in a full run on two cores (`--durations`,
 #: docs/ci.md).  A new test over ~3 s belongs here, or in one of the modules above.
 NODE_MARKERS = {
     # Ray without the ray_local fixture
-    "tests/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[isolated-SIGINT]": ("ray",),
-    "tests/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[isolated-SIGTERM]": ("ray",),
-    "tests/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[ray-SIGTERM]": ("ray",),
-    "tests/test_serve_api.py::test_a_run_on_the_isolated_backend_gives_the_in_process_numbers": ("ray",),
-    "tests/test_files_security.py::test_an_address_answers_the_same_whatever_the_port_state": ("ray",),
+    "tests/running/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[isolated-SIGINT]": ("ray",),
+    "tests/running/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[isolated-SIGTERM]": ("ray",),
+    "tests/running/test_hung_fmu.py::test_a_second_signal_ends_a_run_stuck_in_an_fmu_at_once_with_every_row[ray-SIGTERM]": ("ray",),
+    "tests/serve/test_serve_api.py::test_a_run_on_the_isolated_backend_gives_the_in_process_numbers": ("ray",),
+    "tests/tools/test_files_security.py::test_an_address_answers_the_same_whatever_the_port_state": ("ray",),
     # OpenBLAS kernel studies (each run again under every kernel this CPU has)
-    "tests/test_bands.py::test_kernel_study_measures_noise_and_a_result_beyond_it_regresses": ("kernels",),
+    "tests/checks/test_bands.py::test_kernel_study_measures_noise_and_a_result_beyond_it_regresses": ("kernels",),
     # slow: 5 to 20 s each
-    "tests/test_validate_and_regress.py::test_every_shipped_scene_matches_its_baseline": ("slow",),
-    "tests/test_imports.py::test_every_module_imports_alone_in_a_fresh_interpreter": ("slow",),
-    "tests/test_step_control.py::test_an_fmu_that_cannot_go_back_in_co_simulation_runs_its_model_exchange": ("slow",),
-    "tests/test_coupling_error.py::test_a_strong_run_close_to_its_closed_form_does_not_warn": ("slow",),
-    "tests/test_error_paths.py::test_an_error_path_ends_with_its_exit_code_and_one_line_never_a_signal": ("slow",),
-    "tests/test_sweep.py::test_a_sweep_over_fidelity_sets_ranks_them_against_the_finest": ("slow",),
-    "tests/test_stability.py::test_fixed_joints_pass_the_four_bar_singular_points_on_the_penalized_measure": ("slow",),
-    "tests/test_fmi_kinds_fmus.py::test_memory_safety": ("slow",),
-    "tests/test_pythonfmu_exit.py::test_a_process_that_ran_a_pythonfmu_fmu_exits_without_a_second_release": ("slow",),
-    "tests/test_doe.py::test_a_terminated_serial_sweep_finishes_on_the_same_command": ("slow",),
+    "tests/checks/test_validate_and_regress.py::test_every_shipped_scene_matches_its_baseline": ("slow",),
+    "tests/house/test_imports.py::test_every_module_imports_alone_in_a_fresh_interpreter": ("slow",),
+    "tests/running/test_step_control.py::test_an_fmu_that_cannot_go_back_in_co_simulation_runs_its_model_exchange": ("slow",),
+    "tests/running/test_coupling_error.py::test_a_strong_run_close_to_its_closed_form_does_not_warn": ("slow",),
+    "tests/tools/test_error_paths.py::test_an_error_path_ends_with_its_exit_code_and_one_line_never_a_signal": ("slow",),
+    "tests/sweeps/test_sweep.py::test_a_sweep_over_fidelity_sets_ranks_them_against_the_finest": ("slow",),
+    "tests/running/test_stability.py::test_fixed_joints_pass_the_four_bar_singular_points_on_the_penalized_measure": ("slow",),
+    "tests/fmus/test_fmi_kinds_fmus.py::test_memory_safety": ("slow",),
+    "tests/running/test_pythonfmu_exit.py::test_a_process_that_ran_a_pythonfmu_fmu_exits_without_a_second_release": ("slow",),
+    "tests/sweeps/test_doe.py::test_a_terminated_serial_sweep_finishes_on_the_same_command": ("slow",),
     # slow: 3 to 4 s each (out of `make quick`, to keep it well under 3 minutes)
-    "tests/test_hung_fmu.py::test_the_first_signal_ends_a_run_stuck_in_an_fmu_after_the_grace_period": ("slow",),
-    "tests/test_hung_fmu.py::test_the_first_signal_ends_a_set_up_stuck_in_an_fmu_after_the_grace_period": ("slow",),
-    "tests/test_stability.py::test_undamped_energy_drifts_no_more_than_the_twins": ("slow",),
-    "tests/test_files_security.py::test_a_scene_of_many_components_is_checked_in_linear_time": ("slow",),
-    "tests/test_flexible_link_core.py::test_glued_crank_slider_with_flexible_coupler": ("slow",),
-    "tests/test_linkage_scenes.py::test_penalized_bounds_the_drift_that_acceleration_only_gluing_lets_grow": ("slow",),
-    "tests/test_serve_api.py::test_a_parameter_sweep_from_the_form_shows_kpis_sensitivity_and_plots": ("slow",),
-    "tests/test_serve_api.py::test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form": ("slow",),
-    "tests/test_serve_processes.py::test_runs_in_flight_when_the_server_ends_show_as_interrupted": ("slow",),
-    "tests/test_serve_security.py::test_parallel_uploads_of_one_fmu_are_one_model": ("slow",),
-    "tests/test_validate_and_regress.py::test_regress_finds_a_regression_and_reports_it": ("slow",),
-    "tests/test_scaling.py::test_ten_thousand_components_validate_with_the_right_findings": ("slow",),
-    "tests/test_scaling.py::test_validation_grows_linearly_with_the_components": ("slow",),
+    "tests/running/test_hung_fmu.py::test_the_first_signal_ends_a_run_stuck_in_an_fmu_after_the_grace_period": ("slow",),
+    "tests/running/test_hung_fmu.py::test_the_first_signal_ends_a_set_up_stuck_in_an_fmu_after_the_grace_period": ("slow",),
+    "tests/running/test_stability.py::test_undamped_energy_drifts_no_more_than_the_twins": ("slow",),
+    "tests/tools/test_files_security.py::test_a_scene_of_many_components_is_checked_in_linear_time": ("slow",),
+    "tests/fmus/test_flexible_link_core.py::test_glued_crank_slider_with_flexible_coupler": ("slow",),
+    "tests/fmus/test_linkage_scenes.py::test_penalized_bounds_the_drift_that_acceleration_only_gluing_lets_grow": ("slow",),
+    "tests/serve/test_serve_api.py::test_a_parameter_sweep_from_the_form_shows_kpis_sensitivity_and_plots": ("slow",),
+    "tests/serve/test_serve_api.py::test_a_third_party_fmu_is_glued_through_a_port_map_made_in_the_form": ("slow",),
+    "tests/serve/test_serve_processes.py::test_runs_in_flight_when_the_server_ends_show_as_interrupted": ("slow",),
+    "tests/serve/test_serve_security.py::test_parallel_uploads_of_one_fmu_are_one_model": ("slow",),
+    "tests/checks/test_validate_and_regress.py::test_regress_finds_a_regression_and_reports_it": ("slow",),
+    "tests/running/test_scaling.py::test_ten_thousand_components_validate_with_the_right_findings": ("slow",),
+    "tests/running/test_scaling.py::test_validation_grows_linearly_with_the_components": ("slow",),
 }
+
+
+def _defined(path) -> set[str]:
+    """The test functions a file defines: "name" and "Class::name"."""
+    import ast
+
+    names = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.ClassDef):
+            names.update(f"{node.name}::{n.name}" for n in node.body
+                         if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)))
+    return names
+
+
+def _stale_marker_keys(root, items) -> list[str]:
+    """The keys of MODULE_MARKERS and NODE_MARKERS that name no test: a file or folder
+    that is not there, a function its file does not define, or a parametrization of a
+    collected function that was not collected.  Checked in every run, also one of a
+    single file, so that a test moved or renamed cannot silently lose its markers."""
+    stale = []
+    for key in MODULE_MARKERS:
+        folder = key.endswith("/")
+        if not ((root / key).is_dir() if folder else (root / key).is_file()):
+            stale.append(f"MODULE_MARKERS[{key!r}]: no such {'folder' if folder else 'file'}")
+    ids = {item.nodeid for item in items}
+    functions = {item.nodeid.split("[")[0] for item in items}
+    defined = {}
+    for key in NODE_MARKERS:
+        file, _, function = key.split("[")[0].partition("::")
+        if not (root / file).is_file():
+            stale.append(f"NODE_MARKERS[{key!r}]: no such file")
+            continue
+        if file not in defined:
+            defined[file] = _defined(root / file)
+        if function not in defined[file]:
+            stale.append(f"NODE_MARKERS[{key!r}]: {file} defines no {function}")
+        elif "[" in key and key.split("[")[0] in functions and key not in ids:
+            stale.append(f"NODE_MARKERS[{key!r}]: no such parametrization was collected")
+    return stale
 
 
 @pytest.hookimpl(tryfirst=True)  # before -m deselects by them
 def pytest_collection_modifyitems(config, items):
+    stale = _stale_marker_keys(config.rootpath, items)
+    if stale:  # (pytest.exit: a UsageError's message is printed after pytest_unconfigure)
+        pytest.exit("tests/conftest.py: markers that name no test (a test moved or renamed? "
+                    "update the key):\n  " + "\n  ".join(stale),
+                    returncode=pytest.ExitCode.USAGE_ERROR)
     for item in items:
-        names = set(MODULE_MARKERS.get(item.path.name, ()))
+        file = item.nodeid.split("::")[0]
+        names = set()
+        for key, markers in MODULE_MARKERS.items():
+            if file == key or (key.endswith("/") and file.startswith(key)):
+                names.update(markers)
         if "ray_local" in item.fixturenames:
             names.add("ray")
         names.update(NODE_MARKERS.get(item.nodeid.split("[")[0], ()))

@@ -41,7 +41,7 @@ from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 ORIGIN = "given for the run (--set, --set-file, parameters=)"
 #: every joint law coefficient a run may set (``--set j1.k0=VALUE``): what it is and
 #: which joints have it.  The one list ``dsim info``, the messages, the ``--set``
-#: help and docs/parameters.md give (tests/test_first_hour.py keeps the docs so).
+#: help and docs/parameters.md give (tests/planning/test_parameter_names.py keeps the docs so).
 #: The flexible law per dof is (k0 + k1|q|) q + (c0 + c1|qd|) qd = -F (docs/method.md).
 JOINT_COEFFICIENTS = {
     "k0": ("flexible", "stiffness, per dof (N/m; N.m/rad on a rotation)"),

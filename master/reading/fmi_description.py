@@ -33,7 +33,7 @@ from functools import lru_cache
 from itertools import product
 from pathlib import Path
 
-from fmpy import platform, platform_tuple, read_model_description
+from fmpy import platform, platform_tuple, read_model_description, sharedLibraryExtension
 from fmpy.model_description import ValidationError
 
 from dsim.master.reading.digests import file_digest
@@ -136,6 +136,8 @@ class FmuDescription:
     defaultExperiment: object = None
     #: variables the FMU declares that dsim cannot exchange (Clock, Binary): name -> type
     unsupported: dict = field(default_factory=dict)
+    #: the names of the FMU's LogCategories, in its order
+    log_categories: tuple[str, ...] = ()
 
     @property
     def major(self) -> int:
@@ -253,7 +255,8 @@ def _description(md) -> FmuDescription:
         dependencies=dependencies, description=md.description or "",
         generationTool=md.generationTool or "", author=md.author or "",
         version=md.version or "", defaultExperiment=md.defaultExperiment,
-        unsupported=unsupported)
+        unsupported=unsupported,
+        log_categories=tuple(c.name for c in md.logCategories if c.name))
 
 
 _BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -351,6 +354,26 @@ def can_roll_back(path: Path, interface: str = CO_SIMULATION) -> bool:
     if found is None:
         return False
     return found.canGetAndSetFMUstate or interface == MODEL_EXCHANGE
+
+
+def library_members(path: Path, checked: bool = True) -> list[str]:
+    """The archive members of the libraries for this platform that the FMU's
+    interfaces name (one per distinct model identifier, co-simulation first).
+    ``checked=False`` reads the description without fmpy's checks (whether there is
+    a library at all is said before any complaint about the description); an
+    unreadable description raises what fmpy raises."""
+    if checked:
+        description = describe(path)
+        major = description.major
+        identifiers = [description.interface(k).modelIdentifier
+                       for k in description.interfaces]
+    else:
+        md = read_model_description(str(path), validate=False)
+        major = int(md.fmiVersion.split(".")[0])
+        identifiers = [i.modelIdentifier for i in (md.coSimulation, md.modelExchange) if i]
+    folder = platform_tuple if major >= 3 else platform
+    return [f"binaries/{folder}/{identifier}{sharedLibraryExtension}"
+            for identifier in dict.fromkeys(identifiers)]
 
 
 def library_folder(description: FmuDescription) -> str:

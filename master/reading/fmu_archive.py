@@ -16,11 +16,10 @@ import sys
 import zipfile
 from pathlib import Path
 
-from fmpy import platform, platform_tuple, read_model_description, sharedLibraryExtension
-
 from dsim.master.errors import InputError
 from dsim.master.reading.digests import file_digest
-from dsim.master.reading.fmi_description import chosen_interface, describe, library_folder
+from dsim.master.reading.fmi_description import (chosen_interface, describe, library_folder,
+                                                library_members)
 from dsim.master.reading.unpacking import check_archive, extract
 
 _UNZIPPED: dict[Path, str] = {}
@@ -86,16 +85,18 @@ def _no_binary_here(path: Path) -> str | None:
     about the description itself (one error for one cause; an unreadable description
     is said by :func:`_description_problem`)."""
     try:
-        md = read_model_description(str(path), validate=False)
-        folder = platform_tuple if int(md.fmiVersion.split(".")[0]) >= 3 else platform
-        identifiers = dict.fromkeys(i.modelIdentifier for i in (md.coSimulation,
-                                                                 md.modelExchange) if i)
+        members = library_members(path, checked=False)
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
     except Exception:  # fmpy raises several kinds for a broken description
         return None
-    for identifier in identifiers:
-        member = f"binaries/{folder}/{identifier}{sharedLibraryExtension}"
+    return _missing_binary(members, names)
+
+
+def _missing_binary(members, names) -> str | None:
+    """The first of the library ``members`` not among the archive's ``names``, said
+    with the platforms the FMU has, or None."""
+    for member in members:
         if member not in names:
             found = sorted({n.split("/")[1] for n in names
                             if n.startswith("binaries/") and n.count("/") >= 2})
@@ -104,21 +105,10 @@ def _no_binary_here(path: Path) -> str | None:
     return None
 
 
-def _library_members(path: Path) -> list[str]:
-    """The archive members of the libraries for this platform that the FMU names (one
-    per distinct model identifier of its interfaces)."""
-    description = describe(path)
-    identifiers = dict.fromkeys(description.interface(k).modelIdentifier
-                                for k in description.interfaces)
-    folder = library_folder(description)
-    return [f"binaries/{folder}/{identifier}{sharedLibraryExtension}"
-            for identifier in identifiers]
-
-
 def _library_problem(path: Path) -> str | None:
     """Whether the library (there, and whole as bytes: :func:`_library_bytes_problem`)
     loads: in a child process, where a crash is only a message."""
-    for member in _library_members(path):
+    for member in library_members(path):
         problem = _one_library_problem(path, member)
         if problem:
             return problem
@@ -185,14 +175,13 @@ def _library_bytes_problem(path: Path) -> str | None:
     """The libraries of this platform that an FMU names are in the archive and look
     whole (:func:`_elf_problem`), read as bytes, never loaded."""
     folder = library_folder(describe(path))
+    members = library_members(path)
     with zipfile.ZipFile(path) as archive:
         names = archive.namelist()
-        for member in _library_members(path):
-            if member not in names:
-                found = sorted({n.split("/")[1] for n in names
-                                if n.startswith("binaries/") and n.count("/") >= 2})
-                return (f"no binary for this platform ({member} missing; the FMU has "
-                        f"{', '.join(found) or 'no binaries'})")
+        missing = _missing_binary(members, names)
+        if missing:
+            return missing
+        for member in members:
             problem = _elf_problem(archive.read(member), folder) \
                 if member.endswith(".so") else None
             if problem:

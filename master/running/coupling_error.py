@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 #: a connection whose estimate passes this fraction of its source's range is named: on the
-#: two-mass oscillator (tests/test_coupling_error.py) 0.72 % per step left the causal run
+#: two-mass oscillator (tests/running/test_coupling_error.py) 0.72 % per step left the causal run
 #: 50 % off its closed form after 10 s, 0.13 % left the strong one 4.6 % off, 0.0013 % 0.05 %
 WARN_FRACTION = 1e-3
 #: connections named one by one in the warning

@@ -42,7 +42,7 @@ import time
 
 from dsim.master.processes import process_alive
 from dsim.master.recording.results import RunResult
-from dsim.master.running.ray_cluster import ray_log_line
+from dsim.master.running.backends import log_lines
 
 #: seconds after a second signal by which the process has ended, whatever hangs
 DEADLINE = 3.0
@@ -186,9 +186,8 @@ def end_lost(execution, what: str) -> None:
     if where:
         _say(f"dsim: the {result.steps} converged steps are in {where}, statistics in "
              f"{stats or 'nowhere'}")
-    log = ray_log_line()
-    if log:
-        _say(log)
+    for line in log_lines():
+        _say(line)
     os._exit(1)
 
 

@@ -3,7 +3,7 @@
 The algorithm never sees an FMU: it sees a :class:`Subsystem` with a small,
 batched interface (one call moves every glued dof of the subsystem): save and
 restore state, set interface forces, step, read interface kinematics, read
-outputs and write inputs.  :class:`~dsim.master.running.fmi.cs2.FmuSubsystem` implements it over
+outputs and write inputs.  :class:`~dsim.master.running.fmi.cs2.CoSimulation2Subsystem` implements it over
 fmpy; :class:`CoreSubsystem` over an in-process physics core (algorithm tests
 without FMI); a backend decides where each one runs.
 """

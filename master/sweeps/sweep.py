@@ -36,8 +36,8 @@ from dsim.master.sweeps.design import SALIB, Design, Factor, parse_vary, split
 from dsim.master.sweeps.folder import open_folder, spec, write_outputs
 from dsim.master.sweeps.kpi import parse_all, unresolved
 from dsim.master.sweeps.plots import plot_points  # noqa: F401  (its place before the split)
-from dsim.master.sweeps.point import PointRun, keywords
-from dsim.master.sweeps.ray_points import run_points
+from dsim.master.sweeps.point import PointRun, ended, keep_files, keywords, run_in_worker
+from dsim.master.running.backends.ray import run_points
 from dsim.master.sweeps.table import MEASURES, Point, SweepTable, markdown  # noqa: F401
 
 #: the reference named to measure against the sweep's tightest point even where the
@@ -405,7 +405,7 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     terminal (points run one after the other).
 
     With the setting ``backend`` fixed to ``ray`` the points run side by side, one per
-    Ray worker (each in-process inside its worker: master/sweeps/ray_points.py), on a local
+    Ray worker (each in-process inside its worker: master/running/backends/ray/points.py), on a local
     Ray instance or the cluster at ``address``."""
 
     check(sweep)
@@ -466,8 +466,12 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     parallel = sweep.fixed.get("backend") == "ray"
     try:
         if parallel:
-            run_points(scene, [(k, configurations[k]) for k in todo], sweep.fixed, out,
-                       plan.inputs, finish, trusted(sweep))
+            # (the trusted folders travel with the settings: each point's run takes them)
+            run_points(scene, [(k, configurations[k]) for k in todo],
+                       {**sweep.fixed, **trusted(sweep)},
+                       lambda k, run, files: finish(k, keep_files(
+                           run, files, out / f"point_{k + 1:03d}.csv", plan.inputs)),
+                       run_in_worker, ended)
         else:
             for k in todo:
                 finish(k, run_point(scene, {**sweep.fixed, **configurations[k]},

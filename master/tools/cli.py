@@ -23,12 +23,12 @@ from dsim.master.errors import InputError, SimulationError
 from dsim.master.planning.parameters import JOINT_COEFFICIENTS
 from dsim.master.reading.parameter_input import given_parameters
 from dsim.master.recording.observers import ProgressBar
-from dsim.master.running.ray_cluster import ray_log_line
+from dsim.master.running.backends import log_lines
 from dsim.master.running.timeline import span_note
 from dsim.master.settings import SETTINGS, choices
 from dsim.master.sweeps.design import DESIGNS, parse_vary
 from dsim.master.sweeps.folder import read_sensitivity
-from dsim.master.sweeps.ray_points import HeadLost
+from dsim.master.running.backends.ray import HeadLost
 from dsim.master.sweeps.sensitivity import (SPANS_ZERO, SPANS_ZERO_TEXT, Index,
                                             cautions, ranking_text)
 from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, read_sweep_file,
@@ -128,9 +128,8 @@ def _cmd_run(args) -> int:
             print(f"dsim: the {result.steps} converged steps are in {result.files['csv']}, "
                   f"statistics in {result.files.get('statistics', 'nowhere')}", file=sys.stderr)
     if result.status == "failed" or (result.statistics or {}).get("lost_workers"):
-        log = ray_log_line()  # a lost node's post-mortem, a raylet's worker notices
-        if log:
-            print(log, file=sys.stderr)
+        for line in log_lines():  # a lost node's post-mortem, a raylet's worker notices
+            print(line, file=sys.stderr)
     for warning in result.warnings[len(progress.shown):]:  # those said at the end
         print(f"dsim: warning: {warning}", file=sys.stderr)
     if result.status == "completed" and not args.quiet:
@@ -267,12 +266,13 @@ def _cmd_sweep(args) -> int:
                                         resumed=resumed)
     except HeadLost as lost:  # the table and files are written: say what was lost
         print(f"dsim: sweep failed: {lost} in {out}", file=sys.stderr)
-        for line in filter(None, [ray_log_line()]):
+        for line in log_lines():
             print(line, file=sys.stderr)
         return 1
     _print_sweep_summary(args, sweep, out, points)
-    if any(state(p) in ("failed", "lost") for p in points) and ray_log_line():
-        print(ray_log_line(), file=sys.stderr)  # what Ray said of a lost node or worker
+    if any(state(p) in ("failed", "lost") for p in points):
+        for line in log_lines():  # what Ray said of a lost node or worker
+            print(line, file=sys.stderr)
     if interrupted:
         kept = [p for p in points if p.finished]
         print(f"dsim: interrupted: {len(kept)} finished point{'s' * (len(kept) != 1)} "
@@ -384,7 +384,7 @@ def _run_choices(args) -> dict:
     return {"parameters": given_parameters(args.set_file, args.set),
             "outputs": args.outputs, "output_interval": args.output_interval,
             "solver": solver, "allow_outside": args.allow_outside,
-            "substeps": substeps or None}
+            "substeps": substeps or None, "fmu_log": args.fmu_log}
 
 
 def _add_allow_outside(parser) -> None:
@@ -410,6 +410,11 @@ def _add_run_choices(run_parser) -> None:
                             "its inputs held over them (a component exchanged once per "
                             "step); auto: each from its FMU's DefaultExperiment stepSize; "
                             "again for more")
+    run_parser.add_argument("--fmu-log", action="store_true",
+                            help="every log category of every FMU on, each message printed "
+                            "to stderr as it comes (default: only the categories of "
+                            "warnings and errors an FMU declares, its last messages kept "
+                            "for the error messages)")
     _add_allow_outside(run_parser)
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "

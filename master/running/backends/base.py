@@ -35,6 +35,21 @@ class Backend(ABC):
                 for key, value in options.items() if value is not None]
 
     @classmethod
+    def ahead(cls, settings: dict) -> None:
+        """Start what a run on this backend waits for (a cluster, its workers) while
+        the scene is read and planned; ``settings``: the run's keywords.  Nothing here."""
+
+    @classmethod
+    def release_ahead(cls) -> None:
+        """Let go what :meth:`ahead` started and no run took.  Nothing here."""
+
+    @classmethod
+    def log_line(cls) -> str | None:
+        """After a failure: one line saying where this backend's own processes wrote
+        what they said meanwhile, or None (the default: it has no such processes)."""
+        return None
+
+    @classmethod
     @abstractmethod
     def from_specs(cls, specs, progress=None, **options) -> "Backend":
         """Create every subsystem of a run from its

@@ -15,7 +15,7 @@ FMI version         co-simulation                   Model Exchange
 from __future__ import annotations
 
 from dsim.master.running.fmi.cs1 import CoSimulation1Subsystem
-from dsim.master.running.fmi.cs2 import FmuSubsystem
+from dsim.master.running.fmi.cs2 import CoSimulation2Subsystem
 from dsim.master.running.fmi.cs3 import CoSimulation3Subsystem
 from dsim.master.running.fmi.model_exchange import ModelExchangeSubsystem
 from dsim.master.running.fmi.spec import SubsystemSpec
@@ -35,6 +35,6 @@ def open_subsystem(spec: SubsystemSpec) -> Subsystem:
     elif major == "3":
         subsystem = CoSimulation3Subsystem(spec)
     else:
-        subsystem = FmuSubsystem(spec)
+        subsystem = CoSimulation2Subsystem(spec)
     subsystem.substeps = spec.substeps
     return subsystem

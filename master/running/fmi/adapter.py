@@ -20,7 +20,6 @@ from dsim.master.running.fmi.messages import errors_logged, forget, logged_error
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
-STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 #: the FMI types read and written with another type's functions, by FMI version:
 #: FMI 1.0 and 2.0 Enumerations with the Integer ones, FMI 3.0's with the Int64 ones
 ACCESSED_AS = {"1": {"Enumeration": "Integer"}, "2": {"Enumeration": "Integer"},

@@ -30,12 +30,14 @@ from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
 from dsim.master.running.fmi.checkpoint import Checkpoint
 from dsim.master.running.fmi import library
-from dsim.master.running.fmi.messages import CALLBACKS2, errors_logged, forget, logged_error
+from dsim.master.running.fmi.messages import STATUS as SHARED_STATUS
+from dsim.master.running.fmi.messages import (CALLBACKS2, WARNING, ask_for_logging, errors_logged,
+                                             forget, logged_error)
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
-STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal",
-          5: "fmi2Pending"}
+#: the status names as FMI 2.0 spells them (fmi2OK, ...)
+STATUS = {number: f"fmi2{name}" for number, name in SHARED_STATUS.items()}
 #: FMI type -> (ctypes value type, get function, set function)
 TYPES = {"Real": (ctypes.c_double, "fmi2GetReal", "fmi2SetReal"),
          "Integer": (ctypes.c_int, "fmi2GetInteger", "fmi2SetInteger"),
@@ -49,7 +51,7 @@ class _Call:
 
     __slots__ = ("function", "name", "owner", "calls", "seconds")
 
-    def __init__(self, owner: "FmuSubsystem", name: str):
+    def __init__(self, owner: "CoSimulation2Subsystem", name: str):
         # a function object of the library without fmpy's argtypes (their conversion
         # costs as much as the call): arguments are passed as ctypes objects
         self.function = library.raw(owner.fmu, name)
@@ -63,7 +65,7 @@ class _Call:
         status = self.function(self.owner.handle, *args)
         self.seconds += clock.perf_counter() - start
         self.calls += 1
-        if status > 1 and self.name == "fmi2DoStep":
+        if status > WARNING and self.name == "fmi2DoStep":
             # the step's end, for an FMU that discards it because it ends the simulation
             self.check(status, args[0].value + args[1].value)
         else:
@@ -72,7 +74,7 @@ class _Call:
     def check(self, status: int, end: float | None = None) -> None:
         """Fail on a status above fmi2Warning (or an error logged while initializing);
         ``end``: the end of the step a discarded fmi2DoStep was asked for (s)."""
-        if status > 1:
+        if status > WARNING:
             self.owner._fail(self.name, f"it returned {STATUS.get(status, status)}", status,
                              end)
         # a pythonfmu FMU cannot return fmi2Error: it refuses its parameters by logging
@@ -82,7 +84,7 @@ class _Call:
                                         f"{STATUS.get(status, status)}", 3)
 
 
-def _references(owner: "FmuSubsystem", vrs) -> tuple:
+def _references(owner: "CoSimulation2Subsystem", vrs) -> tuple:
     """(their count, the fmi2ValueReference array) of the value references ``vrs``:
     the same objects for every instance of the FMU file (the C side only reads them)."""
     vrs = tuple(vrs)
@@ -94,7 +96,7 @@ class _Batch:
     """Value references of one FMI type, a value array (and its numpy view), and the
     bound get and set calls, allocated once."""
 
-    def __init__(self, owner: "FmuSubsystem", kind: str, vrs):
+    def __init__(self, owner: "CoSimulation2Subsystem", kind: str, vrs):
         ctype, get_name, set_name = TYPES[kind]
         self.kind = kind
         self.size = len(vrs)
@@ -125,7 +127,7 @@ class _Batch:
 class _Strings:
     """String variables read or written in one call (fmi2GetString / fmi2SetString)."""
 
-    def __init__(self, owner: "FmuSubsystem", vrs):
+    def __init__(self, owner: "CoSimulation2Subsystem", vrs):
         self.size = len(vrs)
         self.count, self.vrs = _references(owner, vrs)
         self.values = (ctypes.c_char_p * self.size)()
@@ -175,7 +177,7 @@ def _batches(owner, variables: list) -> tuple[list[_Batch], list[np.ndarray]]:
     return batches, places
 
 
-class FmuSubsystem(Checkpoint, Subsystem):
+class CoSimulation2Subsystem(Checkpoint, Subsystem):
     """An FMU instance made from a :class:`SubsystemSpec`, glued at its port dofs."""
 
     def __init__(self, spec: SubsystemSpec):
@@ -213,6 +215,8 @@ class FmuSubsystem(Checkpoint, Subsystem):
         self._initializing = True
         self._call("fmi2Instantiate", lambda: self._instantiating(
             lambda: self.fmu.instantiate(callbacks=CALLBACKS2, loggingOn=True)))
+        self._call("fmi2SetDebugLogging", lambda: ask_for_logging(
+            self.fmu, spec.name, description.log_categories, spec.fmu_log))
         self.handle = ctypes.c_void_p(self.fmu.component)
         self._forces = _Batch(self, "Real", [p.force for p in port_dofs])
         # u, v, a of every glued dof in one batched read; a kind the FMU lacks is None
@@ -419,7 +423,7 @@ class FmuSubsystem(Checkpoint, Subsystem):
 
     def fused_step(self, inputs, outputs, time, step_size, kernel):
         """This FMU's causal macro step for a kernel that runs many FMUs in one loop
-        (:class:`~dsim.master.running.backends.inprocess.CausalKernel`), or None when
+        (:class:`~dsim.master.running.fmi.causal_kernel.CausalKernel`), or None when
         it cannot be fused (inputs or outputs of another type than Real, or in
         initialization mode): ``(fmi2SetReal call and its arguments or None, fmi2DoStep
         and its, fmi2GetReal and its or None)``, every argument a ctypes object made

@@ -4,6 +4,8 @@ logger; an FMI 3.0 instance gets a logger of its own that knows its name)."""
 from __future__ import annotations
 
 import ctypes
+import sys
+from collections import deque
 
 from fmpy import calloc, free
 from fmpy.fmi1 import (fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFreeMemoryTYPE,
@@ -11,28 +13,72 @@ from fmpy.fmi1 import (fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFreeMemoryTYP
 from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
+#: the messages kept per instance (the error messages quote them)
+KEPT = 20
 #: instance name -> the last (status, one-line message) pairs it logged (the status
 #: numbers of FMI 1.0, 2.0 and 3.0 agree up to Fatal: OK 0, Warning 1, Discard 2,
 #: Error 3, Fatal 4)
-_MESSAGES: dict[str, list[tuple[int, str]]] = {}
+_MESSAGES: dict[str, deque] = {}
 #: instance name -> how many messages of status Error or worse it logged
 _ERRORS: dict[str, int] = {}
+#: the instances whose every message is printed as it comes (``--fmu-log``)
+_PRINTED: set[str] = set()
+#: the status names every FMI version shares, by number (FMI 1.0, 2.0 and 3.0 agree)
+STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+#: the last status that is not a failure: a call that returns more failed
+WARNING = 1
+#: the words that mark a log category of what goes wrong (logStatusWarning,
+#: logStatusError, ... in the categories FMI 3.0 recommends and most tools declare)
+PROBLEM_WORDS = ("warning", "error", "fatal", "discard")
 
 
-def record(name: str, status: int, message: bytes | str | None) -> None:
-    """Keep one message an instance logged."""
+def record(name: str, status: int, message: bytes | str | None, category=None) -> None:
+    """Keep one message an instance logged (the last :data:`KEPT`), printed to
+    stderr as well for an instance run with ``--fmu-log``."""
     if isinstance(message, bytes):
         message = message.decode("utf-8", "replace")
     text = " ".join((message or "").split())
-    _MESSAGES[name] = (_MESSAGES.get(name, []) + [(int(status), text)])[-20:]
+    kept = _MESSAGES.get(name)
+    if kept is None:
+        kept = _MESSAGES[name] = deque(maxlen=KEPT)
+    kept.append((int(status), text))
     if status >= 3:
         _ERRORS[name] = _ERRORS.get(name, 0) + 1
+    if name in _PRINTED:
+        if isinstance(category, bytes):
+            category = category.decode("utf-8", "replace")
+        level = STATUS.get(status, status)
+        print(f"dsim: fmu {name}: [{level}] {category or ''}: {text}", file=sys.stderr,
+              flush=True)
 
 
 def forget(name: str) -> None:
     """Drop what an instance logged so far (a new instance, or its cleanup begins)."""
     _MESSAGES.pop(name, None)
     _ERRORS.pop(name, None)
+    _PRINTED.discard(name)
+
+
+def problem_categories(categories) -> list[str]:
+    """The log categories among ``categories`` that carry what goes wrong (warnings,
+    discards, errors, fatal errors), by name."""
+    return [c for c in categories if any(w in c.lower() for w in PROBLEM_WORDS)]
+
+
+def ask_for_logging(fmu, name: str, categories, everything: bool = False) -> None:
+    """Right after an FMI 2.0 or 3.0 instance is made with logging on: ask it for its
+    warning and error categories only, when it declares such categories (an FMU that
+    logs every event per step spends more time in its logger than in its model: 30
+    messages a step, 68 % of a causal run's time, for OpenModelica's dual-mass
+    oscillator); an FMU that declares none keeps every category on, since which of
+    its messages matter cannot be told.  ``everything`` (``--fmu-log``): every
+    category stays on and every message is printed as it comes."""
+    if everything:
+        _PRINTED.add(name)
+        return
+    chosen = problem_categories(categories)
+    if chosen:
+        fmu.setDebugLogging(True, chosen)
 
 
 def errors_logged(name: str) -> int:
@@ -51,7 +97,7 @@ def logged_error(instance: str) -> str:
 
 
 def _log2(environment, instance, status, category, message):
-    record((instance or b"").decode("utf-8", "replace"), status, message)
+    record((instance or b"").decode("utf-8", "replace"), status, message, category)
 
 
 # One FMI 2.0 callbacks structure for the whole process, alive as long as it is: fmpy's
@@ -71,7 +117,7 @@ except Exception:  # pragma: no cover - the proxy is a compiled fmpy extra
 def logger3(name: str):
     """An FMI 3.0 log message callback (Python side) that files messages under ``name``."""
     def log(environment, status, category, message):
-        record(name, status, message)
+        record(name, status, message, category)
     return log
 
 

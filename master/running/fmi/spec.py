@@ -49,3 +49,6 @@ class SubsystemSpec:
     #: communication steps of this FMU per macro step, its inputs held over them (a
     #: component exchanged once per step: ``--substeps``)
     substeps: int = 1
+    #: every log category of the FMU on and each message printed (``--fmu-log``);
+    #: else only its warning and error categories, the last messages kept
+    fmu_log: bool = False

@@ -1,0 +1,1 @@
+"""Tests of master/checks: validate, regress, compare, regression bands."""

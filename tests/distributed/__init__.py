@@ -1,0 +1,1 @@
+"""Tests of the Ray backends, cluster, spares and sweeps."""

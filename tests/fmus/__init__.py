@@ -1,0 +1,1 @@
+"""Tests of the FMUs dsim builds (physics cores, FMUs alone) and of the C test FMUs."""

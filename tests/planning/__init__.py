@@ -1,0 +1,1 @@
+"""Tests of master/planning: parameters, start forces, moving least squares."""

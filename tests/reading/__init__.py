@@ -1,0 +1,1 @@
+"""Tests of master/reading: SSP files, FMU archives, units."""

@@ -1,0 +1,1 @@
+"""Tests of master/recording: results, statistics, plots, nothing lost."""

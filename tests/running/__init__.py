@@ -1,0 +1,1 @@
+"""Tests of master/running: couplings, steps, FMU kinds, the engine."""

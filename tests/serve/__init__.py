@@ -1,0 +1,1 @@
+"""Tests of dsim serve, the web front end."""

@@ -1,0 +1,1 @@
+"""Tests of master/sweeps: sweeps, designs of experiments, sensitivity."""

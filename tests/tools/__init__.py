@@ -1,0 +1,1 @@
+"""Tests of master/tools: the command line, its errors, files, the wheel."""
