@@ -475,7 +475,7 @@ def main(argv=None) -> str:
         "total is well above the plain run's). The kernel's `__call__` makes every FMI "
         "call: its own time includes the FMUs' functions, which run in C through ctypes and "
         "show in no Python frame, and the clock readings that time them "
-        "(`time.perf_counter`). What is left is the execution's step (`_kernel_step`), the "
+        "(`time.perf_counter`). What is left is the execution's step (`Execution.step`), the "
         "finite check of the row, the recorder's queue (`stepped`) and the CSV rows, "
         "formatted in blocks on the recorder's flush (`csv_block`: one `repr` of each "
         "double of a block of rows).",

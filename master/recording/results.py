@@ -65,6 +65,15 @@ class RunResult:
             self._signals = read_columns(self.files["csv"])
         return self._signals or {}
 
+    def keep_signals(self, signals=None) -> None:
+        """Hold the signals: ``signals`` (a mapping, or a callable that makes it when
+        first asked for) where the result has none yet; None: read the results CSV
+        now, so that the result keeps them when its files go."""
+        if signals is None:
+            self._signals = self.signals
+        elif self._signals is None:
+            self._signals = signals
+
     def __getitem__(self, column: str) -> np.ndarray:
         """The values of ``column`` over time; :class:`MissingColumn` (a KeyError)
         naming the closest columns when the run recorded none of that name."""

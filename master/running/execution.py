@@ -98,8 +98,9 @@ class Execution:
         self._wall_start = None
         self._columns: tuple[str, ...] = ()
         self._held = None
-        #: the coupling's kernel, when it takes whole steps (:meth:`_kernel_step`)
-        self._kernel = None
+        #: how a macro step is taken (:meth:`_glued_advance`, or
+        #: :meth:`_kernel_advance` where the coupling's kernel takes whole steps)
+        self._advance = self._glued_advance
         #: the error-controlled steps (``step="auto"``:
         #: :mod:`dsim.master.running.step_control`), or None: one step per macro step
         self.controller = None
@@ -203,11 +204,9 @@ class Execution:
             self._abort(started)
             raise
         self.status = "running"
-        kernel = getattr(self.coupling, "kernel", None)
-        if kernel is not None and not self._text_reads and not len(self.coupling.forces) \
-                and self.controller is None:
-            self._kernel = kernel
-            self._start, self._size = self.scene.start_time, self.settings.step
+        if self.coupling.kernel is not None and not self._text_reads \
+                and not len(self.coupling.forces) and self.controller is None:
+            self._advance = self._kernel_advance
         for message in self.plan.warnings:
             self.warn(message)
         for message in self.backend.notes():  # what a lost worker ends
@@ -294,7 +293,7 @@ class Execution:
                                                            settings, sensitivity)
         self.coupling.start(glued.kinematics() if layout.size else None, forces)
         self.coupling.solve_loops(self.plan.scene.start_time)
-        for note in getattr(self.coupling.loop_solver, "notes", ()):
+        for note in (self.coupling.loop_solver.notes if self.coupling.loop_solver else ()):
             self.warn(note)
         #: the connected sources, each once: what the coupling error watch follows and
         #: the error-controlled step's estimate weighs
@@ -421,51 +420,68 @@ class Execution:
         if self._stop_requested:
             self.status = "interrupted"
             return False
-        if self._kernel is not None:
-            return self._kernel_step()
         index, time = self.index, self.time
         started = clock.perf_counter()
-        end = self.step_time(index + 1)
-        size = self._step_size(index)
+        following = index + 1
+        if following < self.planned_steps:  # as step_time and _step_size say
+            end = self.scene.start_time + following * self.settings.step
+            size = self.settings.step
+        else:
+            end, size = self.step_time(following), self._step_size(index)
         try:
-            if self._text_reads:
-                self._write_texts()
-            # a step makes tens of thousands of short-lived objects at 10,000 components
-            # and few cycles: the collector's passes over them (two full ones a step of
-            # chain_10000 on Ray) wait for the step's end (collector.py)
-            with collector_paused():
-                if self.controller is None:
-                    report = self._take(time, size, index + 1, end)
-                else:  # error-controlled steps across the output interval
-                    report = self.controller.advance(time, size, index + 1, end)
-                    for note in self.controller.notes[len(self._said_notes):]:
-                        self._said_notes.append(note)
-                        self.warn(note)
-            if report.cuts:
-                self._warn_cut(index + 1, end, size / 2 ** report.cuts)
-            if report.lost and self.coupling.least_squares_steps <= CUTS_SAID:
-                self.warn(f"step {index + 1} (t = {end:.6g} s): the gluing matrix lost rank "
-                          "(a singular configuration): the step was accepted in the "
-                          f"least-squares sense, {report.lost:.3e} of residual left along "
-                          "the direction no joint force changes")
-            self._read_texts()
-            self.index, self.time = index + 1, end
+            report = self._advance(time, size, following, end)
+            self.index, self.time = following, end
             row = self._row()
             self._check_finite(row)
             if self._watch is not None:
                 self._watch.add(self.coupling.outputs)
             self._phases["steps"] += clock.perf_counter() - started
             self._iterations[report.iterations] += 1
-            record = StepRecord(self.index, end, self._chosen(row), report.iterations,
-                                report.refreshed, report.residual,
-                                self._recorded_texts() if self._text_reads else ())
+            # a StepRecord made as its own _make makes it, without its Python __new__
+            record = _record(StepRecord, (following, end, self._chosen(row),
+                                          report.iterations, report.refreshed,
+                                          report.residual, self._recorded_texts()
+                                          if self._text_reads else ()))
             self._emit(record)
         except (Terminated, SimulationError, OutputError, KeyboardInterrupt) as stop:
-            return self._stopped(stop, index + 1, end)
-        if self.index >= self.planned_steps:
+            return self._stopped(stop, following, end)
+        if following >= self.planned_steps:
             self.status = "completed"
             return False
         return True
+
+    def _glued_advance(self, time: float, size: float, index: int, end: float):
+        """Macro step ``index`` from ``time`` by ``size`` to ``end`` (s): the coupling's
+        step (error-controlled steps across it with step auto), the algebraic loops
+        solved, String values passed on; what it took (a StepReport)."""
+        if self._text_reads:
+            self._write_texts()
+        # a step makes tens of thousands of short-lived objects at 10,000 components
+        # and few cycles: the collector's passes over them (two full ones a step of
+        # chain_10000 on Ray) wait for the step's end (collector.py)
+        with collector_paused():
+            if self.controller is None:
+                report = self._take(time, size, index, end)
+            else:  # error-controlled steps across the output interval
+                report = self.controller.advance(time, size, index, end)
+                for note in self.controller.notes[len(self._said_notes):]:
+                    self._said_notes.append(note)
+                    self.warn(note)
+        if report.cuts:
+            self._warn_cut(index, end, size / 2 ** report.cuts)
+        if report.lost and self.coupling.least_squares_steps <= CUTS_SAID:
+            self.warn(f"step {index} (t = {end:.6g} s): the gluing matrix lost rank "
+                      "(a singular configuration): the step was accepted in the "
+                      f"least-squares sense, {report.lost:.3e} of residual left along "
+                      "the direction no joint force changes")
+        self._read_texts()
+        return report
+
+    def _kernel_advance(self, time: float, size: float, index: int, end: float):
+        """:meth:`_glued_advance` of a system whose coupling's kernel takes the whole
+        step (no joint, no algebraic loop, no String, no force column): only the
+        kernel's call, nothing made per step that can be made once."""
+        return self.coupling.step(time, size, index)
 
     def _emit(self, record) -> None:
         """Hand a step's record to the observers; off the output grid it is held, and
@@ -492,38 +508,6 @@ class Execution:
             self.signal = signal.SIGINT
             self.status = "interrupted"
         return False
-
-    def _kernel_step(self) -> bool:
-        """:meth:`step` of a system whose coupling's kernel takes the whole step (no
-        joint, no algebraic loop, no String, no force column): the same, with nothing
-        made per step that can be made once."""
-        index, time = self.index, self.time
-        started = clock.perf_counter()
-        following = index + 1
-        if following < self.planned_steps:  # as step_time and _step_size say
-            end, size = self._start + following * self._size, self._size
-        else:
-            end, size = self.step_time(following), self._step_size(index)
-        try:
-            coupling = self.coupling
-            outputs = coupling.outputs = self._kernel(coupling.outputs, time, size)
-            self.index, self.time = following, end
-            row = outputs if self._record_all else outputs[self.plan.record_index]
-            self._check_finite(row)
-            if self._watch is not None:
-                self._watch.add(outputs)
-            self._phases["steps"] += clock.perf_counter() - started
-            self._iterations[0] += 1
-            # a StepRecord made as its own _make makes it, without its Python __new__
-            record = _record(StepRecord, (following, end, row if self._selected is None
-                                          else row[self._selected], 0, 0, 0.0, ()))
-            self._emit(record)
-        except (Terminated, SimulationError, OutputError, KeyboardInterrupt) as stop:
-            return self._stopped(stop, following, end)
-        if following >= self.planned_steps:
-            self.status = "completed"
-            return False
-        return True
 
     def _end_by(self, ended: Terminated) -> None:
         """An FMU ended the simulation: the run ends normally at the last communication

@@ -88,7 +88,7 @@ def run_in_worker(scene: str, settings: dict, name: str, stop_requested):
         except InputError as error:
             return PointRun(problems=list(error.problems)), {}
         wall = clock.perf_counter() - start
-        result._signals = result.signals  # read now: the folder goes with the task
+        result.keep_signals()  # read now: the folder goes with the task
         result.files = {}
         files = {path.suffix if path.suffix == ".csv" else ".stats.json": path.read_bytes()
                  for path in (results, statistics) if path.is_file()}

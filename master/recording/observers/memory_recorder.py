@@ -28,8 +28,7 @@ class MemoryRecorder(Observer):
             self.texts.append(record.texts)
 
     def finished(self, result) -> None:
-        if result._signals is None:
-            result._signals = self.signals  # made when first asked for
+        result.keep_signals(self.signals)  # made when first asked for
 
     def signals(self) -> dict[str, np.ndarray]:
         """Column name -> values over time (``time`` first)."""

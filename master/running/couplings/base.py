@@ -56,6 +56,10 @@ class Coupling(ABC):
     name = ""
     #: whether the glued subsystems must save and restore their state
     rolls_back = True
+    #: the backend's kernel that takes whole steps, where this coupling has one (the
+    #: causal coupling without loops: :meth:`Backend.causal_kernel`); None: the
+    #: template step
+    kernel = None
 
     def __init__(self, backend, glued, layout, joints, settings, transfer=None):
         self.backend = backend
@@ -193,8 +197,6 @@ class CausalCoupling(Coupling):
 
     name = "causal"
     rolls_back = False
-    #: the backend's kernel that takes the steps (None: the template step)
-    kernel = None
     _kernel_asked = False
 
     def solve_loops(self, time: float) -> None:
