@@ -68,7 +68,7 @@ def test_the_worker_module_imports_no_scipy():
     # a worker imports this module before its first call; scipy.integrate alone took
     # 0.4 s of every worker's start (only a Model Exchange FMU's step needs it)
     found = subprocess.run([sys.executable, "-c", "import sys; import dsim.master.running."
-                            "backends.ray_worker; print(sorted({m.split('.')[0] for m in "
+                            "backends.ray.worker; print(sorted({m.split('.')[0] for m in "
                             "sys.modules} & {'scipy', 'matplotlib', 'lxml', 'rich'}))"],
                            capture_output=True, text=True, check=True)
     assert found.stdout.strip() == "[]", found.stdout
