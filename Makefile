@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN = $(VENV)/bin
 SCENE ?= spring_mass_nonlinear
 
-.PHONY: demo test quick test-serial test-beside test-rest fmus browser screenshots figures benchmarks baselines clean
+.PHONY: demo test quick quick-rest quick-beside test-serial test-beside test-rest fmus browser screenshots figures benchmarks baselines clean
 
 $(VENV)/installed: pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
@@ -46,9 +46,23 @@ test-beside:
 test-serial: fmus browser
 	$(PYTEST) -q -rs --durations=25
 
-# the fast tier: everything but the wheel, kernel, Ray, browser, fuzz and slow tests
+# the fast tier: everything but the wheel, kernel, Ray, browser, fuzz and slow tests, in
+# two pytest processes side by side as `make test` runs (the folders of QUICK_BESIDE in
+# one, into results/quick-beside.log, every other folder in the second)
+QUICK_BESIDE = tests/fmus tests/reading tests/recording tests/planning tests/distributed \
+               tests/checks tests/sweeps tests/house
 quick: fmus
-	$(PYTEST) -q -rs --durations=10 -m "$(QUICK)"
+	@mkdir -p results && rm -f results/quick-beside.log
+	@$(MAKE) --no-print-directory -j2 -k quick-beside quick-rest; status=$$?; \
+	  echo "=== the quick tests of $(QUICK_BESIDE), from results/quick-beside.log:"; \
+	  cat results/quick-beside.log; exit $$status
+
+# the two halves of `make quick` (they expect its set-up: use `make quick`)
+quick-rest:
+	$(PYTEST) -q -rs --durations=10 -m "$(QUICK)" tests $(QUICK_BESIDE:%=--ignore=%)
+quick-beside:
+	@$(PYTEST) -q -rs --durations=10 -m "$(QUICK)" -p no:cacheprovider $(QUICK_BESIDE) \
+	  >results/quick-beside.log 2>&1
 
 # Debian packages some tests use, installed when missing and allowed (best effort: without
 # them those tests are skipped, and pytest -rs says so): Chromium for dsim serve's browser
