@@ -331,16 +331,23 @@ class Execution:
 
     def _coupling_error_watch(self) -> CouplingErrorWatch:
         """The watch of the connected sources (:mod:`~dsim.master.running.coupling_error`),
-        each marked iterated where the strong coupling iterates the connection."""
+        each marked iterated where every value it feeds is made consistent at the
+        communication point: iterated by the strong coupling, or the input of an
+        algebraic loop solved there (no value passed on a step late)."""
         plan = self.plan
         transfer = plan.transfer
         reads = plan.read_names
         sources = self._sources
         iterated = np.zeros(len(sources), dtype=bool)
-        if plan.coupling == "strong":  # a source is iterated when all it feeds is
-            fed = np.zeros(transfer.size, dtype=bool)
+        fed = np.zeros(transfer.size, dtype=bool)
+        if plan.coupling == "strong":
             for index, begin, end in transfer.targets:
                 fed[begin:end] = index in plan.iterated
+        solver = self.coupling.loop_solver
+        if solver is not None:
+            for positions, active in zip(solver.positions, solver.active):
+                fed[positions] = fed[positions] | bool(active)
+        if fed.any():  # a source is iterated when all it feeds is
             exchanged = np.zeros(max(len(reads), 1), dtype=bool)
             exchanged[transfer.gather[~fed]] = True
             iterated = ~exchanged[sources]
