@@ -10,13 +10,19 @@ from a folder that is not the checkout (docs/architecture.md, "One installed nam
 * An FMU dsim built runs in an environment that has fmpy, numpy and scipy but no dsim:
   it carries its own code.
 
-The environment is made with ``python -m venv`` (no system site packages) and filled
-by pip from its cache or the package index; the one without dsim is a second venv
-that links every package of the first but dsim (pip would only install the same
-releases again, half a minute more).  About two minutes.
+The environment is made with ``python -m venv`` (no system site packages).  pip
+resolves what the wheel needs from its metadata and the package index (``pip install
+--dry-run --report``: the wheel's own requirements, nothing the test's environment
+happens to hold), and those releases, which pip installed in the test's environment
+from the same pyproject.toml and index, are linked into it rather than unpacked again
+(a minute of pip's work, the same files); then pip installs the wheel itself.  A
+dependency missing from pyproject.toml is missing there.  The environment without dsim
+is a second venv that links every package of the first but dsim.  About a minute.
 """
 from __future__ import annotations
 
+import importlib.metadata
+import json
 import os
 import re
 import shutil
@@ -54,12 +60,40 @@ def _environment() -> dict:
     return env
 
 
-def _venv(folder: Path, *requirements) -> Path:
-    """A fresh virtual environment at ``folder`` with ``requirements``; its python."""
-    _run([sys.executable, "-m", "venv", folder], cwd=folder.parent, env=_environment())
+def _site_packages(venv: Path) -> Path:
+    [found] = (venv / "lib").glob("python*/site-packages")
+    return found
+
+
+def _venv(folder: Path, wheel: Path, extras: str) -> Path:
+    """A fresh virtual environment at ``folder`` with ``wheel[extras]`` installed: its
+    requirements as pip resolves them from the wheel's metadata, each release linked
+    from this test's environment (the same one, from the same index), then the wheel;
+    its python."""
+    report = folder.parent / "resolved.json"
+    _run([sys.executable, "-m", "pip", "install", "--dry-run", "--quiet", "--ignore-installed",
+          "--report", report, f"{wheel}[{extras}]"], cwd=folder.parent, timeout=600,
+         env=_environment())
+    resolved = {item["metadata"]["name"]: item["metadata"]["version"]
+                for item in json.loads(report.read_text())["install"]}
+    assert "dsim" in resolved and len(resolved) > 10, resolved
+    _run([sys.executable, "-m", "venv", "--without-pip", folder], cwd=folder.parent,
+         env=_environment())
+    here, linked = _site_packages(folder), set()
+    for name, version in resolved.items():
+        if name == "dsim":
+            continue
+        found = importlib.metadata.distribution(name)
+        assert found.version == version, (name, found.version, version)
+        assert found.files, f"{name} lists no files"
+        for file in found.files:
+            top = file.parts[0]
+            if top != ".." and top not in linked and (here / top).exists() is False:
+                (here / top).symlink_to(Path(found.locate_file(top)))
+                linked.add(top)
     python = folder / "bin" / "python"
-    _run([python, "-m", "pip", "install", "--quiet", *requirements], cwd=folder.parent,
-         timeout=600, env=_environment())
+    _run([sys.executable, "-m", "pip", "--python", python, "install", "--quiet", "--no-deps",
+          wheel], cwd=folder.parent, timeout=600, env=_environment())
     return python
 
 
@@ -68,8 +102,7 @@ def _without_dsim(folder: Path, beside: Path) -> Path:
     environment at ``beside`` except dsim; its python."""
     _run([sys.executable, "-m", "venv", "--without-pip", folder], cwd=folder.parent,
          env=_environment())
-    [there] = (beside / "lib").glob("python*/site-packages")
-    [here] = (folder / "lib").glob("python*/site-packages")
+    there, here = _site_packages(beside), _site_packages(folder)
     for entry in there.iterdir():
         if not entry.name.lower().startswith(("dsim", "__editable__")):
             (here / entry.name).symlink_to(entry)
@@ -107,7 +140,7 @@ def test_the_wheel_holds_one_top_level_name(wheel):
 
 def test_installed_from_the_wheel_dsim_works_outside_the_checkout(wheel, built, tmp_path):
     env = _environment()
-    python = _venv(tmp_path / "venv", f"{wheel}[serve]")
+    python = _venv(tmp_path / "venv", wheel, "serve")
     dsim = tmp_path / "venv" / "bin" / "dsim"
     work = tmp_path / "work"
     work.mkdir()
