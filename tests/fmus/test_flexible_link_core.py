@@ -9,7 +9,7 @@ import scipy.linalg as sla
 
 from dsim.fmus.flexible_link import FlexibleLink
 from dsim.fmus.linkage.scenes import crank_slider
-from tests.support.gluing import march, penalized_joint
+from tests.support.gluing import crank_slider_reactions, march, penalized_joint
 
 STEEL = dict(length=6.0, density=7850.0, area=0.01, young=210e9, second_moment=0.1 ** 4 / 12)
 
@@ -114,14 +114,7 @@ def test_glued_crank_slider_with_flexible_coupler():
     beam the joint forces approach the rigid monolithic ones; the steel coupler's
     flexibility shows as a difference of about 2 % of the peak over 0.4 s."""
     h, steps = 1e-3, 400
-    whole = crank_slider("whole")
-    whole.initialize(0.0)
-    reference = [np.zeros(4)]
-    for n in range(steps):
-        whole.step(n * h, h)
-        r = whole.reactions()
-        reference.append([r["A.f_x"], r["A.f_y"], r["B.f_x"], r["B.f_y"]])
-    reference = np.array(reference)
+    reference, _ = crank_slider_reactions(steps, h)
     peak = np.max(np.abs(reference))
     stiff = _glued_crank_slider(
         FlexibleLink(**{**STEEL, "young": 210e12}, x=6.0, stiffness_damping=1e-4), steps)

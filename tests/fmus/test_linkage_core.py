@@ -8,7 +8,7 @@ import pytest
 
 from dsim.fmus.linkage import Body, Linkage, Mechanism, Revolute, SpringDamper
 from dsim.fmus.linkage.scenes import CRANK_SLIDER_PARTS, crank_angle, crank_slider, four_bar
-from tests.support.gluing import march, penalized_joint
+from tests.support.gluing import crank_slider_reactions, march, penalized_joint
 
 G = 9.81
 
@@ -134,14 +134,7 @@ def test_glued_parts_match_whole_crank_slider():
     """Crank, coupler and slider glued at A and B with the penalized measure (the
     cores' own Baumgarte row) reproduce the monolithic joint forces."""
     h, steps = 1e-3, 500
-    whole = crank_slider("whole")
-    whole.initialize(0.0)
-    reference = [np.zeros(4)]
-    for n in range(steps):
-        whole.step(n * h, h)
-        r = whole.reactions()
-        reference.append(np.array([r["A.f_x"], r["A.f_y"], r["B.f_x"], r["B.f_y"]]))
-    reference = np.array(reference)
+    reference, whole = crank_slider_reactions(steps, h)
     parts = {p: crank_slider(p) for p in CRANK_SLIDER_PARTS}
     rows = whole.row_coefficients
     forces, _ = march(parts, [penalized_joint("A", ("crank", "A"), ("coupler", "A"), rows),

@@ -31,3 +31,19 @@ def march(cores: dict, joints, step_size: float, steps: int, **settings):
         forces.append(coupling.forces.copy())
         iterations.append(report.iterations)
     return np.array(forces), iterations
+
+
+def crank_slider_reactions(steps: int, h: float = 1e-3) -> tuple:
+    """The monolithic crank slider's joint forces A.f_x, A.f_y, B.f_x, B.f_y (N) at
+    each of ``steps`` steps of ``h`` (s), zeros at the start (what glued parts of it
+    are compared with), and the monolithic core at the end."""
+    from dsim.fmus.linkage.scenes import crank_slider
+
+    whole = crank_slider("whole")
+    whole.initialize(0.0)
+    reference = [np.zeros(4)]
+    for n in range(steps):
+        whole.step(n * h, h)
+        r = whole.reactions()
+        reference.append(np.array([r["A.f_x"], r["A.f_y"], r["B.f_x"], r["B.f_y"]]))
+    return np.array(reference), whole
