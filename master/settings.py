@@ -160,13 +160,15 @@ def convert(setting: Setting, value, label: str) -> tuple[object, str | None]:
 AUTO = "auto"
 
 
-def _is_auto(keyword: str, value) -> bool:
+def is_auto(keyword: str, value) -> bool:
+    """Whether ``value`` of setting ``keyword`` asks for the error-controlled step
+    (``step="auto"``, any case, spaces around)."""
     return keyword == "step" and isinstance(value, str) and value.strip().lower() == AUTO
 
 
 def convert_setting(keyword: str, value, label: str) -> tuple[object, str | None]:
     """:func:`convert` of the setting ``keyword``, where ``step`` may also be ``auto``."""
-    if _is_auto(keyword, value):
+    if is_auto(keyword, value):
         return AUTO, None
     return convert(SETTINGS[keyword], value, label)
 
@@ -200,7 +202,7 @@ def settings_from_annotation(attributes: dict, where: str, problems: list) -> Ma
     values = {}
     for attribute, text in attributes.items():
         setting = BY_ATTRIBUTE.get(attribute)
-        if setting is not None and _is_auto(setting.keyword, text):
+        if setting is not None and is_auto(setting.keyword, text):
             values["adaptive"] = True
             continue
         if setting is None:
@@ -230,7 +232,7 @@ def resolve(master: MasterSettings, overrides: dict) -> tuple[MasterSettings, di
         if setting is None:
             problems.append(f"unknown setting '{keyword}' (known: {', '.join(SETTINGS)})")
             continue
-        if _is_auto(keyword, value):
+        if is_auto(keyword, value):
             values["adaptive"] = True
             continue
         converted, problem = convert(setting, value, f"setting {keyword}")

@@ -371,7 +371,7 @@ def library_members(path: Path, checked: bool = True) -> list[str]:
         md = read_model_description(str(path), validate=False)
         major = int(md.fmiVersion.split(".")[0])
         identifiers = [i.modelIdentifier for i in (md.coSimulation, md.modelExchange) if i]
-    folder = platform_tuple if major >= 3 else platform
+    folder = _platform_folder(major)
     return [f"binaries/{folder}/{identifier}{sharedLibraryExtension}"
             for identifier in dict.fromkeys(identifiers)]
 
@@ -379,7 +379,11 @@ def library_members(path: Path, checked: bool = True) -> list[str]:
 def library_folder(description: FmuDescription) -> str:
     """The ``binaries/`` subfolder of this machine for the FMU's FMI version (FMI 3.0
     names platforms by tuple: x86_64-linux; FMI 1.0 and 2.0: linux64)."""
-    return platform_tuple if description.major >= 3 else platform
+    return _platform_folder(description.major)
+
+
+def _platform_folder(major: int) -> str:
+    return platform_tuple if major >= 3 else platform
 
 
 def chosen_interface(description: FmuDescription, implementation: str = "") -> str:

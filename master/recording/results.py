@@ -402,21 +402,31 @@ def read_statistics(csv_path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def read_units(csv_path) -> dict[str, str]:
-    """Column -> unit of a results CSV, from the statistics JSON beside it (its
-    "units"; {} when there is none: a CSV of an older dsim or of another tool)."""
-    units = read_statistics(csv_path).get("units")
+def units_of(statistics: dict) -> dict[str, str]:
+    """Column -> unit, from a run's statistics (its "units"; {} when there is none: a
+    CSV of an older dsim or of another tool)."""
+    units = statistics.get("units")
     return {str(k): str(v) for k, v in units.items()} if isinstance(units, dict) else {}
 
 
-def read_display_units(csv_path) -> dict[str, dict]:
-    """Column -> display unit ({"unit", "factor", "offset"}) of a results CSV, from the
-    statistics JSON beside it ({} when it has none)."""
-    display = read_statistics(csv_path).get("display_units")
+def read_units(csv_path) -> dict[str, str]:
+    """Column -> unit of a results CSV, from the statistics JSON beside it."""
+    return units_of(read_statistics(csv_path))
+
+
+def display_units_of(statistics: dict) -> dict[str, dict]:
+    """Column -> display unit ({"unit", "factor", "offset"}), from a run's statistics
+    ({} when they have none)."""
+    display = statistics.get("display_units")
     if not isinstance(display, dict):
         return {}
     return {str(k): v for k, v in display.items()
             if isinstance(v, dict) and {"unit", "factor"} <= set(v)}
+
+
+def read_display_units(csv_path) -> dict[str, dict]:
+    """Column -> display unit of a results CSV, from the statistics JSON beside it."""
+    return display_units_of(read_statistics(csv_path))
 
 
 def plot_results(csv_path, png_path, title: str = "", max_curves: int = MAX_CURVES) -> None:
@@ -425,7 +435,7 @@ def plot_results(csv_path, png_path, title: str = "", max_curves: int = MAX_CURV
     header, data = read_csv(csv_path)
     statistics = read_statistics(csv_path)
     signals, units = in_display_units({name: data[:, i] for i, name in enumerate(header)},
-                                      read_units(csv_path), read_display_units(csv_path))
+                                      units_of(statistics), display_units_of(statistics))
     plot_signals(signals, png_path,
                  title or set_title(statistics.get("scene", Path(csv_path).stem),
                                     statistics.get("parameters")),

@@ -346,7 +346,8 @@ class Execution:
         solver = self.coupling.loop_solver
         if solver is not None:
             for positions, active in zip(solver.positions, solver.active):
-                fed[positions] = fed[positions] | bool(active)
+                if active:
+                    fed[positions] = True
         if fed.any():  # a source is iterated when all it feeds is
             exchanged = np.zeros(max(len(reads), 1), dtype=bool)
             exchanged[transfer.gather[~fed]] = True

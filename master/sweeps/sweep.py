@@ -31,7 +31,8 @@ import numpy as np
 from dsim.master.api import prepare, simulate
 from dsim.master.errors import InputError
 from dsim.master.recording.results import read_columns
-from dsim.master.settings import SETTINGS, convert_setting
+from dsim.master.running.step_control import DEFAULT_TOLERANCE
+from dsim.master.settings import SETTINGS, convert_setting, is_auto
 from dsim.master.sweeps.design import SALIB, Design, Factor, parse_vary, split
 from dsim.master.sweeps.folder import open_folder, spec, write_outputs
 from dsim.master.sweeps.kpi import parse_all, unresolved
@@ -168,10 +169,10 @@ def tightest(configurations: list[dict]) -> int:
     def key(k):
         settings = configurations[k]
         step = settings.get("step", 0.0) or 0.0
-        auto = isinstance(step, str) and step.strip().lower() == "auto"
+        auto = is_auto("step", step)
         return (COUPLING_RANK.get(settings.get("coupling", "iterative"), 2),
                 not auto,
-                float(settings.get("error_tolerance") or 1e-6) if auto else 0.0,
+                float(settings.get("error_tolerance") or DEFAULT_TOLERANCE) if auto else 0.0,
                 0.0 if auto else float(step),
                 float(settings.get("tolerance", 0.0) or 0.0))
     return min(range(len(configurations)), key=key)

@@ -9,9 +9,9 @@ from pathlib import Path
 
 from dsim.master.errors import InputError
 from dsim.master.recording.output_files import write_whole
-from dsim.master.recording.results import (in_display_units, plot_overlay, read_columns,
-                                            read_display_units, read_statistics, read_units,
-                                            set_title)
+from dsim.master.recording.results import (display_units_of, in_display_units, plot_overlay,
+                                            read_columns, read_statistics, set_title,
+                                            units_of)
 from dsim.master.recording.selection import column_matches
 
 
@@ -39,12 +39,13 @@ def overlay_files(files, patterns=(), out=None, title: str = "") -> Overlay:
     if not files:
         raise InputError("dsim plot: give at least one results CSV")
     results, units = {}, {}
-    for path in files:
+    statistics = [read_statistics(path) for path in files]
+    for path, stats in zip(files, statistics):
         label = path.stem if path.stem not in results else str(path)
         signals, declared = in_display_units(
             {name: values for name, values in read_columns(path).items()
              if values.dtype != object},  # text columns have no curve
-            read_units(path), read_display_units(path))
+            units_of(stats), display_units_of(stats))
         results[label] = signals
         for name, unit in declared.items():  # the first file that declares one names it
             if unit and not units.get(name):
@@ -59,15 +60,16 @@ def overlay_files(files, patterns=(), out=None, title: str = "") -> Overlay:
                          f"(columns: {', '.join(columns)})")
     out = Path(out or files[0].with_suffix(".png"))
     image = io.BytesIO()
-    panels = plot_overlay(results, names, image, title or _title(files, list(results)), units)
+    panels = plot_overlay(results, names, image,
+                          title or _title(statistics, list(results)), units)
     write_whole(out, image.getvalue(), files)
     return Overlay(out, names, [n for panel in panels for n in panel.names], len(results),
                    [panel.label for panel in panels])
 
 
-def _title(files, labels) -> str:
-    """The scenes of ``files`` and, per file, the values its run was given (--set)."""
-    statistics = [read_statistics(path) for path in files]
+def _title(statistics, labels) -> str:
+    """The scenes of the files (``statistics``: each one's) and, per file, the values
+    its run was given (--set)."""
     scenes = list(dict.fromkeys(s.get("scene") or "" for s in statistics if s.get("scene")))
     lines = [", ".join(scenes) or ", ".join(labels)]
     for label, data in zip(labels, statistics):

@@ -16,7 +16,7 @@ from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
 from dsim.master.running.fmi.checkpoint import Checkpoint
-from dsim.master.running.fmi.messages import errors_logged, forget, logged_error
+from dsim.master.running.fmi.messages import ask_for_logging, errors_logged, forget, logged_error
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 
@@ -71,10 +71,17 @@ class FmpyAdapter(Checkpoint, Subsystem):
         except Exception as error:  # fmpy raises plain Exceptions for a missing library
             raise InputError(f"{self._location}: FMU {spec.path.name} cannot be loaded: "
                              f"{error}") from None
-        self._checked("instantiate", self._instantiating, self._instantiate)
+        self._checked("instantiate", self._instantiating, self._instantiated)
         self._checked("enter initialization mode", self._enter_initialization)
         for name, (_, value) in spec.parameters.items():
             self._checked(f"set {name}", self._set_values, [self.variables[name]], [value])
+
+    def _instantiated(self) -> None:
+        """Instantiate (:meth:`_instantiate`, with logging on), then ask for the FMU's
+        warning and error log categories only (FMI 1.0 has no categories)."""
+        self._instantiate()
+        categories = self.description.log_categories if self.description.major >= 2 else ()
+        ask_for_logging(self.fmu, self.name, categories, self.spec.fmu_log)
 
     # --- what a version provides ------------------------------------------------------
     def _open(self, folder: str):

@@ -1,6 +1,7 @@
 """The macro step of FMUs in no joint, called from one loop (the in-process backend's
-causal kernel): beside :meth:`~dsim.master.running.fmi.cs2.CoSimulation2Subsystem.fused_step`, which
-gives it each FMU's calls, and checked as every FMI call is (``status > WARNING``:
+causal kernel): beside
+:meth:`~dsim.master.running.fmi.cs2.CoSimulation2Subsystem.fused_step`, which gives it
+each FMU's calls, and checked as every FMI call is (``status > WARNING``:
 fmi2Discard or worse fails, through the call's own check)."""
 from __future__ import annotations
 

@@ -16,9 +16,8 @@ from fmpy.fmi1 import FMU1Slave
 
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import FmpyAdapter, accessor
-from dsim.master.running.fmi.messages import STATUS
 from dsim.master.running.fmi.library import sharing
-from dsim.master.running.fmi.messages import CALLBACKS1, ask_for_logging
+from dsim.master.running.fmi.messages import CALLBACKS1, STATUS
 
 
 class CoSimulation1Subsystem(FmpyAdapter):
@@ -37,7 +36,6 @@ class CoSimulation1Subsystem(FmpyAdapter):
         self.fmu.instantiate(functions=CALLBACKS1, loggingOn=True)
         if not self.fmu.component:
             raise RuntimeError("fmiInstantiateSlave returned no instance")
-        ask_for_logging(self.fmu, self.name, (), self.spec.fmu_log)  # FMI 1.0: no categories
 
     def _enter_initialization(self):
         """FMI 1.0 has no initialization mode: values are set before fmiInitializeSlave."""

@@ -16,9 +16,8 @@ import ctypes
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64
 
 from dsim.master.running.fmi.adapter import FmpyAdapter, accessor
-from dsim.master.running.fmi.messages import STATUS
 from dsim.master.running.fmi.library import sharing
-from dsim.master.running.fmi.messages import ask_for_logging, logger3
+from dsim.master.running.fmi.messages import STATUS, logger3
 
 
 class CoSimulation3Subsystem(FmpyAdapter):
@@ -39,8 +38,6 @@ class CoSimulation3Subsystem(FmpyAdapter):
 
     def _instantiate(self):
         self.fmu.instantiate(loggingOn=True, logMessage=logger3(self.name))
-        ask_for_logging(self.fmu, self.name, self.description.log_categories,
-                        self.spec.fmu_log)
 
     def _enter_initialization(self):
         self.fmu.enterInitializationMode(startTime=self.spec.start_time,

@@ -32,10 +32,9 @@ from fmpy.fmi3 import FMU3Model
 
 from dsim.master.errors import SimulationError
 from dsim.master.running.fmi.adapter import FmpyAdapter, accessor
-from dsim.master.running.fmi.messages import STATUS
 from dsim.master.running.fmi.integrator import SolverSettings, make_integrator
 from dsim.master.running.fmi.library import raw, sharing
-from dsim.master.running.fmi.messages import CALLBACKS2, ask_for_logging, logger3
+from dsim.master.running.fmi.messages import CALLBACKS2, STATUS, logger3
 
 _DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
@@ -99,8 +98,6 @@ class ModelExchangeSubsystem(FmpyAdapter):
             self.fmu.instantiate(loggingOn=True, logMessage=logger3(self.name))
         else:
             self.fmu.instantiate(callbacks=CALLBACKS2, loggingOn=True)
-        ask_for_logging(self.fmu, self.name, self.description.log_categories,
-                        self.spec.fmu_log)
 
     def _enter_initialization(self):
         spec = self.spec

@@ -1,12 +1,12 @@
 """The subsystems in Ray actors: other processes, other machines (docs/distributed.md).
 
 Each worker process is a Ray actor (:class:`Host`) that builds its
-:class:`~dsim.master.running.fmi.cs2.CoSimulation2Subsystem` objects itself from their picklable specs, so an
-FMU's states never leave the process that holds the instance.  Every batched call of
-the couplings is one remote call per worker (restore, set forces, step and read
-kinematics of each of its subsystems in one message), launched for every worker
-before the first answer is awaited: the workers step side by side, the
-perturbation steps of the flexibility too.  The numbers are the in-process
+:class:`~dsim.master.running.fmi.cs2.CoSimulation2Subsystem` objects itself from
+their picklable specs, so an FMU's states never leave the process that holds the
+instance.  Every batched call of the couplings is one remote call per worker
+(restore, set forces, step and read kinematics of each of its subsystems in one
+message), launched for every worker before the first answer is awaited: the workers
+step side by side, the perturbation steps of the flexibility too.  The numbers are the in-process
 backend's to the last bit: the same CoSimulation2Subsystem code runs, only elsewhere.
 
 ``ray``: one worker per FMU instance, at most one per CPU of the cluster (beyond
@@ -647,7 +647,8 @@ class IsolatedBackend(RayBackend):
 
 def _unpacked(answer) -> list:
     """A worker's :meth:`~dsim.master.running.backends.ray.worker.Host.run_packed`
-    (or ``run_pickled``) answer as :meth:`~dsim.master.running.backends.ray.worker.Host.run` gives it."""
+    (or ``run_pickled``) answer as
+    :meth:`~dsim.master.running.backends.ray.worker.Host.run` gives it."""
     if type(answer) is bytes:  # Host.run_pickled's
         answer = pickle.loads(answer)
     head, packed, rest = answer

@@ -1,12 +1,13 @@
 """``dsim sweep --backend ray``: the points of a sweep side by side, one per Ray worker.
 
 Each point is an independent run: a Ray task (one CPU) that runs it in-process
-inside its worker (the sweep's own function, :func:`dsim.master.sweeps.point.run_in_worker`)
-and returns its result, with its results CSV and statistics as bytes that the driver
-hands to the sweep, which writes them into its folder (so a worker on another
-machine needs no shared folder).  This module knows Ray, not what a point is.  The driver keeps one point per CPU of the cluster
-in flight, hands points on as they finish and submits the next.  SIGINT or SIGTERM
-on the driver raise a flag (a small actor) that every running point looks at
+inside its worker (the sweep's own function,
+:func:`dsim.master.sweeps.point.run_in_worker`) and returns its result, with its
+results CSV and statistics as bytes that the driver hands to the sweep, which writes
+them into its folder (so a worker on another machine needs no shared folder).  This
+module knows Ray, not what a point is.  The driver keeps one point per CPU of the
+cluster in flight, hands points on as they finish and submits the next.  SIGINT or
+SIGTERM on the driver raise a flag (a small actor) that every running point looks at
 between steps: it ends after its current step, as interrupted, with its converged
 steps kept; no further point is submitted.
 

@@ -109,7 +109,8 @@ class Host:
 
     def open(self, specs, files) -> dict:
         """Instantiate the FMUs of ``specs`` from the shipped ``files`` (for each, its
-        FMU and its scene files by parameter, :class:`~dsim.master.running.backends.ray.cluster.Shipment`);
+        FMU and its scene files by parameter,
+        :class:`~dsim.master.running.backends.ray.cluster.Shipment`);
         where this worker runs."""
         import ray
 
