@@ -49,10 +49,12 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     folder (or several) whose files the scene may name besides its own, for scenes
     whose FMUs sit beside them and that the user trusts (docs/security.md).
     ``substeps``: communication steps per macro step of components exchanged once per
-    step, their inputs held (``{"controller": 10}``; ``"auto"``: each from its FMU's
-    DefaultExperiment stepSize; docs/third_party.md).  ``fmu_log``: every log category
-    of every FMU on and each message printed to stderr (default: only the warning and
-    error categories an FMU declares; docs/third_party.md).
+    step, their inputs held, or extrapolated where the FMU can interpolate inputs
+    (``{"controller": 10}``; ``"auto"``: each from its FMU's DefaultExperiment
+    stepSize), over the scene's ``glue:Substeps`` annotations (docs/third_party.md).
+    ``fmu_log``: every log category of every FMU on and each message printed to stderr
+    (default: only the warning and error categories an FMU declares;
+    docs/third_party.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     with collector_paused():  # 10,000 components: millions of objects, few cycles
         plan = _prepare(scene, load_libraries, strict, parameters, outputs,

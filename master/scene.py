@@ -81,6 +81,10 @@ class Component:
     #: the Model Exchange integrator's settings the SSD gives, as (name, value) pairs
     #: (:mod:`dsim.master.reading.ssp_solver`)
     solver: tuple = ()
+    #: the communication steps per macro step its ``glue:Substeps`` annotation gives,
+    #: as (the text of ``count``, where it stands), or () without one (checked, and
+    #: overridden by ``--substeps``, in :mod:`dsim.master.planning.substeps`)
+    substeps: tuple = ()
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from dsim.master.errors import InputError
 from dsim.master.planning.assembly import assemble
 from dsim.master.planning.loops import find_loops
 from dsim.master.planning.parameters import written_by_master
+from dsim.master.planning.substeps import choose_substeps
 from dsim.master.reading.fmu_archive import fmu_problem
 from dsim.master.reading.fmi_description import (CO_SIMULATION, MODEL_EXCHANGE,
                                                 can_roll_back, chosen_interface, describe,
@@ -677,56 +678,6 @@ def _coupled(scene: Scene, glued: tuple, numbers, chosen: dict, warnings: list):
     return coupling, (glued if scene.joints else iterated), iterated
 
 
-def _substeps(scene: Scene, asked, glued, iterated, specs, problems: list) -> tuple:
-    """``specs`` with the substeps ``asked`` (component path -> a whole number >= 1, or
-    ``"auto"``: every component exchanged once per step, from its FMU's
-    DefaultExperiment stepSize); what is wrong is appended to ``problems``."""
-    if not asked:
-        return specs
-    if isinstance(asked, str):
-        asked = {"*": asked}
-    if not isinstance(asked, dict):
-        problems.append(f"substeps: give COMPONENT=N pairs or auto, not {asked!r}")
-        return specs
-    stepped = set(glued) | set(iterated)
-    position = {c.path: i for i, c in enumerate(scene.components)}
-    chosen = {}
-    # every component's (auto) first, then one component's on top
-    for name, value in sorted(asked.items(), key=lambda item: item[0] != "*"):
-        auto = str(value).strip().lower() == "auto"
-        if name == "*" and auto:
-            for index, component in enumerate(scene.components):
-                step = None if index in stepped else getattr(
-                    describe(component.source).defaultExperiment, "stepSize", None)
-                if step and 0 < float(step) < scene.master.step:
-                    chosen[component.path] = math.ceil(scene.master.step / float(step) - 1e-9)
-            continue
-        if name == "*" or auto:
-            problems.append(f"substeps: '{name}={value}': auto is for every component "
-                            "(--substeps auto)")
-            continue
-        if name not in position:
-            paths = list(position)
-            problems.append(f"substeps: no component '{name}' (components: "
-                            f"{', '.join(paths[:8])}{', ...' if len(paths) > 8 else ''})")
-            continue
-        try:
-            if isinstance(value, bool) or float(value) != int(float(value)):
-                raise ValueError
-            count = int(float(value))
-        except (TypeError, ValueError, OverflowError):
-            count = 0
-        if count < 1:
-            problems.append(f"substeps: '{name}={value}': give a whole number >= 1")
-        elif position[name] in stepped:
-            problems.append(f"substeps: component '{name}' is stepped with the others in a "
-                            "joint or an iterated connection; substeps are for a component "
-                            "exchanged once per step")
-        else:
-            chosen[name] = count
-    return tuple(replace(spec, substeps=chosen.get(spec.name, 1)) for spec in specs)
-
-
 def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
               load_libraries: bool = True, strict: bool = False, outputs=None,
               output_interval=None, substeps=None) -> Plan:
@@ -735,7 +686,8 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     loaded, not even in a child process (its bytes are checked).  ``strict``: every
     warning is a problem too.  ``outputs``, ``output_interval``: what to record
     (:mod:`dsim.master.recording.selection`); ``substeps``: communication steps per
-    macro step of components exchanged once per step (:func:`_substeps`)."""
+    macro step of components exchanged once per step
+    (:func:`~dsim.master.planning.substeps.choose_substeps`)."""
     backend_options = {k: v for k, v in (backend_options or {}).items() if v is not None}
     scene, step_control = _step_control(scene, output_interval)
     checked = _checked(scene, backend, backend_options, load_libraries, strict,
@@ -767,8 +719,8 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     if strict:  # the coupling's own warnings (those of the checks are refused already)
         problems += [f"{warning} (a warning; refused with --strict)" for warning in warnings]
         warnings = []
-    specs = _substeps(scene, substeps, glued, iterated if coupling == "strong" else (), specs,
-                      problems)
+    specs = choose_substeps(scene, substeps, glued, iterated if coupling == "strong" else (),
+                            specs, problems)
     _refuse(problems, warnings)
     loops = find_loops(scene, moves["numbers"], chosen)
     start_links, start_transfer = checked["links"], moves["start_transfer"]

@@ -408,7 +408,21 @@ class _Reader:
                                     connectors=self.connectors_of(element),
                                     implementation=element.get("implementation", ""),
                                     solver=solver_of(element, self.warnings, where,
-                                                    self._solvers)))
+                                                    self._solvers),
+                                    substeps=self.substeps_of(element, path)))
+
+    def substeps_of(self, element, path: str) -> tuple:
+        """(the text of ``count``, where) of the component's ``glue:Substeps``
+        annotation, () without one; a second one is a problem."""
+        found = element.findall(
+            "ssd:Annotations/ssc:Annotation[@type='org.dsim.substeps']/glue:Substeps", NS)
+        if not found:
+            return ()
+        wheres = [f"{self.shown} ({self.ssd.name} line {node.sourceline}): glue:Substeps of "
+                  f"component '{path}'" for node in found]
+        if len(found) > 1:
+            self.problems.append(f"{wheres[1]}: a second glue:Substeps (one per component)")
+        return found[0].get("count"), wheres[0]
 
     def parameter_set_on_top(self, chosen: str) -> None:
         """Bind a parameter set of the scene above every other binding."""
@@ -460,7 +474,7 @@ class _Reader:
             components.append(Component(c["path"], c["source"], parameters,
                                         tuple(c["connectors"].values()), c["location"],
                                         origins[c["path"]], files, c["implementation"],
-                                        c["solver"]))
+                                        c["solver"], c["substeps"]))
         return components, connections
 
     def scene_files(self, parameters: dict, origins: dict, location: str) -> dict[str, Path]:

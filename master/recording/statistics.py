@@ -124,6 +124,11 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
         "display_units": recorded_display_units(plan, units),
         # components stepped several times per macro step (--substeps)
         "substeps": {spec.name: spec.substeps for spec in plan.specs if spec.substeps > 1},
+        # of those, the ones whose Real inputs were extrapolated over the substeps with
+        # their slope (fmi2SetRealInputDerivatives: the FMU declares canInterpolateInputs);
+        # the others' inputs were held
+        "substeps_input_derivatives": [spec.name for spec in plan.specs
+                                       if spec.input_derivatives],
         "recording": {"outputs": list(plan.outputs),
                       "output_interval": plan.output_interval,
                       "every_steps": plan.record_every},

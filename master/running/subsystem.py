@@ -180,7 +180,8 @@ class Subsystem(ABC):
         return self.kinematics()
 
     #: communication steps per macro step of a subsystem exchanged once per step (its
-    #: inputs held over them: ``--substeps``)
+    #: inputs held over them, or extrapolated where :meth:`input_ramp` says how:
+    #: ``--substeps``)
     substeps = 1
 
     def exchange(self, time: float, step_size: float) -> np.ndarray:
@@ -189,12 +190,23 @@ class Subsystem(ABC):
         if self.substeps == 1:
             self.do_step(time, step_size)
         else:
+            ramp = self.input_ramp(time)
             end, size, t = time + step_size, step_size / self.substeps, time
             for _ in range(self.substeps - 1):
+                if ramp is not None:
+                    ramp(t)
                 self.do_step(t, size)
                 t = t + size
+            if ramp is not None:
+                ramp(t)
             self.do_step(t, size_to(t, end, size))  # the last lands where one step would
         return self.read_outputs()
+
+    def input_ramp(self, time: float):
+        """For the substeps of a macro step from ``time`` (s): a function of a
+        substep's start time (s) that sets the inputs there, or None: the inputs
+        written at the macro step's start are held (here, always)."""
+        return None
 
     def exchange_with(self, values, time: float, step_size: float) -> np.ndarray:
         """:meth:`write_inputs` of ``values`` (None: no input is connected), then

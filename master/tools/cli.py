@@ -407,9 +407,10 @@ def _add_run_choices(run_parser) -> None:
                             "again for more (`dsim info --all` lists what can be set)")
     run_parser.add_argument("--substeps", action="append", metavar="COMPONENT=N",
                             help="N communication steps of a component per macro step, "
-                            "its inputs held over them (a component exchanged once per "
+                            "its inputs held over them, or extrapolated where its FMU "
+                            "can interpolate inputs (a component exchanged once per "
                             "step); auto: each from its FMU's DefaultExperiment stepSize; "
-                            "again for more")
+                            "again for more; over the scene's glue:Substeps")
     run_parser.add_argument("--fmu-log", action="store_true",
                             help="every log category of every FMU on, each message printed "
                             "to stderr as it comes (default: only the categories of "

@@ -120,6 +120,15 @@ def _flags(spec, description) -> str:
             f"{INTERFACE_WORDS[spec.interface]}; {', '.join(flags)}")
 
 
+def _substeps_note(spec) -> str:
+    """``; 4 substeps per macro step, inputs extrapolated`` for a component that takes
+    several (--substeps, glue:Substeps); "" for one that takes one."""
+    if spec.substeps < 2:
+        return ""
+    return (f"; {spec.substeps} substeps per macro step, inputs "
+            + ("extrapolated (input derivatives)" if spec.input_derivatives else "held"))
+
+
 def _role(plan, index: int, brief: bool = False, glued_set=None) -> str:
     """How the master moves component ``index``: glued (iterated with rollback) or free
     (``glued_set``: the plan's glued indices as a set, for a caller asking of every
@@ -224,7 +233,8 @@ def _summary(checked) -> list[str]:
             f"ports: {port_summary(checked.ports[component.path]) or 'none'}; "
             f"records: {_names(records) or 'nothing'}; can be set: {settable_counts[index]}"
             + (f"; scene file: {files}" if files else "")
-            + (f"; placed on Ray resource {placed} (--backend ray)" if placed else ""))
+            + (f"; placed on Ray resource {placed} (--backend ray)" if placed else "")
+            + _substeps_note(checked.specs[index]))
     if len(scene.components) > LISTED:
         say(f"  ... {len(scene.components) - LISTED} more components (dsim info --all "
             "lists every one)")

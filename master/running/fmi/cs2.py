@@ -29,6 +29,7 @@ from dsim.master.errors import InputError, SimulationError
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.fmu_archive import unzipped
 from dsim.master.running.fmi.checkpoint import Checkpoint
+from dsim.master.running.fmi.input_slopes import InputSlopes, extrapolated_places
 from dsim.master.running.fmi import library
 from dsim.master.running.fmi.messages import STATUS as SHARED_STATUS
 from dsim.master.running.fmi.messages import (CALLBACKS2, WARNING, ask_for_logging, errors_logged,
@@ -237,6 +238,8 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         self._write_direct = (self._writes[0] if len(self._writes) == 1
                               and self._writes[0].kind == "Real" else None)
         self._start_writes = _batches(self, [variables[n] for n in spec.start_writes])
+        #: its Real inputs extrapolated over its substeps (``spec.input_derivatives``)
+        self._slopes = self._input_slopes(spec, variables) if spec.input_derivatives else None
         self._texts_in = _Strings(self, [variables[n].valueReference for n in spec.text_reads])
         self._texts_out = _Strings(self, [variables[n].valueReference
                                           for n in spec.text_writes])
@@ -323,7 +326,9 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         instance of the same FMU needs to go on from there (:meth:`resume`), in
         another process or on another machine (a lost Ray worker)."""
         data = self._call("fmi2SerializeFMUstate", self.fmu.serializeFMUstate, self._state)
-        return {"fmu": bytes(data), "time": self.time, "stepped": self._stepped}
+        return {"fmu": bytes(data), "time": self.time, "stepped": self._stepped,
+                # the inputs of the last macro steps (their slope over the substeps)
+                "slopes": None if self._slopes is None else self._slopes.kept()}
 
     def resume(self, checkpoint: dict) -> None:
         """Go on from a :meth:`checkpoint` of another instance of this FMU (this one
@@ -335,6 +340,8 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         self._state = state
         self.restore_state()
         self.time, self._stepped, self._dirty = checkpoint["time"], checkpoint["stepped"], False
+        if self._slopes is not None and checkpoint.get("slopes") is not None:
+            self._slopes.keep(checkpoint["slopes"])
 
     def set_forces(self, forces):
         self._forces.write(forces)
@@ -502,6 +509,8 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
             batch.write(values[places])
 
     def write_inputs(self, values) -> None:
+        if self._slopes is not None:
+            self._slopes.wrote(values)
         if self._write_direct:  # one Real batch: the values are in its order
             batch = self._write_direct
             batch.array[:] = values
@@ -525,6 +534,22 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         slope = (np.asarray(end, dtype=float)[places] - start) / step_size
         self._call("fmi2SetRealInputDerivatives", self.fmu.setRealInputDerivatives,
                    vrs, [1] * len(vrs), list(slope))
+
+    def _input_slopes(self, spec: SubsystemSpec, variables: dict) -> InputSlopes | None:
+        """The extrapolation of the Real continuous inputs among ``spec.writes`` over
+        the substeps (:mod:`.input_slopes`), or None where there is none."""
+        places = extrapolated_places(variables, spec.writes)
+        if not places:
+            return None
+        references = _references(self, [variables[spec.writes[i]].valueReference
+                                        for i in places])
+        return InputSlopes(places, references, self.call("fmi2SetReal"),
+                           self.call("fmi2SetRealInputDerivatives"))
+
+    def input_ramp(self, time):
+        """The extrapolated inputs over the substeps of a macro step from ``time`` (s)
+        (:mod:`.input_slopes`), or None: held."""
+        return None if self._slopes is None else self._slopes.ramp(time)
 
     def _real_input_places(self) -> tuple[list[int], list[int]]:
         """Where the Real inputs are in ``spec.writes`` and their value references, when

@@ -49,6 +49,10 @@ class SubsystemSpec:
     #: communication steps of this FMU per macro step, its inputs held over them (a
     #: component exchanged once per step: ``--substeps``)
     substeps: int = 1
+    #: over those substeps its Real inputs are extrapolated from the last two macro
+    #: steps' values and given with their slope (fmi2SetRealInputDerivatives: an FMI
+    #: 2.0 co-simulation FMU that declares canInterpolateInputs); else they are held
+    input_derivatives: bool = False
     #: every log category of the FMU on and each message printed (``--fmu-log``);
     #: else only its warning and error categories, the last messages kept
     fmu_log: bool = False

@@ -64,12 +64,15 @@ BLOCK_VARIABLES = (
 
 
 def model_description(identifier: str, variables, can_save_state: bool = True,
-                      variable_step: bool = True, log_categories=()) -> str:
+                      variable_step: bool = True, log_categories=(),
+                      interpolate_inputs: bool = False) -> str:
     """modelDescription.xml of a C FMU (the start values must be the C code's own),
-    declaring ``log_categories`` (names) when given."""
+    declaring ``log_categories`` (names) when given, and canInterpolateInputs="true"
+    with ``interpolate_inputs``."""
     listed = list(variables)
     categories = "".join(f'<Category name="{c}"/>' for c in log_categories)
     categories = f"\n  <LogCategories>{categories}</LogCategories>" if categories else ""
+    interpolates = ' canInterpolateInputs="true"' if interpolate_inputs else ""
     outputs = "".join(f'<Unknown index="{i + 1}"/>' for i, v in enumerate(listed)
                       if v.causality == "output")
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -77,7 +80,7 @@ def model_description(identifier: str, variables, can_save_state: bool = True,
     variableNamingConvention="structured" numberOfEventIndicators="0">
   <CoSimulation modelIdentifier="{identifier}"
       canHandleVariableCommunicationStepSize="{str(variable_step).lower()}"
-      canGetAndSetFMUstate="{str(can_save_state).lower()}"/>{categories}
+      canGetAndSetFMUstate="{str(can_save_state).lower()}"{interpolates}/>{categories}
   <ModelVariables>
 {chr(10).join(v.xml() for v in listed)}
   </ModelVariables>
@@ -114,10 +117,11 @@ OSCILLATOR_VARIABLES = (
 
 def c_fmu(folder: Path, name: str, source: str = "block.c", variables=BLOCK_VARIABLES,
           can_save_state: bool = True, variable_step: bool = True, defines=(),
-          log_categories=()) -> Path:
+          log_categories=(), interpolate_inputs: bool = False) -> Path:
     """Compile ``source`` (a file of this folder) and pack ``folder/name.fmu``; its
     model identifier is the source's stem; ``log_categories``: the LogCategories its
-    description declares."""
+    description declares; ``interpolate_inputs``: it declares canInterpolateInputs
+    (the C code's to honour: oscillator.c with the define INTERPOLATE)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     identifier = Path(source).stem
@@ -127,7 +131,8 @@ def c_fmu(folder: Path, name: str, source: str = "block.c", variables=BLOCK_VARI
     fmu = folder / f"{name}.fmu"
     with zipfile.ZipFile(fmu, "w") as archive:
         archive.writestr("modelDescription.xml", model_description(
-            identifier, variables, can_save_state, variable_step, log_categories))
+            identifier, variables, can_save_state, variable_step, log_categories,
+            interpolate_inputs))
         archive.write(library, f"binaries/linux64/{identifier}.so")
     library.unlink()
     return fmu

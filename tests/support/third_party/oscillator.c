@@ -12,7 +12,11 @@
  * whatever process loads it.  With -DHANG_TIME=t the first step that reaches t never
  * returns, as an FMU stuck in its own solver; with -DHANG_INITIALIZATION
  * fmi2ExitInitializationMode never returns, after creating the file named by the
- * environment variable OSCILLATOR_HUNG (if set), so a test knows when it is stuck. */
+ * environment variable OSCILLATOR_HUNG (if set), so a test knows when it is stuck.
+ * With -DINTERPOLATE it honours fmi2SetRealInputDerivatives (order 1, F_in only): the
+ * force is F(t') = F + dF (t' - t_F) from the time t_F its value or slope was set (a
+ * new fmi2SetReal holds it again: dF = 0), and the trapezoidal rule takes it at both
+ * ends of a step, its acceleration at the start taken again from F there. */
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -25,6 +29,9 @@ typedef struct {
     double x[N_VARS];
     double time;
     int initializing;
+#ifdef INTERPOLATE
+    double dF, tF;  /* the force's slope (N/s) and when its value or slope was set (s) */
+#endif
     fmi2CallbackFunctions cb;
     char name[64];
 } Model;
@@ -91,6 +98,9 @@ FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[
     for (size_t i = 0; i < n; i++) {
         if (vr[i] >= N_VARS) return fmi2Error;
         m->x[vr[i]] = value[i];
+#ifdef INTERPOLATE
+        if (vr[i] == VR_F) { m->dF = 0.0; m->tF = m->time; }  /* held again */
+#endif
 #ifdef LIVE_OUTPUTS  /* in initialization mode the outputs follow the inputs at once */
         if (m->initializing && vr[i] == VR_S0) m->x[VR_S] = value[i];
 #endif
@@ -150,9 +160,28 @@ FMI2_Export fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
         const fmi2ValueReference u[], size_t nu, const fmi2ValueReference z[], size_t nz,
         const fmi2Real du[], fmi2Real dz[]) { return fmi2Error; }
 
+#ifdef INTERPOLATE
+/* the force's value at time t (N) */
+static double force_at(const Model *m, double t) { return m->x[VR_F] + m->dF * (t - m->tF); }
+
+FMI2_Export fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
+        const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],
+        const fmi2Real value[]) {
+    Model *m = c;
+    for (size_t i = 0; i < n; i++)
+        if (vr[i] != VR_F || order[i] != 1) return fmi2Error;
+    for (size_t i = 0; i < n; i++) {
+        m->x[VR_F] = force_at(m, m->time);  /* its value now, the slope from here on */
+        m->tF = m->time;
+        m->dF = value[i];
+    }
+    return fmi2OK;
+}
+#else
 FMI2_Export fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
         const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],
         const fmi2Real value[]) { return fmi2Error; }
+#endif
 FMI2_Export fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
         const fmi2ValueReference vr[], size_t n, const fmi2Integer order[],
         fmi2Real value[]) { return fmi2Error; }
@@ -174,8 +203,14 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
                      "step of %g s is longer than h_max", h);
         return fmi2Discard;
     }
+#ifdef INTERPOLATE
+    double f1 = force_at(m, t + h);
+    x[VR_A] = (force_at(m, t) - x[VR_K] * x[VR_S]) / x[VR_M];
+#else
+    double f1 = x[VR_F];
+#endif
     double s_pred = x[VR_S] + h * x[VR_V] + 0.25 * h * h * x[VR_A];
-    double a1 = (x[VR_F] - x[VR_K] * s_pred) / (x[VR_M] + 0.25 * h * h * x[VR_K]);
+    double a1 = (f1 - x[VR_K] * s_pred) / (x[VR_M] + 0.25 * h * h * x[VR_K]);
     x[VR_V] += 0.5 * h * (x[VR_A] + a1);
     x[VR_S] = s_pred + 0.25 * h * h * a1;
     x[VR_A] = a1;
