@@ -6,8 +6,10 @@ takes) or of a design of experiments over settings and model parameters
 (:mod:`dsim.master.sweeps.design`: full-factorial grids, Latin hypercube, Sobol', Halton, Saltelli,
 Morris), and measures each: the error against a reference (a results CSV the user
 gives, else the monolithic twin's results a scene ships as ``resources/reference.csv``,
-else the sweep's tightest run; none by default where model parameters vary, since a
-twin at the nominal parameters is no reference for other ones), the quantities of
+else dsim's reference run: the strong coupling with an error-controlled step at a tenth
+of the tightest point's tolerance, or, where that cannot run, the sweep's tightest
+run; none by default where model parameters vary, since a twin at the nominal
+parameters is no reference for other ones), the quantities of
 interest asked for (:mod:`dsim.master.sweeps.kpi`), wall time, iterations and doSteps per step,
 and whether it stayed stable.  Each finished point is a whole row of ``sweep.csv`` at
 once, so an interrupted or killed sweep keeps them, and a rerun into the same folder
@@ -44,6 +46,12 @@ from dsim.master.sweeps.table import MEASURES, Point, SweepTable, markdown  # no
 #: the reference named to measure against the sweep's tightest point even where the
 #: scene ships its monolithic twin
 TIGHTEST = "tightest"
+#: the error tolerance of the reference run as a share of the tightest point's (of
+#: DEFAULT_TOLERANCE where that point steps at a fixed step)
+REFERENCE_SHARE = 0.1
+#: the reference run's results in the sweep's folder (under a temporary name while it
+#: runs: the file is there only when the run completed)
+REFERENCE_FILE, REFERENCE_RUNNING = "reference.csv", "reference.running.csv"
 #: the keys of a sweep file
 FILE_KEYS = ("grid", "points", "settings", "reference", "columns", "vary", "design",
              "samples", "seed", "kpis")
@@ -393,8 +401,50 @@ def _reference(sweep: Sweep, reference_file, use_tightest: bool, points: dict):
     return reference, label
 
 
+def reference_settings(configuration: dict, fixed: dict) -> dict | None:
+    """The reference run's settings beside the tightest point's ``configuration`` (with
+    ``fixed``, the settings of every point): the most accurate run dsim can make of the
+    scene, the strong coupling with an error-controlled step (step auto) at
+    :data:`REFERENCE_SHARE` of the point's error tolerance (of DEFAULT_TOLERANCE where it
+    steps at a fixed step, recording a row at each of its steps); None where the point
+    is such a run already."""
+    settings = {**fixed, **configuration}
+    step = settings.get("step")
+    auto = step is not None and is_auto("step", step)
+    if auto and settings.get("coupling") == "strong":
+        return None
+    tolerance = float(settings.get("error_tolerance") or DEFAULT_TOLERANCE) if auto else \
+        DEFAULT_TOLERANCE
+    chosen = {"coupling": "strong", "step": "auto",
+              "error_tolerance": tolerance * REFERENCE_SHARE}
+    chosen.update((k, v) for k, v in configuration.items() if k not in chosen)
+    if step is not None and not auto and "output_interval" not in settings:
+        chosen["output_interval"] = step
+    return chosen
+
+
+def _reference_run(scene, sweep: Sweep, chosen: dict, out: Path, bars: bool):
+    """The reference run of ``chosen`` settings (:func:`reference_settings`), kept in
+    ``out`` (a rerun of the sweep reads it back): its columns, or None with why not,
+    and the signal that interrupted it, if one did."""
+    kept = out / REFERENCE_FILE
+    if kept.is_file():
+        return read_columns(kept), "", None
+    running = out / REFERENCE_RUNNING
+    for stale in (running, running.with_suffix(".stats.json")):  # a killed rerun's
+        stale.unlink(missing_ok=True)
+    run = run_point(scene, {**sweep.fixed, **chosen}, running, bars, trusted(sweep))
+    if run.result is None:
+        return None, "; ".join(run.problems), None
+    if not run.result.ok:
+        return None, run.result.message, run.result.signal
+    running.with_suffix(".stats.json").replace(kept.with_suffix(".stats.json"))
+    running.replace(kept)
+    return read_columns(kept), "", None
+
+
 def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
-              resumed=None) -> tuple[list[Point], int | None]:
+              resumed=None, said=None) -> tuple[list[Point], int | None]:
     """Run every point not already finished in ``out``, writing ``out/sweep.csv`` as
     points finish, then ``out/sweep.md``, ``sweep.png`` and the KPIs' figures and
     sensitivity (:func:`dsim.master.sweeps.folder.write_outputs`); returns every point of the
@@ -402,7 +452,8 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     end the running points after their current step, and the sweep after them, with
     everything written).  ``progress(done, total, point)`` is called as points finish;
     ``resumed(finished, total)`` once, before any point runs, when the folder already
-    held finished points of this sweep; ``bars`` shows each point's progress bar on a
+    held finished points of this sweep; ``said(line)`` with what the sweep measures
+    against where it chose it itself; ``bars`` shows each point's progress bar on a
     terminal (points run one after the other).
 
     With the setting ``backend`` fixed to ``ray`` the points run side by side, one per
@@ -419,8 +470,11 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     check_parameters(scene, sweep, configurations)
     check_columns(plan, sweep)
     reference_file, use_tightest = _reference_choice(sweep, plan)
+    chosen = None
     if use_tightest:  # the tightest run first: the others compare with it
         configurations.insert(0, configurations.pop(tightest(configurations)))
+        if sweep.reference is None:  # not asked for the tightest point: dsim's best run
+            chosen = reference_settings(configurations[0], sweep.fixed)
     out = Path(out)
     configurations, points = open_folder(out, spec(scene, sweep, kpis), configurations,
                                          plan.inputs)
@@ -430,13 +484,25 @@ def run_sweep(scene, sweep: Sweep, out: Path, progress=None, bars: bool = False,
     table = SweepTable(out / "sweep.csv", names, plan.inputs, labels)
     for k in sorted(points):
         table.add(points[k])
-    reference, label = _reference(sweep, reference_file, use_tightest, points)
-    measuring = reference_file is not None or use_tightest
     interrupted = None
+    if chosen is not None:
+        columns, why, interrupted = _reference_run(scene, sweep, chosen, out, bars)
+        if columns is not None:
+            use_tightest = False
+        elif said and not interrupted:
+            said(f"the reference run ({Point(chosen).label}) did not complete: {why}; "
+                 "measuring against the tightest point instead")
+    reference, label = _reference(sweep, reference_file, use_tightest, points)
+    if chosen is not None and not use_tightest:
+        reference = columns
+        label = f"dsim's reference run ({Point(chosen).label}, {REFERENCE_FILE})"
+    if said and (chosen is not None or use_tightest) and not interrupted:
+        said(f"measured against {label}")
+    measuring = reference_file is not None or use_tightest or reference is not None
+    todo = [] if interrupted else [k for k in range(total) if k not in points]
     # measured in configuration order until there is a reference (the first point that
     # completes, where it is the tightest); in any order after that
     finished: dict[int, PointRun] = {}
-    todo = [k for k in range(total) if k not in points]
     order = iter(todo)
     waiting = next(order, None)
 

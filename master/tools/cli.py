@@ -262,8 +262,9 @@ def _cmd_sweep(args) -> int:
               f"running the other {total - finished}", file=sys.stderr)
 
     try:
-        points, interrupted = run_sweep(args.scene, sweep, out, progress, bars=True,
-                                        resumed=resumed)
+        points, interrupted = run_sweep(
+            args.scene, sweep, out, progress, bars=True, resumed=resumed,
+            said=lambda line: print(f"reference   {line}", file=sys.stderr))
     except HeadLost as lost:  # the table and files are written: say what was lost
         print(f"dsim: sweep failed: {lost} in {out}", file=sys.stderr)
         for line in log_lines():
@@ -509,8 +510,10 @@ def _add_sweep(commands) -> None:
                               "reference, columns, vary, design, samples, seed, kpis)")
     sweep_parser.add_argument("--reference", help="results CSV to measure the error against, "
                               "or 'tightest' (default: the monolithic twin the scene ships as "
-                              "resources/reference.csv, else the sweep's tightest point; no "
-                              "error where model parameters vary)")
+                              "resources/reference.csv, else dsim's reference run: strong "
+                              "coupling, --step auto at a tenth of the tightest point's "
+                              "tolerance, kept as OUT/reference.csv; no error where model "
+                              "parameters vary)")
     sweep_parser.add_argument("--columns", help="comma-separated columns to compare "
                               "(default: every common column)")
     sweep_parser.add_argument("--out", help="folder for sweep.csv, sweep.md, the plots, the "
