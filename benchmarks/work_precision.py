@@ -7,9 +7,12 @@ compiled here with gcc into FMI 2.0 co-simulation FMUs): mass1 gives its positio
 speed, mass2 gives the coupling force back; m1 = m2 = 1 kg, k1 = k2 = 10 N/m, coupling
 spring 100 N/m, x1(0) = 0.1 m, from 0 to 2 s.  The error is max |x1 - exact| over every
 recorded point (exact: the matrix exponential of the four states).  The other masters:
-FMPy's ``simulate_ssp`` and, where libcosimpy is installed, libcosim (C++) with its
-fixed-step algorithm, both exchanging the connections once per step.  dsim records a
-row every 0.1 s with ``--step auto`` and every step at a fixed one.
+FMPy's ``simulate_ssp``, where libcosimpy is installed libcosim (C++) with its fixed-step
+algorithm, and where ecospy is installed (with Debian's libtbb12, which its native
+library needs) ECOS (C++) with its fixed-step algorithm, each exchanging the connections
+once per step.  dsim records a row every 0.1 s with ``--step auto`` and every step at a
+fixed one; libcosim and ECOS every step through their own CSV writers (ECOS's prints six
+decimals, so its error is known to 5e-7 m).
 
 CPU seconds of this process (a shared machine makes wall time mostly waiting), the
 least of ``--repeat`` runs; every configuration runs in the same process, in turn.
@@ -128,6 +131,45 @@ def run_libcosim(ssp: Path, step: float, folder: Path):
     return data[:, names.index("Time")], data[:, names.index("x1")], {}
 
 
+#: ECOS's name in the rows, the table and the plot
+ECOS = "ECOS"
+
+
+def ecos_missing() -> str:
+    """Why ECOS cannot run here, '' where it can: ecospy (PyPI) not installed, or its
+    native library not loading (it needs libtbb.so.12, Debian's libtbb12)."""
+    try:
+        from ecospy import EcosLib
+    except ImportError as error:
+        return f"ecospy is not installed ({error}; `pip install ecospy`)"
+    except OSError as error:  # ctypes could not load libecosc.so or what it links
+        return (f"ecospy's native library did not load ({error}; it needs Debian's "
+                "libtbb12)")
+    EcosLib.set_log_level("err")
+    return ""
+
+
+def run_ecos(ssp: Path, step: float, folder: Path):
+    """ECOS's fixed-step run of the .ssp with its CSV writer on mass1's x1; the file read
+    back.  Times are the step count times the step: the writer prints them to six
+    significant digits.  ``step(n)`` rather than ``step_until``, which (ecospy 0.7.2)
+    stops a step short where the summed time passes the stop (1.99 s at h = 0.01 s)."""
+    from ecospy import EcosSimulation
+
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    csv = folder / "mass1.csv"
+    with EcosSimulation(step_size=step, ssp_path=str(ssp)) as simulation:
+        simulation.add_csv_writer(str(csv), identifiers=["mass1::x1"])
+        simulation.init()
+        simulation.step(round(STOP / step))
+        simulation.terminate()  # the file flushed and closed
+    names = [name.strip() for name in csv.read_text().split("\n", 1)[0].split(",")]
+    data = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
+    x1 = next(i for i, name in enumerate(names) if name.startswith("mass1::x1"))
+    return data[:, names.index("iterations")] * step, data[:, x1], {}
+
+
 def measure(repeat: int) -> list[dict]:
     """Every configuration's error, CPU seconds and steps."""
     from tests.support.third_party.kinds.build import build_fmu
@@ -155,6 +197,10 @@ def measure(repeat: int) -> list[dict]:
         for h in (1e-2, 1e-3, 1e-4):
             configurations.append(("libcosim", f"h = {h:g} s", lambda h=h: run_libcosim(
                 two_mass_ssp(folder / "cosim.ssp", fmus, h), h, folder / "cosim")))
+    if not ecos_missing():
+        for h in (1e-2, 1e-3, 1e-4, 1e-5):
+            configurations.append((ECOS, f"h = {h:g} s", lambda h=h: run_ecos(
+                two_mass_ssp(folder / "ecos.ssp", fmus, h), h, folder / "ecos")))
     rows = []
     for master, setting, run in configurations:
         seconds, (times, x1, statistics) = min((_cpu(run) for _ in range(repeat)),
@@ -192,8 +238,8 @@ def plot(rows: list[dict], png: Path) -> None:
     plt.close(figure)
 
 
-def page(rows: list[dict]) -> str:
-    """docs/work_precision.md."""
+def page(rows: list[dict], ecos_why: str = "") -> str:
+    """docs/work_precision.md; ``ecos_why``: why ECOS was not measured, if it was not."""
     lines = [
         "# Work against precision (`python -m benchmarks.work_precision`)",
         "",
@@ -211,6 +257,8 @@ def page(rows: list[dict]) -> str:
         again = f" ({row['rejected']})" if row["rejected"] is not None else ""
         lines.append(f"| {row['master']} | {row['setting']} | {row['error']:.3g} | "
                      f"{row['seconds']:.3f} | {row['steps']}{again} |")
+    if ecos_why:
+        lines += ["", f"ECOS was not measured: {ecos_why}."]
     lines += ["", "What it shows, read from this run's rows:", ""]
     lines += _reading(rows)
     return "\n".join(lines) + "\n"
@@ -234,6 +282,7 @@ def _reading(rows: list[dict]) -> list[str]:
             said.append(f"- dsim's error-controlled step passes it at {cheapest['setting']}: "
                         f"{cheapest['error']:.3g} m in {cheapest['seconds']:.3f} s "
                         f"({best['seconds'] / cheapest['seconds']:.2g} times less CPU).")
+    said += _ecos_against_dsim(rows)
     if auto and fixed:
         for row in auto:
             reaching = [r for r in fixed if r["error"] <= row["error"]]
@@ -251,98 +300,36 @@ def _reading(rows: list[dict]) -> list[str]:
     return said
 
 
-#: the shipped scenes whose steps over time the page plots: (scene, stop (s), E, output
-#: interval (s))
-STEPPED = (("spring_mass_nonlinear", 10.0, 1e-6, 0.5),
-           ("four_bar_singular_flexible", 0.5, 1e-5, 0.05))
+#: where the shipped scenes under --step auto are measured (their bands and steps)
+SCENES_LINK = ("\nThe shipped scenes under `--step auto` (their difference from the monolithic "
+               "reference against the scene's own fixed step, and the step over time): "
+               "[docs/step_auto_scenes.md](step_auto_scenes.md).\n")
 
 
-def step_history(ssp: Path, stop: float, tolerance: float, interval: float):
-    """An error-controlled run's accepted steps: their starts and sizes (s), its
-    statistics and CPU seconds."""
-    execution = dsim.Execution(dsim.prepare(ssp, stop=stop, step="auto",
-                                            error_tolerance=tolerance,
-                                            output_interval=interval))
-    seconds, result = _cpu(lambda: execution.run(handle_signals=False))
-    if not result.ok:
-        raise RuntimeError(result.message)
-    return (np.array(execution.controller.times), np.array(execution.controller.sizes),
-            result, seconds)
+#: errors within this share of each other are equal errors, for ECOS against dsim
+SAME_ERROR = 0.02
 
 
-def stepped_scenes() -> list[dict]:
-    """Each of :data:`STEPPED` under ``--step auto``: its steps, and for
-    spring_mass_nonlinear the error against its monolithic twin at a 10 us step (the
-    truth here) beside the scene's own fixed step."""
-    from dsim.build_fmus.twins.spring_mass import monolithic
-
-    rows = []
-    for name, stop, tolerance, interval in STEPPED:
-        ssp = ROOT / "build" / "ssp" / f"{name}.ssp"
-        times, sizes, result, seconds = step_history(ssp, stop, tolerance, interval)
-        row = {"scene": name, "stop": stop, "tolerance": tolerance, "interval": interval,
-               "times": times, "sizes": sizes, "seconds": seconds,
-               "control": result.statistics["step_control"]}
-        if name == "spring_mass_nonlinear":
-            truth_t, truth = monolithic(True, stop=stop, step=1e-5)
-            fixed = dsim.simulate(ssp, stop=stop, handle_signals=False)
-            for key, run in (("error", result), ("fixed_error", fixed)):
-                row[key] = float(np.max(np.abs(run["right.x[2]"] - np.interp(
-                    run["time"], truth_t, truth[:, 2]))))
-            row["fixed_step"] = fixed.statistics["master"]["step"]
-        rows.append(row)
-        print(f"{name}: {len(sizes)} steps, {sizes.min():.3g} .. {sizes.max():.3g} s")
-    return rows
-
-
-def plot_steps(rows: list[dict], png: Path) -> None:
-    """The accepted step size over time, one panel per scene."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    figure, panels = plt.subplots(len(rows), 1, figsize=(7.5, 2.6 * len(rows)))
-    for axes, row in zip(np.atleast_1d(panels), rows):
-        axes.step(row["times"], row["sizes"], where="post")
-        axes.set_yscale("log")
-        axes.set_ylabel("step (s)")
-        axes.set_title(f"{row['scene']}, --step auto, E = {row['tolerance']:g}, output every "
-                       f"{row['interval']:g} s", fontsize=10)
-        axes.grid(True, which="both", alpha=0.3)
-    np.atleast_1d(panels)[-1].set_xlabel("time (s)")
-    figure.tight_layout()
-    figure.savefig(png, dpi=110)
-    plt.close(figure)
-
-
-def stepped_page(rows: list[dict]) -> list[str]:
-    """The page's section on the shipped scenes' steps."""
-    lines = ["", "## The step over time on shipped scenes", "",
-             "![the accepted step over time](figures/step_auto.png)", "",
-             "| scene | E | output every | steps (taken again) | step, s | CPU s |",
-             "|---|---|---|---|---|---|"]
-    for row in rows:
-        control = row["control"]
-        lines.append(f"| {row['scene']} 0..{row['stop']:g} s | {row['tolerance']:g} | "
-                     f"{row['interval']:g} s | {control['accepted_steps']} "
-                     f"({control['rejected_steps']}) | {control['smallest_step']:.3g} .. "
-                     f"{control['largest_step']:.3g} | {row['seconds']:.2f} |")
-    for row in rows:
-        if "error" in row:
-            lines += ["", f"spring_mass_nonlinear against its monolithic twin at a 10 us step: "
-                      f"max |x3 difference| {row['error']:.3g} m with `--step auto` at "
-                      f"E = {row['tolerance']:g}, {row['fixed_error']:.3g} m at the scene's own "
-                      f"fixed {row['fixed_step']:g} s step."]
-    lines.append("")
-    for row in rows:  # where the steps were smallest, read from this run
-        times, sizes = row["times"], row["sizes"]
-        small = times[sizes <= sizes.min() * (1 + 1e-9)]
-        share = float(np.sum(sizes[sizes >= sizes.max() * (1 - 1e-9)])) / row["stop"]
-        lines.append(f"- {row['scene']}: the smallest step, {sizes.min():.3g} s, from "
-                     f"t = {small.min():.4g} to {small.max():.4g} s; the largest, "
-                     f"{sizes.max():.3g} s, over {100 * share:.0f} % of the run.")
-    return lines
+def _ecos_against_dsim(rows: list[dict]) -> list[str]:
+    """A sentence on ECOS's CPU against dsim's where their errors are equal (within
+    :data:`SAME_ERROR`): dsim's cheapest such run for each ECOS step; none where there
+    is no such pair."""
+    dsim_rows = [r for r in rows if r["master"].startswith("dsim")]
+    pairs = []
+    for row in (r for r in rows if r["master"] == ECOS):
+        equal = [r for r in dsim_rows
+                 if abs(r["error"] - row["error"]) <= SAME_ERROR * row["error"]]
+        if equal:
+            pairs.append((row, min(equal, key=lambda r: r["seconds"])))
+    if not pairs:
+        return []
+    return ["- ECOS against dsim at equal error (within "
+            f"{100 * SAME_ERROR:g} %): " + "; ".join(
+                f"{ours['error']:.3g} m, ECOS {ours['setting']} in {ours['seconds']:.3f} s, "
+                f"{theirs['master']} {theirs['setting']} in {theirs['seconds']:.3f} s "
+                f"({theirs['seconds'] / ours['seconds']:.2g} times ECOS's CPU)"
+                for ours, theirs in pairs) + "; ECOS steps its FMUs on parallel threads "
+            "(TBB), and its CPU seconds are those of every thread."]
 
 
 def main(argv=None) -> None:
@@ -351,11 +338,10 @@ def main(argv=None) -> None:
     parser.add_argument("--out", default=str(ROOT / "docs" / "work_precision.md"))
     args = parser.parse_args(argv)
     rows = measure(args.repeat)
-    stepped = stepped_scenes()
+    ecos_why = ecos_missing()
     out = Path(args.out)
     plot(rows, out.parent / "figures" / "work_precision.png")
-    plot_steps(stepped, out.parent / "figures" / "step_auto.png")
-    out.write_text(page(rows) + "\n".join(stepped_page(stepped)) + "\n")
+    out.write_text(page(rows, ecos_why) + SCENES_LINK)
     print(f"wrote {out}")
 
 
