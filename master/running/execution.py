@@ -211,10 +211,6 @@ class Execution:
             self.warn(message)
         for message in self.backend.notes():  # what a lost worker ends
             self.warn(message)
-        if self.controller is not None and self.backend.has_workers:
-            self.warn("step auto: a lost worker ends the run (exit 1, every converged row "
-                      "kept): the snapshots the error control goes back to live in the "
-                      "workers, and a worker started again has none")
         if self.backend.has_workers:  # for a progress line
             for observer in self.observers:
                 if hasattr(observer, "waiting"):

@@ -147,6 +147,13 @@ class Subsystem(ABC):
         """:meth:`discard` the snapshot kept under ``key``."""
         self.discard(self._kept.pop(key))
 
+    def snapshot_checkpoint(self, key) -> dict:
+        """:meth:`checkpoint` of the snapshot kept under ``key`` (the state it was in
+        then, not the one :meth:`save_state` holds): a fresh instance goes on from
+        there and keeps it under the same key."""
+        with self._holding(self._kept[key]):
+            return self.checkpoint()
+
     def statistics(self) -> dict:
         """FMI function (or core method) -> [calls, seconds]."""
         return {name: list(entry) for name, entry in self.counters.items()}

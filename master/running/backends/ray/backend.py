@@ -68,6 +68,10 @@ class _Cluster:
     def __init__(self, connection, hosts, owners):
         #: the last snapshot's key (RayBackend.snapshot)
         self.snapshots = 0
+        #: the error control's snapshots that live (any view's), and whether a
+        #: checkpoint is due at the next one (none is taken while one lives:
+        #: RayBackend.begin_step)
+        self.live, self.due = 0, False
         self.connection = connection
         self.hosts = hosts
         #: per worker: the names of its subsystems
@@ -452,9 +456,14 @@ class RayBackend(Recovery, Backend):
 
     def begin_step(self) -> None:
         # a worker that may be started again sends each subsystem's saved state too,
-        # every CHECKPOINT_EVERY steps (recovery.py)
+        # every CHECKPOINT_EVERY steps (recovery.py); not while an error-controlled
+        # step's snapshot lives (a fresh worker going on from there would be sent back
+        # to a snapshot it never made), but with the next snapshot (:meth:`snapshot`)
         saving = self._begun % CHECKPOINT_EVERY == 0
         self._begun += 1
+        cluster = self._cluster
+        if cluster.live:
+            cluster.due, saving = cluster.due or saving, False
         self._run([[("begin_step", ())] + ([(CHECKPOINT, ())] if saving and
                                            self._restartable(host) else [])
                    for host, _ in self.members], answer=False)
@@ -479,20 +488,24 @@ class RayBackend(Recovery, Backend):
 
     def snapshot(self):
         """Every subsystem's state kept in its worker under a new key (the key is the
-        handle).  A worker lost while snapshots live cannot be started again from its
-        checkpoint (the journal since then names snapshots it never made): from the
-        first snapshot on, a lost worker ends the run."""
+        handle).  Where a checkpoint is due, the worker sends the snapshot's state as
+        its checkpoint: a fresh worker goes on from it, keeps it under the same key and
+        takes the calls since (the step, a rollback to it, the halves)."""
         cluster = self._cluster
         cluster.snapshots += 1
         key = cluster.snapshots
-        cluster.restarts_left = 0
-        self._each("keep_snapshot", [key] * len(self.members), answer=False)
+        due, cluster.due = cluster.due, False
+        cluster.live += 1
+        self._run([[("keep_snapshot", (key,))] + ([(CHECKPOINT, (key,))] if due and
+                                                  self._restartable(host) else [])
+                   for host, _ in self.members], answer=False)
         return key
 
     def rollback(self, snapshot) -> None:
         self._each("rollback_to", [snapshot] * len(self.members), answer=False)
 
     def discard(self, snapshot) -> None:
+        self._cluster.live -= 1
         self._each("drop_snapshot", [snapshot] * len(self.members), answer=False)
 
     def hold_inputs(self, ramps) -> None:

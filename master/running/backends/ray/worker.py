@@ -193,7 +193,7 @@ class Host:
             except Exception:
                 return None
         if method == CHECKPOINT:
-            return self._checkpoint(slot)
+            return self._checkpoint(slot, *arguments)
         if method == RESUME:
             return self._resume(slot, *arguments)
         if method in REMEMBERED:
@@ -204,18 +204,23 @@ class Host:
             self.initialized[slot] = True
         return getattr(self.subsystems[slot], method)(*arguments)
 
-    def _checkpoint(self, slot: int) -> bytes | dict:
-        """What a fresh worker needs to go on from subsystem ``slot``'s saved state, as
-        one pickle (the driver only keeps it: loading each subsystem's arrays there
-        cost a quarter of a second a step at chain_10000), or {"error": why not} (an
-        FMU that says it can serialize and cannot)."""
+    def _checkpoint(self, slot: int, snapshot=None) -> bytes | dict:
+        """What a fresh worker needs to go on from subsystem ``slot``'s saved state (or
+        from the error-controlled step's ``snapshot`` just kept under that key, which
+        the fresh worker then keeps too), as one pickle (the driver only keeps it:
+        loading each subsystem's arrays there cost a quarter of a second a step at
+        chain_10000), or {"error": why not} (an FMU that says it can serialize and
+        cannot)."""
+        subsystem = self.subsystems[slot]
         try:
-            state = self.subsystems[slot].checkpoint()
+            state = (subsystem.checkpoint() if snapshot is None else
+                     subsystem.snapshot_checkpoint(snapshot))
         except Exception as error:  # the run goes on; only a restart is not possible
             return {"error": f"{type(error).__name__}: {error}"}
         written = self.written[slot]
         return pickle.dumps({"state": state, "start": list(written["start"].items()),
-                             "inputs": list(written["inputs"].items())}, protocol=5)
+                             "inputs": list(written["inputs"].items()),
+                             "snapshot": snapshot}, protocol=5)
 
     def _resume(self, slot: int, checkpoint: bytes) -> None:
         """Bring the fresh subsystem ``slot`` to a :meth:`_checkpoint` of another
@@ -228,6 +233,8 @@ class Host:
         for method, arguments in checkpoint["inputs"]:
             self._call(slot, method, arguments)
         self.subsystems[slot].resume(checkpoint["state"])
+        if checkpoint.get("snapshot") is not None:  # the calls since go back to it
+            self.subsystems[slot].keep_snapshot(checkpoint["snapshot"])
 
     def close(self) -> list[Exception]:
         """Terminate every subsystem, even if some fail; the errors they raised."""
