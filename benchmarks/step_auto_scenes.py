@@ -55,6 +55,13 @@ def _crank_slider(stop):
                              for k in ("coupler.omega", "A.f_y")}
 
 
+def _crank_slider_flexible(stop):
+    from examples.crank_slider import monolithic_flexible
+
+    r = monolithic_flexible(stop, 1e-4)
+    return r["times"], {"coupler.omega": r["omega"], "A.f_y": r["force"][:, 1]}
+
+
 def _four_bar(stop):
     from dsim.build_fmus.linkage_scenes import FOUR_BAR
     from dsim.build_fmus.twins.four_bar import monolithic
@@ -69,6 +76,7 @@ def _four_bar(stop):
 SCENES = (("spring_mass_nonlinear", 10.0, (1e-5, 1e-6), 0.5, _spring_mass),
           ("frame_split", 0.1, (1e-9, 1e-7), 1e-3, _frame),
           ("crank_slider_rigid", 2.0, (1e-5, 1e-4), 0.01, _crank_slider),
+          ("crank_slider_flexible", 1.0, (1e-5,), 0.01, _crank_slider_flexible),
           ("four_bar_singular_flexible", 0.5, (1e-5,), 0.05, _four_bar))
 
 
