@@ -171,26 +171,61 @@ def run_ecos(ssp: Path, step: float, folder: Path):
     return data[:, names.index("iterations")] * step, data[:, x1], {}
 
 
-def measure(repeat: int) -> list[dict]:
-    """Every configuration's error, CPU seconds and steps."""
+#: dsim's Newton tolerances where it iterates (strong coupling)
+TIGHT = 'tolerance="1e-13" relativeTolerance="1e-13"'
+
+
+def two_masses(folder: Path) -> dict:
+    """mass1 and mass2 compiled (gcc) into FMI 2.0 co-simulation FMUs in ``folder``."""
     from tests.support.third_party.kinds.build import build_fmu
 
-    folder = Path(tempfile.mkdtemp(prefix="dsim-work-"))
-    fmus = {name: build_fmu(folder / name, name, "2.0", interfaces=("CoSimulation",))
+    return {name: build_fmu(folder / name, name, "2.0", interfaces=("CoSimulation",))
             for name in ("mass1", "mass2")}
-    tight = 'tolerance="1e-13" relativeTolerance="1e-13"'
+
+
+def dsim_configurations(folder: Path, fmus: dict, causal, strong, tolerances,
+                        **settings) -> list:
+    """dsim's configurations: the causal coupling at the fixed steps ``causal``, the
+    strong one at ``strong`` and step auto (strong) at ``tolerances``, each run with
+    ``settings``: (master, setting, run) triples."""
     configurations = []
-    for h in (1e-2, 3e-3, 1e-3, 3e-4, 1e-4):
+    for h in causal:
         configurations.append(("dsim causal", f"h = {h:g} s", lambda h=h: run_dsim(
-            two_mass_ssp(folder / "causal.ssp", fmus, h, 'coupling="causal"'))))
-    for h in (1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4):
+            two_mass_ssp(folder / "causal.ssp", fmus, h, 'coupling="causal"'), **settings)))
+    for h in strong:
         configurations.append(("dsim strong", f"h = {h:g} s", lambda h=h: run_dsim(
-            two_mass_ssp(folder / "strong.ssp", fmus, h, f'coupling="strong" {tight}'))))
-    for tolerance in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
+            two_mass_ssp(folder / "strong.ssp", fmus, h, f'coupling="strong" {TIGHT}'),
+            **settings)))
+    for tolerance in tolerances:
         configurations.append(("dsim strong, step auto", f"E = {tolerance:g}",
                                lambda e=tolerance: run_dsim(
-            two_mass_ssp(folder / "auto.ssp", fmus, 0.1, f'coupling="strong" {tight}'),
-            step="auto", error_tolerance=e)))
+            two_mass_ssp(folder / "auto.ssp", fmus, 0.1, f'coupling="strong" {TIGHT}'),
+            step="auto", error_tolerance=e, **settings)))
+    return configurations
+
+
+def measured(configurations, repeat: int, damping: float = 0.0) -> list[dict]:
+    """Each (master, setting, run) configuration's error against the closed form (mass1
+    damped by ``damping`` N.s/m), least CPU seconds of ``repeat`` runs, and steps."""
+    rows = []
+    for master, setting, run in configurations:
+        seconds, (times, x1, statistics) = min((_cpu(run) for _ in range(repeat)),
+                                              key=lambda pair: pair[0])
+        error = float(np.max(np.abs(x1 - exact_x1(times, damping))))
+        control = statistics.get("step_control") or {}
+        steps = control.get("accepted_steps") or statistics.get("steps") or len(times)
+        rows.append({"master": master, "setting": setting, "error": error,
+                     "seconds": seconds, "steps": steps,
+                     "rejected": control.get("rejected_steps")})
+        print(f"{master:24} {setting:14} error {error:9.3g}  {seconds:7.3f} s  {steps} steps")
+    return rows
+
+
+def measure(folder: Path, fmus: dict, repeat: int) -> list[dict]:
+    """Every master's configurations on the steady oscillator: error, CPU, steps."""
+    configurations = dsim_configurations(
+        folder, fmus, (1e-2, 3e-3, 1e-3, 3e-4, 1e-4),
+        (1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4), (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8))
     for h in (1e-2, 1e-3, 1e-4):
         configurations.append(("FMPy simulate_ssp", f"h = {h:g} s", lambda h=h: run_fmpy(
             two_mass_ssp(folder / "fmpy.ssp", fmus, h), h)))
@@ -202,19 +237,18 @@ def measure(repeat: int) -> list[dict]:
         for h in (1e-2, 1e-3, 1e-4, 1e-5):
             configurations.append((ECOS, f"h = {h:g} s", lambda h=h: run_ecos(
                 two_mass_ssp(folder / "ecos.ssp", fmus, h), h, folder / "ecos")))
-    rows = []
-    for master, setting, run in configurations:
-        seconds, (times, x1, statistics) = min((_cpu(run) for _ in range(repeat)),
-                                              key=lambda pair: pair[0])
-        error = float(np.max(np.abs(x1 - exact_x1(times))))
-        control = statistics.get("step_control") or {}
-        steps = control.get("accepted_steps") or statistics.get("steps") or len(times)
-        rows.append({"master": master, "setting": setting, "error": error,
-                     "seconds": seconds, "steps": steps,
-                     "rejected": control.get("rejected_steps")})
-        print(f"{master:24} {setting:14} error {error:9.3g}  {seconds:7.3f} s  {steps} steps")
-    shutil.rmtree(folder, ignore_errors=True)
-    return rows
+    return measured(configurations, repeat)
+
+
+def table(rows: list[dict]) -> list[str]:
+    """The rows as a markdown table: master, setting, error, CPU, steps."""
+    lines = ["| master | setting | max \\|x1 - exact\\| (m) | CPU s | steps (taken again) |",
+             "|---|---|---|---|---|"]
+    for row in rows:
+        again = f" ({row['rejected']})" if row["rejected"] is not None else ""
+        lines.append(f"| {row['master']} | {row['setting']} | {row['error']:.3g} | "
+                     f"{row['seconds']:.3f} | {row['steps']}{again} |")
+    return lines
 
 
 def plot(rows: list[dict], png: Path) -> None:
@@ -251,13 +285,7 @@ def page(rows: list[dict], ecos_why: str = "") -> str:
         "same FMUs in the same process.",
         "",
         "![error against CPU seconds](figures/work_precision.png)",
-        "",
-        "| master | setting | max \\|x1 - exact\\| (m) | CPU s | steps (taken again) |",
-        "|---|---|---|---|---|"]
-    for row in rows:
-        again = f" ({row['rejected']})" if row["rejected"] is not None else ""
-        lines.append(f"| {row['master']} | {row['setting']} | {row['error']:.3g} | "
-                     f"{row['seconds']:.3f} | {row['steps']}{again} |")
+        ""] + table(rows)
     if ecos_why:
         lines += ["", f"ECOS was not measured: {ecos_why}."]
     lines += ["", "What it shows, read from this run's rows:", ""]
@@ -305,43 +333,14 @@ def _reading(rows: list[dict]) -> list[str]:
 DAMPING, TRANSIENT_STOP = 20.0, 4.0
 
 
-def transient(repeat: int) -> list[dict]:
+def transient(folder: Path, fmus: dict, repeat: int) -> list[dict]:
     """dsim alone on the damped oscillator (a motion that dies out): the strong and the
     causal coupling at fixed steps, step auto at several tolerances; each row's error
     against the damped closed form and its CPU seconds."""
-    from tests.support.third_party.kinds.build import build_fmu
-
-    folder = Path(tempfile.mkdtemp(prefix="dsim-transient-"))
-    fmus = {name: build_fmu(folder / name, name, "2.0", interfaces=("CoSimulation",))
-            for name in ("mass1", "mass2")}
-    tight = 'tolerance="1e-13" relativeTolerance="1e-13"'
-    damped = {"parameters": {"mass1.d1": DAMPING}, "stop": TRANSIENT_STOP}
-    configurations = []
-    for h in (1e-3, 1e-4):
-        configurations.append(("dsim causal", f"h = {h:g} s", lambda h=h: run_dsim(
-            two_mass_ssp(folder / "causal.ssp", fmus, h, 'coupling="causal"'), **damped)))
-    for h in (1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4):
-        configurations.append(("dsim strong", f"h = {h:g} s", lambda h=h: run_dsim(
-            two_mass_ssp(folder / "strong.ssp", fmus, h, f'coupling="strong" {tight}'),
-            **damped)))
-    for tolerance in (1e-4, 1e-5, 1e-6, 1e-7):
-        configurations.append(("dsim strong, step auto", f"E = {tolerance:g}",
-                               lambda e=tolerance: run_dsim(
-            two_mass_ssp(folder / "auto.ssp", fmus, 0.1, f'coupling="strong" {tight}'),
-            step="auto", error_tolerance=e, **damped)))
-    rows = []
-    for master, setting, run in configurations:
-        seconds, (times, x1, statistics) = min((_cpu(run) for _ in range(repeat)),
-                                              key=lambda pair: pair[0])
-        error = float(np.max(np.abs(x1 - exact_x1(times, DAMPING))))
-        control = statistics.get("step_control") or {}
-        rows.append({"master": master, "setting": setting, "error": error,
-                     "seconds": seconds,
-                     "steps": control.get("accepted_steps") or statistics.get("steps"),
-                     "rejected": control.get("rejected_steps")})
-        print(f"damped {master:24} {setting:14} error {error:9.3g}  {seconds:7.3f} s")
-    shutil.rmtree(folder, ignore_errors=True)
-    return rows
+    return measured(dsim_configurations(
+        folder, fmus, (1e-3, 1e-4), (1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4),
+        (1e-4, 1e-5, 1e-6, 1e-7), parameters={"mass1.d1": DAMPING}, stop=TRANSIENT_STOP),
+        repeat, DAMPING)
 
 
 def transient_page(rows: list[dict]) -> str:
@@ -350,12 +349,7 @@ def transient_page(rows: list[dict]) -> str:
              f"The same FMUs with mass1 damped (d1 = {DAMPING:g} N.s/m, 0..{TRANSIENT_STOP:g} "
              "s: |x1| falls from 0.1 m to 0.003 m), dsim alone, against the damped closed "
              "form; the fixed steps of both couplings beside step auto (output every 0.1 s).",
-             "", "| master | setting | max \\|x1 - exact\\| (m) | CPU s | steps (taken again) |",
-             "|---|---|---|---|---|"]
-    for row in rows:
-        again = f" ({row['rejected']})" if row["rejected"] is not None else ""
-        lines.append(f"| {row['master']} | {row['setting']} | {row['error']:.3g} | "
-                     f"{row['seconds']:.3f} | {row['steps']}{again} |")
+             ""] + table(rows)
     lines += ["", "Step auto against the largest fixed step of any coupling that reaches its "
               "error, read from this run:", ""]
     fixed = [r for r in rows if "step auto" not in r["master"]]
@@ -411,10 +405,15 @@ def main(argv=None) -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--out", default=str(ROOT / "docs" / "work_precision.md"))
     args = parser.parse_args(argv)
-    rows = measure(args.repeat)
+    folder = Path(tempfile.mkdtemp(prefix="dsim-work-"))
+    try:
+        fmus = two_masses(folder)
+        rows = measure(folder, fmus, args.repeat)
+        damped = transient(folder, fmus, args.repeat)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
     ecos_why = ecos_missing()
     out = Path(args.out)
-    damped = transient(args.repeat)
     plot(rows, out.parent / "figures" / "work_precision.png")
     out.write_text(page(rows, ecos_why) + transient_page(damped) + SCENES_LINK)
     print(f"wrote {out}")
