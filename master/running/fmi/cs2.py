@@ -552,13 +552,14 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         return None if self._slopes is None else self._slopes.ramp(time)
 
     def _real_input_places(self) -> tuple[list[int], list[int]]:
-        """Where the Real inputs are in ``spec.writes`` and their value references, when
-        the FMU can interpolate inputs (else none)."""
-        cs = describe(self.path).coSimulation
-        if not cs.canInterpolateInputs:
+        """Where the inputs that take derivatives are in ``spec.writes`` (the same rule
+        as over substeps: :func:`.input_slopes.extrapolated_places`) and their value
+        references, when the FMU can interpolate inputs (else none)."""
+        description = describe(self.path)
+        if not description.coSimulation.canInterpolateInputs:
             return [], []
-        variables = describe(self.path).by_name
-        places = [i for i, n in enumerate(self.spec.writes) if variables[n].type == "Real"]
+        variables = description.by_name
+        places = extrapolated_places(variables, self.spec.writes)
         return places, [variables[self.spec.writes[i]].valueReference for i in places]
 
     def terminate(self):
