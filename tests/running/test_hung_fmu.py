@@ -65,27 +65,41 @@ def ended_by_one_signal(process, target: Path, stuck) -> dict:
     return json.loads(target.with_suffix(".stats.json").read_text())
 
 
-def alive(pid: int) -> bool:
-    """Whether a process runs (a zombie has ended: only its exit status waits for a
-    parent that may be gone too)."""
+def _stat(pid) -> tuple[bytes, list[bytes]] | None:
+    """A process's /proc stat line and its fields after the command's name (state,
+    parent, group, session, ...), or None once it is gone."""
     try:
         data = Path(f"/proc/{pid}/stat").read_bytes()
     except OSError:
-        return False
-    return data[data.rindex(b")") + 2:].split()[0] not in (b"Z", b"X")
+        return None
+    return data, data[data.rindex(b")") + 2:].split()
+
+
+def _live(fields: list[bytes]) -> bool:
+    """Whether a process's state is a running one (a zombie has ended: only its exit
+    status waits for a parent that may be gone too)."""
+    return fields[0] not in (b"Z", b"X")
+
+
+def alive(pid: int) -> bool:
+    """Whether a process runs."""
+    stat = _stat(pid)
+    return stat is not None and _live(stat[1])
 
 
 def session_processes(session: int) -> list[str]:
-    """The live processes of a session (a zombie has ended): pid, state, command."""
+    """The live processes of a session: pid, state, command."""
     found = []
     for entry in os.listdir("/proc"):
+        stat = _stat(entry)
         try:
-            data = Path(f"/proc/{entry}/stat").read_bytes()
             command = Path(f"/proc/{entry}/cmdline").read_bytes()
-        except (OSError, ValueError):
+        except OSError:
+            stat = None
+        if stat is None:  # not a process, or gone
             continue
-        fields = data[data.rindex(b")") + 2:].split()
-        if fields[0] not in (b"Z", b"X") and int(fields[3]) == session:
+        data, fields = stat
+        if _live(fields) and int(fields[3]) == session:
             found.append(f"{entry} {fields[0].decode()} {data[:60]!r} "
                          + command.replace(b"\0", b" ").decode(errors="replace")[:100])
     return found
