@@ -3,6 +3,7 @@ quotes it (``python -m benchmarks.NAME``)."""
 from __future__ import annotations
 
 import platform
+import time
 from pathlib import Path
 
 
@@ -20,3 +21,11 @@ def machine(cpuinfo: Path = Path("/proc/cpuinfo")) -> str:
     except OSError:  # not Linux, or no /proc: what the platform module knows
         pass
     return platform.machine()
+
+
+def cpu_seconds(function):
+    """``function()``'s CPU seconds in this process (a shared machine makes wall time
+    mostly waiting) and its value."""
+    start = time.process_time()
+    value = function()
+    return time.process_time() - start, value

@@ -15,13 +15,12 @@ sizes over time are plotted.
 from __future__ import annotations
 
 import argparse
-import time
 from datetime import date
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks import machine
+from benchmarks import cpu_seconds, machine
 import dsim
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -80,11 +79,6 @@ SCENES = (("spring_mass_nonlinear", 10.0, (1e-5, 1e-6), 0.5, _spring_mass),
           ("four_bar_singular_flexible", 0.5, (1e-5,), 0.05, _four_bar))
 
 
-def _cpu(function):
-    start = time.process_time()
-    value = function()
-    return time.process_time() - start, value
-
 
 def off(result, times, reference: dict) -> dict:
     """Per column: max |run - reference| over the run's rows, over the reference's peak."""
@@ -101,7 +95,7 @@ def measure(only=None) -> list[dict]:
             continue
         ssp = ROOT / "build" / "ssp" / f"{name}.ssp"
         times, columns = reference(stop)
-        fixed_seconds, fixed = _cpu(lambda: dsim.simulate(ssp, stop=stop,
+        fixed_seconds, fixed = cpu_seconds(lambda: dsim.simulate(ssp, stop=stop,
                                                           handle_signals=False))
         if not fixed.ok:
             raise RuntimeError(f"{name}: {fixed.message}")
@@ -109,7 +103,7 @@ def measure(only=None) -> list[dict]:
             execution = dsim.Execution(dsim.prepare(ssp, stop=stop, step="auto",
                                                     error_tolerance=tolerance,
                                                     output_interval=interval))
-            auto_seconds, auto = _cpu(lambda: execution.run(handle_signals=False))
+            auto_seconds, auto = cpu_seconds(lambda: execution.run(handle_signals=False))
             if not auto.ok:
                 raise RuntimeError(f"{name}: {auto.message}")
             row = {"scene": name, "stop": stop, "tolerance": tolerance,

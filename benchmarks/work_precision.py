@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import shutil
 import tempfile
-import time
 import zipfile
 from datetime import date
 from pathlib import Path
@@ -32,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm
 
-from benchmarks import machine
+from benchmarks import cpu_seconds, machine
 import dsim
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -79,11 +78,6 @@ def two_mass_ssp(path: Path, fmus: dict, step: float, master: str = "") -> Path:
             archive.write(fmu, f"resources/{name}.fmu")
     return path
 
-
-def _cpu(function):
-    start = time.process_time()
-    value = function()
-    return time.process_time() - start, value
 
 
 def run_dsim(ssp: Path, **settings) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -209,7 +203,7 @@ def measured(configurations, repeat: int, damping: float = 0.0) -> list[dict]:
     damped by ``damping`` N.s/m), least CPU seconds of ``repeat`` runs, and steps."""
     rows = []
     for master, setting, run in configurations:
-        seconds, (times, x1, statistics) = min((_cpu(run) for _ in range(repeat)),
+        seconds, (times, x1, statistics) = min((cpu_seconds(run) for _ in range(repeat)),
                                               key=lambda pair: pair[0])
         error = float(np.max(np.abs(x1 - exact_x1(times, damping))))
         control = statistics.get("step_control") or {}
