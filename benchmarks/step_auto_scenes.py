@@ -79,7 +79,6 @@ SCENES = (("spring_mass_nonlinear", 10.0, (1e-5, 1e-6), 0.5, _spring_mass),
           ("four_bar_singular_flexible", 0.5, (1e-5,), 0.05, _four_bar))
 
 
-
 def off(result, times, reference: dict) -> dict:
     """Per column: max |run - reference| over the run's rows, over the reference's peak."""
     return {name: float(np.max(np.abs(result[name] - np.interp(result["time"], times,
