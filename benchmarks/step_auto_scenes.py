@@ -40,24 +40,10 @@ def _frame(stop):
     return r.time, {"cross_front.load.u_x": r.load_u_x}
 
 
-def _crank_slider(stop):
-    from dsim.fmus.linkage.scenes import crank_slider
+def _crank_slider(stop, flexible: bool = False):
+    from examples.crank_slider import monolithic
 
-    whole, h = crank_slider("whole"), 1e-4
-    whole.initialize(0.0)
-    times, rows = [0.0], [whole.outputs()]
-    for n in range(round(stop / h)):
-        whole.step(n * h, h)
-        times.append((n + 1) * h)
-        rows.append(whole.outputs())
-    return np.array(times), {k: np.array([r[k] for r in rows])
-                             for k in ("coupler.omega", "A.f_y")}
-
-
-def _crank_slider_flexible(stop):
-    from examples.crank_slider import monolithic_flexible
-
-    r = monolithic_flexible(stop, 1e-4)
+    r = monolithic(stop, 1e-4, flexible=flexible)
     return r["times"], {"coupler.omega": r["omega"], "A.f_y": r["force"][:, 1]}
 
 
@@ -75,7 +61,8 @@ def _four_bar(stop):
 SCENES = (("spring_mass_nonlinear", 10.0, (1e-5, 1e-6), 0.5, _spring_mass),
           ("frame_split", 0.1, (1e-9, 1e-7), 1e-3, _frame),
           ("crank_slider_rigid", 2.0, (1e-5, 1e-4), 0.01, _crank_slider),
-          ("crank_slider_flexible", 1.0, (1e-5,), 0.01, _crank_slider_flexible),
+          ("crank_slider_flexible", 1.0, (1e-5,), 0.01,
+           lambda stop: _crank_slider(stop, flexible=True)),
           ("four_bar_singular_flexible", 0.5, (1e-5,), 0.05, _four_bar))
 
 
