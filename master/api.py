@@ -5,7 +5,6 @@ end call: :func:`prepare` checks a scene and its settings into a plan,
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 from dsim.master.errors import InputError
 from dsim.master.planning.parameters import require_mapping, with_parameters
@@ -14,7 +13,7 @@ from dsim.master.planning.solver import with_solver
 from dsim.master.planning.load import load_scene
 from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter, ProgressBar,
                                              StatisticsWriter)
-from dsim.master.recording.results import RunResult
+from dsim.master.recording.results import RunResult, statistics_path
 from dsim.master.running.backends.base import BACKEND_OPTIONS
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.backends import BACKENDS
@@ -128,7 +127,7 @@ def _simulate(scene, out, statistics, plot, mat, progress, observers, handle_sig
     watchers = []
     if out is not None:
         watchers.append(CsvRecorder(out, force=force))
-        watchers.append(StatisticsWriter(statistics or Path(out).with_suffix(".stats.json")))
+        watchers.append(StatisticsWriter(statistics or statistics_path(out)))
     elif statistics is not None:
         watchers.append(StatisticsWriter(statistics))
     if plot is not None:

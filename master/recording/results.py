@@ -391,10 +391,16 @@ def mat_bytes(signals: dict, units: dict | None = None) -> bytes:
     return buffer.getvalue()
 
 
+def statistics_path(csv_path) -> Path:
+    """Where dsim writes the statistics JSON of a results CSV: ``NAME.stats.json`` beside
+    ``NAME.csv``."""
+    return Path(csv_path).with_suffix(".stats.json")
+
+
 def read_statistics(csv_path) -> dict:
-    """The statistics JSON dsim writes beside a results CSV (``NAME.stats.json`` for
-    ``NAME.csv``), or {} when there is none or it is not one."""
-    path = Path(csv_path).with_suffix(".stats.json")
+    """The statistics JSON dsim writes beside a results CSV (:func:`statistics_path`),
+    or {} when there is none or it is not one."""
+    path = statistics_path(csv_path)
     try:
         data = json.loads(path.read_text())
     except (OSError, ValueError):

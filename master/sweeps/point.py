@@ -15,7 +15,7 @@ from dsim.master.api import prepare
 from dsim.master.errors import InputError
 from dsim.master.recording.observers import CsvRecorder, Observer, StatisticsWriter
 from dsim.master.recording.output_files import write_whole
-from dsim.master.recording.results import RunResult
+from dsim.master.recording.results import RunResult, statistics_path
 from dsim.master.running.execution import Execution
 from dsim.master.sweeps.design import split
 
@@ -73,7 +73,7 @@ def run_in_worker(scene: str, settings: dict, name: str, stop_requested):
     ``stop_requested()`` is 0 or the number of the signal that interrupted the sweep."""
     with tempfile.TemporaryDirectory(prefix="dsim-point-") as folder:
         results = Path(folder) / f"{name}.csv"
-        statistics = results.with_suffix(".stats.json")
+        statistics = statistics_path(results)
         start = clock.perf_counter()
         try:
             plan = prepare(scene, **keywords(settings))

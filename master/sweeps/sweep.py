@@ -32,7 +32,7 @@ import numpy as np
 
 from dsim.master.api import prepare, simulate
 from dsim.master.errors import InputError
-from dsim.master.recording.results import read_columns
+from dsim.master.recording.results import read_columns, statistics_path
 from dsim.master.running.step_control import DEFAULT_TOLERANCE
 from dsim.master.settings import SETTINGS, convert_setting, is_auto
 from dsim.master.sweeps.design import SALIB, Design, Factor, parse_vary, split
@@ -431,14 +431,14 @@ def _reference_run(scene, sweep: Sweep, chosen: dict, out: Path, bars: bool):
     if kept.is_file():
         return read_columns(kept), "", None
     running = out / REFERENCE_RUNNING
-    for stale in (running, running.with_suffix(".stats.json")):  # a killed rerun's
+    for stale in (running, statistics_path(running)):  # a killed rerun's
         stale.unlink(missing_ok=True)
     run = run_point(scene, {**sweep.fixed, **chosen}, running, bars, trusted(sweep))
     if run.result is None:
         return None, "; ".join(run.problems), None
     if not run.result.ok:
         return None, run.result.message, run.result.signal
-    running.with_suffix(".stats.json").replace(kept.with_suffix(".stats.json"))
+    statistics_path(running).replace(statistics_path(kept))
     running.replace(kept)
     return read_columns(kept), "", None
 
