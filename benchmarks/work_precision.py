@@ -169,14 +169,6 @@ def run_ecos(ssp: Path, step: float, folder: Path):
 TIGHT = 'tolerance="1e-13" relativeTolerance="1e-13"'
 
 
-def two_masses(folder: Path) -> dict:
-    """mass1 and mass2 compiled (gcc) into FMI 2.0 co-simulation FMUs in ``folder``."""
-    from tests.support.third_party.kinds.build import build_fmu
-
-    return {name: build_fmu(folder / name, name, "2.0", interfaces=("CoSimulation",))
-            for name in ("mass1", "mass2")}
-
-
 def dsim_configurations(folder: Path, fmus: dict, causal, strong, tolerances,
                         **settings) -> list:
     """dsim's configurations: the causal coupling at the fixed steps ``causal``, the
@@ -401,7 +393,9 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     folder = Path(tempfile.mkdtemp(prefix="dsim-work-"))
     try:
-        fmus = two_masses(folder)
+        from tests.support.third_party.kinds.build import mass_fmus
+
+        fmus = mass_fmus(folder, interfaces=("CoSimulation",))  # compiled with gcc
         rows = measure(folder, fmus, args.repeat)
         damped = transient(folder, fmus, args.repeat)
     finally:

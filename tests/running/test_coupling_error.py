@@ -24,10 +24,10 @@ pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compil
 @pytest.fixture(scope="module")
 def oscillator(tmp_path_factory):
     """The two-mass oscillator's archive for a coupling: (path, coupling) -> .ssp."""
-    from tests.support.third_party.kinds.build import build_fmu
+    from tests.support.third_party.kinds.build import mass_fmus
 
     folder = tmp_path_factory.mktemp("held")
-    fmus = {name: build_fmu(folder / name, name, "2.0") for name in ("mass1", "mass2")}
+    fmus = mass_fmus(folder)
 
     def archive(coupling: str, step: float = 0.001, stop: float = 10.0):
         return archive_scene(folder / f"{coupling}_{step}.ssp",

@@ -26,10 +26,10 @@ pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compil
 
 @pytest.fixture(scope="module")
 def masses(tmp_path_factory):
-    from tests.support.third_party.kinds.build import build_fmu
+    from tests.support.third_party.kinds.build import build_fmu, mass_fmus
 
     folder = tmp_path_factory.mktemp("masses")
-    return {name: build_fmu(folder / name, name, "2.0") for name in ("mass1", "mass2")} | {
+    return mass_fmus(folder) | {
         "fixed": build_fmu(folder / "fixed", "mass1", "2.0", can_save_state=False,
                            interfaces=("CoSimulation",))}
 
@@ -163,10 +163,9 @@ def test_an_fmu_that_cannot_go_back_in_co_simulation_runs_its_model_exchange(tmp
     OMSimulator's dual-mass oscillator FMUs): where the run takes steps back (the strong
     coupling, step auto) they run through Model Exchange, said once each; with
     implementation="CoSimulation" they stay in co-simulation."""
-    from tests.support.third_party.kinds.build import build_fmu
+    from tests.support.third_party.kinds.build import mass_fmus
 
-    masses = {name: build_fmu(tmp_path / name, name, "2.0", can_save_state=False)
-              for name in ("mass1", "mass2")}
+    masses = mass_fmus(tmp_path, can_save_state=False)
     path = two_masses(masses, tmp_path / "me.ssp", interface="", stop=1.0, step=0.01)
     # measured: 4.2e-4 at the fixed 10 ms step (strong), far less with step auto
     for settings, band in (({}, 1e-3), ({"step": "auto", "error_tolerance": 1e-6,

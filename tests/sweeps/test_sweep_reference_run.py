@@ -25,11 +25,10 @@ PEAK = 0.1  # the closed form's max |x1| over the run (m): x1(0)
 
 @pytest.fixture(scope="module")
 def masses(tmp_path_factory):
-    from tests.support.third_party.kinds.build import build_fmu
+    from tests.support.third_party.kinds.build import build_fmu, mass_fmus
 
     folder = tmp_path_factory.mktemp("masses")
-    return {name: build_fmu(folder / name, name, "2.0", interfaces=("CoSimulation",))
-            for name in ("mass1", "mass2")} | {
+    return mass_fmus(folder, interfaces=("CoSimulation",)) | {
         "fixed": build_fmu(folder / "fixed", "mass1", "2.0", can_save_state=False,
                            interfaces=("CoSimulation",))}
 

@@ -649,3 +649,11 @@ def build_typed_array(folder, can_save_state: bool = True) -> Path:
     finally:
         library.unlink()
     return fmu
+
+
+def mass_fmus(folder, **options) -> dict:
+    """The two halves of the two-mass oscillator (models/mass1.c, mass2.c) as FMI 2.0
+    FMUs in ``folder``, built by :func:`build_fmu` with ``options``: name -> .fmu."""
+    folder = Path(folder)
+    return {name: build_fmu(folder / name, name, "2.0", **options)
+            for name in ("mass1", "mass2")}
