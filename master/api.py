@@ -9,6 +9,7 @@ from dataclasses import replace
 from dsim.master.errors import InputError
 from dsim.master.planning.parameters import require_mapping, with_parameters
 from dsim.master.planning.plan import make_plan
+from dsim.master.planning.scenario import resolve_scenario
 from dsim.master.planning.solver import with_solver
 from dsim.master.planning.load import load_scene
 from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter, ProgressBar,
@@ -24,7 +25,7 @@ from dsim.master.settings import resolve
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
-            substeps=None, fmu_log: bool = False, **settings):
+            substeps=None, fmu_log: bool = False, scenario=None, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -54,10 +55,15 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     ``fmu_log``: every log category of every FMU on and each message printed to stderr
     (default: only the warning and error categories an FMU declares;
     docs/third_party.md).
+    ``scenario``: events at times of the run (a scenario file's path, libcosim's JSON or
+    YAML or ECOS's XML, or a :class:`~dsim.master.reading.scenario_files.Scenario`
+    read from one), resolved against the scene's variables (docs/scenarios.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     with collector_paused():  # 10,000 components: millions of objects, few cycles
         plan = _prepare(scene, load_libraries, strict, parameters, outputs,
                         output_interval, solver, allow_outside, settings, substeps)
+    if scenario is not None:
+        plan = replace(plan, scenario=resolve_scenario(plan, scenario))
     if fmu_log:
         plan = replace(plan, specs=tuple(replace(s, fmu_log=True) for s in plan.specs))
     return plan

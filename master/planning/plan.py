@@ -104,6 +104,9 @@ class Plan:
     #: an error-controlled run's settings (``step="auto"``; the scene's step is then
     #: the output interval), or None: a fixed step
     step_control: StepControl | None = None
+    #: the scenario's events resolved against this plan
+    #: (:class:`~dsim.master.planning.scenario.ScenarioPlan`), or None: no scenario
+    scenario: object = None
 
     @property
     def text_columns(self) -> tuple[str, ...]:

@@ -69,7 +69,7 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
     phases = counts.phases
     coupling = counts.coupling
     units = recorded_units(plan, counts.columns)
-    return {
+    statistics = {
         "scene": scene.name,
         "file": str(scene.file),
         "status": counts.status,
@@ -133,3 +133,8 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
                       "output_interval": plan.output_interval,
                       "every_steps": plan.record_every},
     }
+    if counts.scenario is not None:  # a run with a scenario: every change it applied
+        scenario = plan.scenario
+        statistics["scenario"] = {"file": scenario.file, "format": scenario.format,
+                                  "end": scenario.end, "applied": list(counts.scenario)}
+    return statistics

@@ -42,3 +42,6 @@ class RunCounts:
     #: what ended a failed or interrupted run (the error; the signal or stop, where and
     #: when), None for a completed one
     message: str | None = None
+    #: a run with a scenario: every change it applied (time, target, action, old and
+    #: new value: :attr:`dsim.master.running.scenario.ScenarioRun.applied`), else None
+    scenario: list | None = None

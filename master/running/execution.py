@@ -23,6 +23,7 @@ import threading
 import time as clock
 from collections import defaultdict
 from contextlib import nullcontext
+from dataclasses import replace
 
 import numpy as np
 
@@ -38,6 +39,7 @@ from dsim.master.running.collector import collector_paused
 from dsim.master.running.counts import RunCounts
 from dsim.master.running.coupling_error import CouplingErrorWatch
 from dsim.master.running.interrupts import SignalWatch, end_lost
+from dsim.master.running.scenario import ScenarioRun
 from dsim.master.running.start import check_start, start_forces
 from dsim.master.running.step_control import StepController
 from dsim.master.running.timeline import size_to, step_count
@@ -109,6 +111,9 @@ class Execution:
         self._watch: CouplingErrorWatch | None = None
         #: the process is the run's: it may end it when the Ray head is lost (:meth:`run`)
         self._end_when_lost = False
+        #: the scenario's state (:mod:`dsim.master.running.scenario`), or None: the step
+        #: loop is then the same as without the option (no work added)
+        self.scenario = None
 
     # --- time --------------------------------------------------------------------
     def step_time(self, index: int) -> float:
@@ -160,6 +165,9 @@ class Execution:
         if self.status != "created":
             raise RuntimeError(f"the execution is {self.status}, it can start only once")
         self._wall_start = clock.perf_counter()
+        if self.plan.scenario is not None:  # its transfer carries the modified inputs
+            self.scenario = ScenarioRun(self.plan.scenario, self.plan.transfer)
+            self.plan = replace(self.plan, transfer=self.scenario.transfer)
         # (an observer whose stepped is the base class's does nothing there: not called)
         self._stepped = [observer.stepped for observer in self.observers
                          if getattr(observer.stepped, "__func__", None) is not Observer.stepped]
@@ -207,6 +215,8 @@ class Execution:
         if self.coupling.kernel is not None and not self._text_reads \
                 and not len(self.coupling.forces) and self.controller is None:
             self._advance = self._kernel_advance
+        if self.scenario is not None:
+            self._unmodified_advance, self._advance = self._advance, self._scenario_advance
         for message in self.plan.warnings:
             self.warn(message)
         for message in self.backend.notes():  # what a lost worker ends
@@ -487,6 +497,15 @@ class Execution:
         kernel's call, nothing made per step that can be made once."""
         return self.coupling.step(time, size, index)
 
+    def _scenario_advance(self, time: float, size: float, index: int, end: float):
+        """:meth:`_glued_advance` (or :meth:`_kernel_advance`) with the scenario's events
+        of the communication point ``time`` applied before the step and its output
+        modifications after it (:mod:`dsim.master.running.scenario`)."""
+        self.scenario.at_point(index - 1, time, self.coupling.outputs, self.backend)
+        report = self._unmodified_advance(time, size, index, end)
+        self.scenario.stepped(self.coupling.outputs)
+        return report
+
     def _emit(self, record) -> None:
         """Hand a step's record to the observers; off the output grid it is held, and
         recorded only if the run ends there."""
@@ -628,7 +647,8 @@ class Execution:
             coupling_error=self._watch.statistics() if self._watch is not None else None,
             subsystems=subsystems,
             lost_workers=backend.losses() if backend is not None else [],  # the driver's
-            message=self._end_message() or None)
+            message=self._end_message() or None,
+            scenario=None if self.scenario is None else list(self.scenario.applied))
 
     def run(self, handle_signals: bool = True) -> RunResult:
         """Start (unless started), step to the end and finish.  With

@@ -89,6 +89,11 @@ class Subsystem(ABC):
         """Set what connections feed at initialization (fixed parameters too)."""
         self.write_inputs(values)
 
+    def set_values(self, names, values) -> None:
+        """Set the variables ``names`` to ``values`` between steps (a scenario's event:
+        an input no connection feeds, a tunable parameter), as their types take them."""
+        raise NotImplementedError(f"subsystem '{self.name}' cannot set values by name")
+
     def terminate(self) -> None:
         """Release what the subsystem holds."""
 

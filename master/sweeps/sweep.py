@@ -79,6 +79,9 @@ class Sweep:
     #: folders whose files the scene may name besides its own (``--allow-outside``:
     #: every point's run trusts them; docs/security.md)
     allow_outside: tuple = ()
+    #: a scenario every point's run takes (``--scenario``: a path, or the
+    #: :class:`~dsim.master.reading.scenario_files.Scenario` read from one), or None
+    scenario: object = None
 
     def plan(self) -> Design:
         """The design: the grid's settings as lists, then the varied factors."""
@@ -244,9 +247,9 @@ def cheapest(points: list[Point], target: float) -> Point | None:
     return min(meeting, key=lambda p: p.wall_seconds) if meeting else None
 
 
-def command_line(scene, point: Point, fixed: dict, allow_outside=()) -> str:
+def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=None) -> str:
     """The ``dsim run`` command of a point (``allow_outside``: the sweep's trusted
-    folders)."""
+    folders; ``scenario``: its scenario)."""
     words = ["dsim", "run", str(scene)]
     settings, parameters = split({**fixed, **point.settings})
     for key, value in settings.items():
@@ -255,13 +258,19 @@ def command_line(scene, point: Point, fixed: dict, allow_outside=()) -> str:
         words += ["--set", f"{key}={value}"]
     for folder in allow_outside:
         words += ["--allow-outside", str(folder)]
+    if scenario is not None:
+        words += ["--scenario", str(getattr(scenario, "file", scenario))]
     return " ".join(shlex.quote(w) for w in words)
 
 
 def trusted(sweep: Sweep) -> dict:
-    """The keywords of ``dsim.simulate``/``prepare`` that let the sweep's scene name
-    files in its ``allow_outside`` folders ({} when it has none)."""
-    return {"allow_outside": list(sweep.allow_outside)} if sweep.allow_outside else {}
+    """The keywords of ``dsim.simulate``/``prepare`` every point's run shares besides its
+    settings: the folders the sweep's scene may name files in (``allow_outside``) and
+    its scenario ({} when it has neither)."""
+    shared = {"allow_outside": list(sweep.allow_outside)} if sweep.allow_outside else {}
+    if sweep.scenario is not None:
+        shared["scenario"] = sweep.scenario
+    return shared
 
 
 def run_point(scene, settings: dict, results: Path, bars: bool = False,

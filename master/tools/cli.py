@@ -22,6 +22,7 @@ from dsim.master.checks.validate import validate
 from dsim.master.errors import InputError, SimulationError
 from dsim.master.planning.parameters import JOINT_COEFFICIENTS
 from dsim.master.reading.parameter_input import given_parameters
+from dsim.master.reading.scenario_files import read_scenario
 from dsim.master.recording.observers import ProgressBar
 from dsim.master.running.backends import log_lines
 from dsim.master.running.timeline import span_note
@@ -139,7 +140,7 @@ def _cmd_run(args) -> int:
 
 def _cmd_info(args) -> int:
     print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all,
-                                allow_outside=args.allow_outside)))
+                                allow_outside=args.allow_outside, scenario=args.scenario)))
     return 0
 
 
@@ -244,6 +245,8 @@ def _sweep_of(args):
     if args.columns:
         sweep.columns = args.columns.split(",")
     sweep.allow_outside = tuple(args.allow_outside or ())
+    if args.scenario:  # read once: each point's run (here or in a Ray worker) takes it
+        sweep.scenario = read_scenario(args.scenario)
     return sweep
 
 
@@ -310,8 +313,9 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
             print(f"target      the cheapest point with an error of at most "
                   f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
                   f"{best.wall_seconds:.2f} s)")
-            print(f"run it      "
-                  f"{command_line(args.scene, best, sweep.fixed, sweep.allow_outside)}")
+            line = command_line(args.scene, best, sweep.fixed, sweep.allow_outside,
+                                sweep.scenario)
+            print(f"run it      {line}")
 
 
 def _print_rankings(out: Path) -> None:
@@ -385,7 +389,8 @@ def _run_choices(args) -> dict:
     return {"parameters": given_parameters(args.set_file, args.set),
             "outputs": args.outputs, "output_interval": args.output_interval,
             "solver": solver, "allow_outside": args.allow_outside,
-            "substeps": substeps or None, "fmu_log": args.fmu_log}
+            "substeps": substeps or None, "fmu_log": args.fmu_log,
+            "scenario": args.scenario}
 
 
 def _add_allow_outside(parser) -> None:
@@ -417,6 +422,11 @@ def _add_run_choices(run_parser) -> None:
                             "to stderr as it comes (default: only the categories of "
                             "warnings and errors an FMU declares, its last messages kept "
                             "for the error messages)")
+    run_parser.add_argument("--scenario", metavar="FILE",
+                            help="events at times of the run: override, bias or reset an "
+                            "input, a tunable parameter or an output (libcosim's .json or "
+                            ".yml scenario, or ECOS's .xml; docs/scenarios.md); each takes "
+                            "effect at the first communication point at or after its time")
     _add_allow_outside(run_parser)
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "
@@ -538,6 +548,9 @@ def _add_sweep(commands) -> None:
                               "(repeatable; docs/doe.md)")
     sweep_parser.add_argument("--target-error", type=float, help="name the cheapest measured "
                               "point whose error is at most this, and its command line")
+    sweep_parser.add_argument("--scenario", metavar="FILE",
+                              help="the same scenario's events in every point's run (and "
+                              "the reference run): docs/scenarios.md")
     _add_allow_outside(sweep_parser)
     sweep_parser.set_defaults(handler=_cmd_sweep)
 
@@ -581,6 +594,10 @@ def _add_info(commands) -> None:
     info_parser.add_argument("--ssd", help=SETTINGS["ssd"].help)
     info_parser.add_argument("--allow-outside", action="append", metavar="DIR",
                              help="let the scene name files in DIR too (docs/security.md)")
+    info_parser.add_argument("--scenario", metavar="FILE",
+                             help="list the events of a scenario file (docs/scenarios.md): "
+                             "when each takes effect, its target and action, all checked "
+                             "against the scene")
     info_parser.add_argument("--all", action="store_true", help="every component in full, "
                              "with the table of every variable a run may set (name, type, "
                              "unit, start, the scene's value, limits, description)")

@@ -187,15 +187,19 @@ def _connections(checked) -> list[str]:
 
 
 def scene_info(scene_file, ssd: str | None = None, every: bool = False,
-               allow_outside=None) -> list[str]:
+               allow_outside=None, scenario=None) -> list[str]:
     """The lines ``dsim info`` prints for ``scene_file`` (an .ssp archive, a scene folder
     or an .ssd file; ``ssd``: which system structure of it): a summary that fits a
     screen, or with ``every`` each component in full with every variable a run may
     set; ``allow_outside``: folders trusted besides the scene, as :func:`dsim.prepare`
-    takes them.  Raises InputError as a run would."""
-    checked = prepare(scene_file, ssd=ssd, allow_outside=allow_outside)
+    takes them; ``scenario``: a scenario file, whose events are listed at the end with
+    the communication point each takes effect at (docs/scenarios.md).  Raises
+    InputError as a run would."""
+    checked = prepare(scene_file, ssd=ssd, allow_outside=allow_outside, scenario=scenario)
     lines = _header(scene_file, ssd, checked)
     lines += _details(checked) if every else _summary(checked)
+    if checked.scenario is not None:
+        lines += checked.scenario.lines()
     return lines
 
 

@@ -149,6 +149,12 @@ class Backend(ABC):
         """Write causal inputs: ``inputs`` is a list of (subsystem index, values); with
         ``start``, what connections feed at initialization (fixed parameters too)."""
 
+    def set_values(self, entries) -> None:
+        """Set variables between steps (a scenario's event: an input no connection
+        feeds, a tunable parameter): ``entries`` is a list of (subsystem index, names,
+        values) (:meth:`Subsystem.set_values`)."""
+        raise NotImplementedError(f"the {self.name} backend cannot set values")
+
     @abstractmethod
     def read_texts(self) -> list:
         """Every subsystem's String values read after a step (a list of str each)."""

@@ -115,6 +115,10 @@ class InProcessBackend(Backend):
             else:
                 self.subsystems[index].write_inputs(values)
 
+    def set_values(self, entries) -> None:
+        for index, names, values in entries:
+            self.subsystems[index].set_values(names, values)
+
     def read_texts(self):
         return [s.read_texts() for s in self.subsystems]
 

@@ -204,6 +204,10 @@ class FmpyAdapter(Checkpoint, Subsystem):
         variables = [self.variables[n] for n in self.spec.start_writes]
         self._checked("write start values", self._set_values, variables, list(values))
 
+    def set_values(self, names, values) -> None:
+        self._checked("set values", self._set_values, [self.variables[n] for n in names],
+                      list(values))
+
     def read_texts(self) -> list[str]:
         variables = [self.variables[n] for n in self.spec.text_reads]
         values = self._checked("read strings", self._get_values, variables) if variables \

@@ -294,6 +294,13 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
             self._call("fmi2Set" + variable.type, setters[variable.type],
                        [variable.valueReference], [value])
 
+    def set_values(self, names, values) -> None:
+        """Set variables by name between steps (a scenario's event), each call counted,
+        timed and checked as the parameters' are."""
+        variables = describe(self.path).by_name
+        self._set_parameters({name: (None, value) for name, value in zip(names, values)},
+                             variables)
+
     def finish_initialization(self) -> None:
         """Leave initialization mode (the start forces set so far are the FMU's)."""
         self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)

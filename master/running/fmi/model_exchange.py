@@ -246,6 +246,21 @@ class ModelExchangeSubsystem(FmpyAdapter):
             self.integrator.reset(t)
 
     # --- Subsystem --------------------------------------------------------------------
+    def set_values(self, names, values) -> None:
+        """Set variables between steps: a continuous Real input in continuous-time mode;
+        anything else (a discrete input, a tunable parameter) in event mode, as FMI asks,
+        with the event iteration after it (the integrator restarts there)."""
+        variables = [self.variables[n] for n in names]
+        if self._initializing or all(v.causality == "input" and v.type == "Real" and
+                                     v.variability == "continuous" for v in variables):
+            super().set_values(names, values)
+            return
+        self._checked("enter event mode", self.fmu.enterEventMode)
+        self._checked("set values", self._set_values, variables, list(values))
+        self._checked("event iteration", self._event_iteration)
+        if self.integrator is not None:
+            self.integrator.reset(self.time)
+
     def set_forces(self, forces):
         n = len(self._force_vrs)
         if not n:

@@ -115,6 +115,25 @@ OSCILLATOR_VARIABLES = (
 )
 
 
+#: the variables of offset.c (libcosim's scenario test slave, with a tunable, a fixed and
+#: a constant beside it; value references as its enums number them)
+OFFSET_VARIABLES = (
+    Variable("realOut", 0, causality="output", initial="calculated"),
+    Variable("realIn", 1, causality="input", start=1.0),
+    Variable("realInEcho", 2, causality="output", initial="calculated"),
+    Variable("offset", 3, causality="parameter", variability="tunable", start=1.234),
+    Variable("version", 4, causality="local", variability="constant", start=1.0),
+    Variable("intOut", 0, "Integer", "output", initial="calculated"),
+    Variable("intIn", 1, "Integer", "input", start=1),
+    Variable("intInEcho", 2, "Integer", "output", initial="calculated"),
+    Variable("intStep", 3, "Integer", "parameter", start=2),
+    Variable("flag", 0, "Boolean", "input", start=False),
+    Variable("flagOut", 1, "Boolean", "output", initial="calculated"),
+    Variable("label", 0, "String", "input", start=""),
+    Variable("labelOut", 1, "String", "output", initial="calculated"),
+)
+
+
 def c_fmu(folder: Path, name: str, source: str = "block.c", variables=BLOCK_VARIABLES,
           can_save_state: bool = True, variable_step: bool = True, defines=(),
           log_categories=(), interpolate_inputs: bool = False) -> Path:

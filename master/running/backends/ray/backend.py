@@ -543,6 +543,12 @@ class RayBackend(Recovery, Backend):
     def write_inputs(self, inputs, start: bool = False) -> None:
         self._some("write_start_inputs" if start else "write_inputs", inputs)
 
+    def set_values(self, entries) -> None:
+        steps = [[] for _ in self.members]
+        for index, names, values in entries:
+            steps[index].append(("set_values", (tuple(names), tuple(values))))
+        self._run(steps, answer=False)  # an error surfaces with the worker's next call
+
     def read_texts(self):
         return self._each("read_texts")
 

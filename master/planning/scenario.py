@@ -1,0 +1,364 @@
+"""A scenario file's events resolved against a checked plan (``dsim run --scenario``):
+which variable of which subsystem each event changes, how the run reaches it, the
+value converted by the variable's type, and the communication point at which it takes
+effect.  Bad input (an unknown component or variable, a variable no master may change
+during a run, a value of another type, an event at or after the stop time) is one
+line each of one :class:`~dsim.master.errors.InputError`, before anything runs.
+
+When an event takes effect (``point``, an index of the run's communication points
+``start + n * step``; with ``--step auto``, of its output points, every
+``output_interval``): libcosim's events at the first point ``t >= time`` (a point
+within a millionth of a step of the time counts: ``n * step`` is rounded); ECOS's
+actions at the first point with ``t > time`` or ``|t - time| < eps`` (ECOS's own test).
+A change made at point n acts on the step that starts there: an input or parameter is
+written before that step, an output is modified from the values read after it (so the
+row of point n + 1 is the first to show it, as libcosim's observer sees it).
+
+How each target is reached (:class:`Target`'s ``kind``):
+
+- ``"input"``: an input (or tunable parameter) a connection feeds every step: the
+  value the connection delivers is replaced (override) or offset (bias) where the
+  run's transfer computes it (``position`` in its flat values);
+- ``"set"``: an input no connection feeds, or a tunable parameter: set through the
+  backend when the event takes effect (FMI lets a master set both between steps);
+  its unmodified value (``base``) is the value the run started it with (the scene's
+  binding or ``--set``, else the FMU's declared start);
+- ``"output"``: a numeric output the run reads after every step (``position`` in the
+  flat outputs): what connected inputs receive and the CSV records is modified.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import numbers
+from dataclasses import dataclass
+
+from dsim.master.errors import InputError
+from dsim.master.planning.parameters import KEPT_TYPE, convert
+from dsim.master.reading.fmi_description import describe
+from dsim.master.reading.scenario_files import Scenario, read_scenario
+from dsim.master.running.timeline import step_count
+
+#: how close to an event's time (in steps) a communication point counts as at it:
+#: ``start + n * step`` carries round-off (3 * 0.1 = 0.30000000000000004)
+ROUNDING = 1e-6
+#: the types whose values a bias can add to
+ADDABLE = ("Real", "Integer")
+
+
+@dataclass(frozen=True)
+class Target:
+    """A variable that events change: ``path`` (the component) and ``variable``, the
+    index of its subsystem in the plan's specs, its FMI type as dsim keeps it
+    (Real, Integer, Boolean, String), how the run reaches it (``kind``: input, set or
+    output; module docstring), where it is (the transfer's or the flat outputs'
+    ``position``; -1 for a set one) and, for a set one, its unmodified value."""
+
+    component: int
+    path: str
+    variable: str
+    type: str
+    kind: str
+    causality: str
+    position: int = -1
+    base: object = None
+
+    @property
+    def name(self) -> str:
+        return f"{self.path}.{self.variable}"
+
+
+@dataclass(frozen=True)
+class PlannedEvent:
+    """One event as the run applies it: at communication point ``point`` (index; its
+    time ``at``, s) the target ``target`` (an index into the plan's targets) gets
+    ``action`` with ``value`` (converted; None for a reset); ``time``: the time the
+    file gives (s); ``where``: the file and event."""
+
+    point: int
+    at: float
+    time: float
+    target: int
+    action: str
+    value: object
+    where: str
+
+
+@dataclass(frozen=True)
+class ScenarioPlan:
+    """A scenario resolved against a plan: its targets, its events in the order they
+    take effect (point, then the file's order), and where every modification is taken
+    back (``end_point``: the first point at or after ``end`` at which no event is
+    still to come, as libcosim does; None: kept to the stop time)."""
+
+    targets: tuple[Target, ...]
+    events: tuple[PlannedEvent, ...]
+    end: float | None
+    end_point: int | None
+    end_at: float | None
+    file: str
+    format: str
+
+    def lines(self) -> list[str]:
+        """What ``dsim info --scenario`` says: one line per event (when it takes effect,
+        the target, the action), then the end."""
+        lines = [f"scenario {self.file} ({self.format}'s format): {len(self.events)} "
+                 f"event{'s' * (len(self.events) != 1)}"]
+        for event in self.events:
+            target = self.targets[event.target]
+            what = "reset" if event.action == "reset" else f"{event.action} {event.value!r}"
+            lines.append(f"  t = {event.time:g} s -> at t = {event.at:.9g} s (point "
+                         f"{event.point}): {target.name} ({target.type} {target.kind}"
+                         f"{', ' + target.causality if target.kind == 'set' else ''}): "
+                         f"{what}")
+        if self.end is not None:
+            lines.append(f"  end t = {self.end:g} s: every modification taken back" + (
+                f" at t = {self.end_at:.9g} s (point {self.end_point})"
+                if self.end_point is not None else " (after the stop time: never)"))
+        return lines
+
+
+def _closest(name: str, candidates) -> str:
+    """' (closest: a, b, c)' of the names nearest ``name``, or ''."""
+    found = difflib.get_close_matches(name, list(candidates)[:50000], n=3, cutoff=0.5)
+    return f" (closest: {', '.join(found)})" if found else ""
+
+
+def _point(event, start: float, step: float, planned: int) -> int:
+    """The first communication point (index, up to ``planned``: the stop time) at which
+    ``event`` takes effect by its rule."""
+    if event.rule == "ecos":
+        # the points that pass ECOS's test are those past time - eps (past time without
+        # eps): scan from just before the first, as the run computes each point's time
+        n = max(0, math.floor((event.time - event.eps - start) / step) - 1)
+        while n < planned:
+            t = start + n * step
+            if t > event.time or abs(t - event.time) < event.eps:
+                return n
+            n += 1
+        return planned
+    n = max(0, math.ceil((event.time - start) / step - ROUNDING))
+    return min(n, planned)
+
+
+def _strict_value(variable, value, ecos: bool):
+    """``value`` as the variable's type takes it, or raise ValueError.  A libcosim file
+    gives typed values (JSON, YAML): text for a number, a fraction for an Integer, or
+    a number for a Boolean is refused; ECOS's are attribute text, read by the type."""
+    kind = KEPT_TYPE.get(variable.type)
+    if not ecos:
+        if kind == "Real" and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+            raise ValueError
+        if kind == "Integer" and (isinstance(value, bool) or not isinstance(
+                value, numbers.Real) or not float(value).is_integer()):
+            raise ValueError
+        if kind == "Boolean" and not isinstance(value, bool):
+            raise ValueError
+        if kind == "String" and not isinstance(value, str):
+            raise ValueError
+    elif kind == "Boolean" and isinstance(value, str):
+        value = {"true": True, "1": True, "false": False, "0": False}.get(
+            value.strip().lower(), value)
+    converted, problem = convert(variable, value)
+    if problem:
+        raise ValueError
+    return converted
+
+
+def _base(component, variable):
+    """The value a run starts a set variable with: the scene's binding (or --set), else
+    the FMU's declared start, else zero of its type."""
+    bound = component.parameters.get(variable.name)
+    if bound is not None:
+        return bound[1]
+    zero = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}[KEPT_TYPE[variable.type]]
+    if variable.start in (None, ""):
+        return zero
+    converted, problem = convert(variable, variable.start)
+    return zero if problem else converted
+
+
+def _target(plan, index: int, variable, where: str, problems: list) -> Target | None:
+    """How the run reaches ``variable`` of subsystem ``index``, or None (said why)."""
+    spec = plan.specs[index]
+    component = plan.scene.component(spec.name)
+    name = f"{spec.name}.{variable.name}"
+    kind = KEPT_TYPE.get(variable.type)
+    if kind is None:
+        problems.append(f"{where}: '{name}' is of type {variable.type}, which a scenario "
+                        "cannot change")
+        return None
+    causality, variability = variable.causality, variable.variability or ""
+    if variability == "constant":
+        problems.append(f"{where}: '{name}' is a constant: FMI lets no master change it")
+        return None
+    if causality == "parameter" and variability != "tunable":
+        problems.append(f"{where}: '{name}' is a {variability or 'fixed'} parameter: FMI "
+                        "lets a master change it only before the run starts (--set, "
+                        "--set-file), not at an event")
+        return None
+    if causality in ("input", "parameter"):
+        forces = {dof.force for dof in spec.port_dofs}
+        if causality == "input" and variable.type == "Real" and \
+                variable.valueReference in forces:
+            problems.append(f"{where}: '{name}' is a glued port's force: the joint sets it "
+                            "every step")
+            return None
+        if variable.name in spec.writes:
+            if kind not in ADDABLE + ("Boolean",):
+                problems.append(f"{where}: '{name}' is a {kind} input a connection feeds: "
+                                "a scenario changes connected numbers only")
+                return None
+            position = _transfer_position(plan, index, spec.writes.index(variable.name))
+            return Target(index, spec.name, variable.name, kind, "input", causality, position)
+        if variable.name in spec.text_writes:
+            problems.append(f"{where}: '{name}' is a String input a connection feeds: a "
+                            "scenario changes connected numbers only")
+            return None
+        return Target(index, spec.name, variable.name, kind, "set", causality,
+                      base=_base(component, variable))
+    if causality == "output":
+        if kind == "String" or variable.name not in spec.reads:
+            why = ("a String output" if kind == "String" else
+                   "an output the run does not read (not recorded, connected or declared; "
+                   "a port's kinematics go to its joint as the FMU computes them)")
+            problems.append(f"{where}: '{name}' is {why}: a scenario modifies the numeric "
+                            "outputs the run reads after every step")
+            return None
+        if plan.step_control is not None:
+            problems.append(f"{where}: '{name}' is an output: with --step auto the run "
+                            "takes steps between the output points that pass the FMUs' own "
+                            "outputs on, so a scenario changes only inputs and tunable "
+                            "parameters there (give a fixed --step to modify an output)")
+            return None
+        if plan.coupling == "strong":
+            problems.append(f"{where}: '{name}' is an output, and the strong coupling "
+                            "iterates connections on the FMUs' own outputs within a step: "
+                            "a scenario modifies outputs under the other couplings")
+            return None
+        offset = sum(len(s.reads) for s in plan.specs[:index])
+        return Target(index, spec.name, variable.name, kind, "output", causality,
+                      offset + spec.reads.index(variable.name))
+    problems.append(f"{where}: '{name}' is a {causality} variable: a scenario changes "
+                    "inputs, tunable parameters and outputs")
+    return None
+
+
+def _transfer_position(plan, index: int, place: int) -> int:
+    """Where the ``place``-th written input of subsystem ``index`` is in the transfer's
+    flat values."""
+    for subsystem, start, _ in plan.transfer.targets:
+        if subsystem == index:
+            return start + place
+    raise KeyError(index)  # a written input has its place in the transfer
+
+
+def _targetable(description) -> list[str]:
+    """Names a scenario could change in an FMU (for the 'closest' names)."""
+    return [v.name for v in description.modelVariables
+            if v.causality in ("input", "output", "parameter") and v.variability != "constant"]
+
+
+def resolve_scenario(plan, scenario) -> ScenarioPlan:
+    """``scenario`` (a :class:`~dsim.master.reading.scenario_files.Scenario`, or the
+    path of its file) resolved against ``plan`` (a checked
+    :class:`~dsim.master.planning.plan.Plan`); InputError listing every problem."""
+    if not isinstance(scenario, Scenario):
+        scenario = read_scenario(scenario)
+    scene, step = plan.scene, plan.scene.master.step
+    problems = []
+    planned = step_count(scene.start_time, scene.stop_time, step)
+    index_of = {spec.name: i for i, spec in enumerate(plan.specs)}
+    joints = {joint.name for joint in scene.joints}
+    targets: dict[tuple[str, str], int] = {}
+    found: list[Target] = []
+    events = []
+    for order, event in enumerate(scenario.events):
+        where = event.where
+        if event.time >= scene.stop_time - ROUNDING * step:
+            problems.append(f"{where}: t = {event.time:g} s is at or after the stop time "
+                            f"{scene.stop_time:g} s: no step follows it")
+            continue
+        if scenario.end is not None and event.time > scenario.end:
+            problems.append(f"{where}: t = {event.time:g} s is after the scenario's end "
+                            f"{scenario.end:g} s, which takes every modification back")
+            continue
+        index = index_of.get(event.model)
+        if index is None:
+            if event.model in joints:
+                problems.append(f"{where}: '{event.model}' is a joint: a scenario does not "
+                                "change joint law coefficients (--set "
+                                f"{event.model}.{event.variable}=VALUE does, for the run)")
+            else:
+                problems.append(f"{where}: the scene has no component '{event.model}'"
+                                + _closest(event.model, index_of))
+            continue
+        spec = plan.specs[index]
+        description = scene.descriptions.get(scene.component(spec.name).source) or \
+            describe(spec.path)
+        variable = description.by_name.get(event.variable)
+        if variable is None:
+            problems.append(f"{where}: component '{event.model}' has no variable "
+                            f"'{event.variable}'" + _closest(event.variable,
+                                                             _targetable(description)))
+            continue
+        key = (spec.name, variable.name)
+        if key not in targets:
+            target = _target(plan, index, variable, where, problems)
+            if target is None:
+                continue
+            targets[key] = len(found)
+            found.append(target)
+        target = found[targets[key]]
+        if not _declared_matches(event, target, where, problems):
+            continue
+        value = None
+        if event.action != "reset":
+            try:
+                value = _strict_value(variable, event.value, scenario.format == "ecos")
+            except (TypeError, ValueError, OverflowError):
+                problems.append(f"{where}: '{target.name}' is {target.type}: "
+                                f"{event.value!r} is not "
+                                + {"Real": "a number", "Integer": "an integer",
+                                   "Boolean": "true or false", "String": "text"}[target.type])
+                continue
+            if event.action == "bias" and target.type not in ADDABLE:
+                problems.append(f"{where}: '{target.name}' is {target.type}: a bias adds to "
+                                "a number (Real or Integer)")
+                continue
+        point = _point(event, scene.start_time, step, planned)
+        if point >= planned:
+            problems.append(f"{where}: t = {event.time:g} s takes effect at the stop time "
+                            f"{scene.stop_time:g} s (the first communication point at or "
+                            "after it): no step follows it")
+            continue
+        events.append((point, order, PlannedEvent(
+            point, scene.start_time + point * step, event.time, targets[key], event.action,
+            value, where)))
+    if problems:
+        raise InputError(problems)
+    ordered = tuple(e for _, _, e in sorted(events, key=lambda e: e[:2]))
+    end_point = None
+    if scenario.end is not None:
+        # libcosim takes everything back at the first point at or after the end at
+        # which no event is still to come: after the last event's point, if later
+        end_point = max(0, math.ceil((scenario.end - scene.start_time) / step - ROUNDING))
+        end_point = max([end_point] + [e.point + 1 for e in ordered])
+        if end_point >= planned:
+            end_point = None
+    return ScenarioPlan(tuple(found), ordered, scenario.end, end_point,
+                        None if end_point is None else scene.start_time + end_point * step,
+                        scenario.file, scenario.format)
+
+
+def _declared_matches(event, target: Target, where: str, problems: list) -> bool:
+    """Whether the type the file declares (libcosim's ``type``, ECOS's element) is the
+    variable's (a file that says ``real`` for an Integer is a slip to say, not guess)."""
+    declared = (event.declared_type or "").strip()
+    if not declared:
+        return True
+    if declared.lower() != target.type.lower():
+        problems.append(f"{where}: '{target.name}' is {target.type}, the file says "
+                        f"{declared}")
+        return False
+    return True
