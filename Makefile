@@ -21,24 +21,35 @@ demo: fmus
 	$(BIN)/python -m examples.spring_mass --results results/$(SCENE).csv
 
 # The test tiers (README, "Tests"; docs/ci.md): markers in pyproject.toml, assigned by
-# tests/conftest.py.  `make test` runs every test and prints where the time goes
-# (--durations): the Ray and wheel tests in one pytest process, all the others in a
-# second one at the same time; they share nothing (the Ray tests, and only they, start or
-# join Ray instances; the wheel test works on a copy of the checkout; dsim serve binds
-# free ports).  `make test-serial` is the same suite in one process.
+# tests/conftest.py.  `make test` runs every test in three pytest processes at once and
+# prints where the time goes (--durations): the Ray and wheel tests (BESIDE) in one, into
+# results/test-beside.log; the others in two, split by folder (REST_B into
+# results/test-rest-b.log, the rest on the terminal).  The Ray process waits on Ray more
+# than it computes (a third of a core); the two others run at a lower priority (nice), so
+# they fill the cores it leaves idle without slowing what it waits on.  They share
+# nothing (the Ray tests, and only they, start or join Ray instances; the wheel test
+# works on a copy of the checkout; dsim serve binds free ports).  `make test-serial` is
+# the same suite in one process.
 PYTEST = OMP_NUM_THREADS=1 $(BIN)/pytest
+NICE_PYTEST = OMP_NUM_THREADS=1 nice -n 10 $(BIN)/pytest
 QUICK = not (wheel or kernels or ray or browser or fuzz or slow)
 BESIDE = ray or wheel
+REST_B = tests/fmus tests/checks tests/sweeps tests/house tests/tools tests/reading
 
 test: fmus browser
-	@mkdir -p results && rm -f results/test-beside.log
-	@$(MAKE) --no-print-directory -j2 -k test-beside test-rest; status=$$?; \
-	  echo "=== the tests run beside those (-m '$(BESIDE)'), from results/test-beside.log:"; \
-	  cat results/test-beside.log; exit $$status
+	@mkdir -p results && rm -f results/test-beside.log results/test-rest-b.log
+	@$(MAKE) --no-print-directory -j3 -k test-beside test-rest test-rest-b; status=$$?; \
+	  for half in rest-b beside; do \
+	    echo "=== the tests of results/test-$$half.log (run at the same time):"; \
+	    cat results/test-$$half.log; done; exit $$status
 
-# the two halves of `make test` (they expect its set-up: use `make test`)
+# the three parts of `make test` (they expect its set-up: use `make test`)
 test-rest:
-	$(PYTEST) -q -rs --durations=25 -m "not ($(BESIDE))"
+	$(NICE_PYTEST) -q -rs --durations=20 -m "not ($(BESIDE))" tests $(REST_B:%=--ignore=%)
+test-rest-b:
+	@echo "make: the tests of $(REST_B) -m 'not ($(BESIDE))' run beside, into results/test-rest-b.log"
+	@$(NICE_PYTEST) -q -rs --durations=20 -m "not ($(BESIDE))" -p no:cacheprovider \
+	  $(REST_B) >results/test-rest-b.log 2>&1
 test-beside:
 	@echo "make: the tests -m '$(BESIDE)' run beside, into results/test-beside.log"
 	@$(PYTEST) -q -rs --durations=15 -m "$(BESIDE)" -p no:cacheprovider >results/test-beside.log 2>&1

@@ -383,10 +383,12 @@ def test_a_worker_killed_under_step_auto_is_started_again_to_the_same_bits(built
     worker killed mid-run: the worker's checkpoints are the error control's snapshots
     (none is taken while one lives), so a fresh worker goes on from the last one, keeps
     it under the same key and takes the calls since; every column equals the
-    undisturbed run's to the last bit, and so do the controller's steps."""
+    undisturbed run's to the last bit (in-process: a Ray run gives its bits, as
+    test_error_controlled_steps_on_workers_give_the_in_process_numbers checks), and so do
+    the controller's steps."""
     scene = built["ssp"] / "four_bar_singular_flexible.ssp"
     settings = dict(stop=0.1, step="auto", error_tolerance=1e-5, backend="ray")
-    here = dsim.simulate(scene, **settings)
+    here = dsim.simulate(scene, **{**settings, "backend": "in-process"})
     there, victim, names = run_killing(dsim.prepare(scene, **settings), at=4, delay=0.05)
     assert there.status == "completed", there.message
     assert there.steps == here.steps == 10
