@@ -13,6 +13,7 @@ from pathlib import Path
 from lxml import etree
 
 from dsim.master.errors import InputError
+from dsim.master.reading.small_files import bounded_bytes, utf8_text
 from dsim.master.reading.ssp import _check_schema
 from dsim.master.reading.ssp_values import parameter_set
 
@@ -92,19 +93,10 @@ def read_parameter_file(path) -> dict:
     if suffix not in (".ssv", ".csv", ".json"):
         raise InputError(f"{path}: a parameter file is .ssv (SSP parameter set), .csv "
                          "(name,value rows) or .json (an object of name -> value)")
-    try:
-        if path.stat().st_size > MAX_BYTES:
-            raise InputError(f"{path}: {path.stat().st_size} bytes: more than a parameter "
-                             f"file's {MAX_BYTES} bytes")
-        data = path.read_bytes()
-    except OSError as error:
-        raise InputError(f"{path}: cannot read: {error.strerror}") from None
+    data = bounded_bytes(path, MAX_BYTES, "a parameter file")
     if suffix == ".ssv":
         return _ssv(path, data)
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not UTF-8 text") from None
+    text = utf8_text(path, data)
     return _csv(path, text) if suffix == ".csv" else _json(path, text)
 
 

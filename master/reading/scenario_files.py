@@ -30,6 +30,7 @@ from pathlib import Path
 from lxml import etree
 
 from dsim.master.errors import InputError
+from dsim.master.reading.small_files import bounded_bytes, utf8_text
 
 #: the actions of libcosim's format (ECOS's are all overrides)
 ACTIONS = ("override", "bias", "reset")
@@ -85,20 +86,10 @@ def read_scenario(path) -> Scenario:
     if kind is None:
         raise InputError(f"{path}: a scenario file is .json, .yml or .yaml (libcosim's "
                          "format) or .xml (ECOS's)")
-    try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise InputError(f"{path}: {size} bytes: more than a scenario file's "
-                             f"{MAX_BYTES} bytes")
-        data = path.read_bytes()
-    except OSError as error:
-        raise InputError(f"{path}: cannot read: {error.strerror}") from None
+    data = bounded_bytes(path, MAX_BYTES, "a scenario file")
     if kind == "ecos":
         return _ecos(path, data)
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not UTF-8 text") from None
+    text = utf8_text(path, data)
     tree = _json(path, text) if path.suffix.lower() == ".json" else _yaml(path, text)
     return _libcosim(path, tree)
 
