@@ -13,7 +13,7 @@ from pathlib import Path
 from lxml import etree
 
 from dsim.master.errors import InputError
-from dsim.master.reading.small_files import bounded_bytes, utf8_text
+from dsim.master.reading.small_files import bounded_bytes, parse_untrusted, utf8_text
 from dsim.master.reading.ssp import _check_schema
 from dsim.master.reading.ssp_values import parameter_set
 
@@ -37,7 +37,7 @@ def parse_assignments(texts) -> dict:
 def _ssv(path: Path, text: bytes) -> dict:
 
     try:
-        root = etree.fromstring(text)
+        root = parse_untrusted(text)
     except etree.XMLSyntaxError as error:
         raise InputError(f"{path}: malformed XML: {error}") from None
     problems, warnings = [], []

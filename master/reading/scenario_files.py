@@ -30,7 +30,7 @@ from pathlib import Path
 from lxml import etree
 
 from dsim.master.errors import InputError
-from dsim.master.reading.small_files import bounded_bytes, utf8_text
+from dsim.master.reading.small_files import bounded_bytes, parse_untrusted, utf8_text
 
 #: the actions of libcosim's format (ECOS's are all overrides)
 ACTIONS = ("override", "bias", "reset")
@@ -206,13 +206,6 @@ def _libcosim_event(event: dict, defaults: dict, where: str, problems: list):
 
 
 # --- ECOS: XML ---------------------------------------------------------------------
-def _parser() -> etree.XMLParser:
-    """An XML parser for untrusted files: no entity resolved (no billion laughs, no
-    external file read), no DTD loaded, no network."""
-    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
-                           huge_tree=False, remove_comments=True)
-
-
 def _local(element) -> str:
     """An element's name without its namespace (ECOS writes ``ecos:action``)."""
     return etree.QName(element).localname if isinstance(element.tag, str) else ""
@@ -235,7 +228,7 @@ def _eps(element, inherited: float, where: str, problems: list) -> float:
 def _ecos(path: Path, data: bytes) -> Scenario:
     """The scenario of an ECOS scenario XML file."""
     try:
-        root = etree.fromstring(data, _parser())
+        root = parse_untrusted(data, remove_comments=True)
     except etree.XMLSyntaxError as error:
         line = f" line {error.lineno}" if error.lineno else ""
         raise InputError(f"{path}{line}: malformed XML: {error.msg}") from None

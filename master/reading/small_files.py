@@ -1,8 +1,11 @@
 """Reading a small input file the user names (a parameter file, a scenario): its size
-checked before it is read, its text decoded, each failure one line of bad input."""
+checked before it is read, its text decoded, each failure one line of bad input; and the
+one XML parser for every untrusted XML file (SSD, SSV, scenario)."""
 from __future__ import annotations
 
 from pathlib import Path
+
+from lxml import etree
 
 from dsim.master.errors import InputError
 
@@ -25,3 +28,29 @@ def utf8_text(path: Path, data: bytes) -> str:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise InputError(f"{path}: not UTF-8 text") from None
+
+
+def untrusted_xml_parser(remove_comments: bool = False) -> etree.XMLParser:
+    """An lxml parser for XML from an untrusted file (an SSD, a parameter set, a
+    scenario): no entity resolved (no external file read into a value, no billion
+    laughs), no DTD loaded, nothing fetched from the network, no huge tree.  lxml's
+    default parser resolves internal entities and loads DTDs."""
+    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
+                           huge_tree=False, remove_comments=remove_comments)
+
+
+def parse_untrusted(source, remove_comments: bool = False) -> etree._Element:
+    """The root element of untrusted XML: a file's path (str) or its bytes, parsed with
+    :func:`untrusted_xml_parser`.  A document that declares a document type is refused
+    (etree.XMLSyntaxError, as malformed XML): with its entities left unread, lxml's
+    schema check fails on it with an internal error, and no SSP or scenario file needs
+    one."""
+    parser = untrusted_xml_parser(remove_comments)
+    tree = (etree.fromstring(source, parser).getroottree() if isinstance(source, bytes)
+            else etree.parse(source, parser))
+    root = tree.getroot()
+    if tree.docinfo.internalDTD is not None:
+        raise etree.XMLSyntaxError(
+            "a document type declaration (DTD) before the root element: DTDs and "
+            "entities are not read", 0, root.sourceline or 1, 0)
+    return root

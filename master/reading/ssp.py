@@ -23,6 +23,7 @@ from lxml import etree
 from dsim.master.errors import InputError
 from dsim.master.reading.fmu_archive import descriptions
 from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
+from dsim.master.reading.small_files import parse_untrusted
 from dsim.master.reading.ssp_gluing import floats, read_joint, read_placement, read_port_map
 from dsim.master.reading.ssp_hierarchy import (Binding, RawConnection, resolve_bindings,
                                                resolve_connections)
@@ -95,7 +96,7 @@ def _open(path: Path, ssd_name: str | None = None) -> tuple[Path, str]:
 
 def _parse_xml(path: Path, shown: str):
     try:
-        return etree.parse(str(path)).getroot()
+        return parse_untrusted(str(path))
     except etree.XMLSyntaxError as error:
         raise InputError(f"{shown}: malformed XML: {error}") from None
     except OSError as error:
@@ -294,7 +295,7 @@ class _Reader:
             return None
         self.files.append(file)
         try:
-            root = etree.parse(str(file)).getroot()
+            root = parse_untrusted(str(file))
         except etree.XMLSyntaxError as error:
             self.problems.append(f"{self.shown}: {source}: malformed XML: {error}")
             return None
@@ -436,7 +437,7 @@ class _Reader:
                 if not candidate.resolve().is_relative_to(self.root):
                     continue  # a link out of the scene: not one of its files
                 try:
-                    named[etree.parse(str(candidate)).getroot().get("name")] = candidate
+                    named[parse_untrusted(str(candidate)).get("name")] = candidate
                 except (etree.XMLSyntaxError, OSError):  # unreadable: not a set to choose
                     continue
             if chosen not in named:
