@@ -22,7 +22,7 @@ demo: fmus
 
 # The test tiers (README, "Tests"; docs/ci.md): markers in pyproject.toml, assigned by
 # tests/conftest.py.  `make test` runs every test in three pytest processes at once and
-# prints where the time goes (--durations): the Ray and wheel tests (BESIDE) in one, into
+# prints where the time goes (--durations): the Ray tests (BESIDE) in one, into
 # results/test-beside.log; the others in two, split by folder (REST_B into
 # results/test-rest-b.log, the rest on the terminal).  The Ray process waits on Ray more
 # than it computes (a third of a core); the two others run at a lower priority (nice), so
@@ -33,8 +33,8 @@ demo: fmus
 PYTEST = OMP_NUM_THREADS=1 $(BIN)/pytest
 NICE_PYTEST = OMP_NUM_THREADS=1 nice -n 10 $(BIN)/pytest
 QUICK = not (wheel or kernels or ray or browser or fuzz or slow)
-BESIDE = ray or wheel
-REST_B = tests/fmus tests/checks tests/sweeps tests/house tests/tools tests/reading
+BESIDE = ray
+REST_B = tests/fmus tests/checks tests/sweeps tests/house tests/tools
 
 test: fmus browser
 	@mkdir -p results && rm -f results/test-beside.log results/test-rest-b.log
