@@ -163,7 +163,9 @@ def pack_scene(folder: Path, fmu_dir: Path, out: Path) -> Path:
         for file in sorted(folder.rglob("*")):
             if file.is_file():
                 archive.write(file, file.relative_to(folder).as_posix())
-        for source in sorted(s for s in sources if s):
+        # (a table component's .csv or .mat file is a file of the folder, packed above)
+        for source in sorted(s for s in sources if s and not s.lower().endswith(
+                (".csv", ".mat"))):
             fmu = fmu_dir / Path(source).name
             if not fmu.is_file():
                 raise FileNotFoundError(f"{ssd}: component source '{source}' is not a "

@@ -109,13 +109,17 @@ def _mount_law(q, qd):
 
 def monolithic(joints: str = "flexible", fidelity: str = "fine",
                step: float = FOUR_POST["step"], stop: float = FOUR_POST["stop"],
-               snapshots=(), ordering: str = "COLAMD", **overrides) -> dict:
+               snapshots=(), ordering: str = "COLAMD", base_force=None,
+               **overrides) -> dict:
     """The four-post rig in one solver: columns named as the glued run's CSV (``time``,
     ``body.rigidK.u_z``, ``body.probe1.u_z``, ``post_*.x[1]``, ``mount_*.f_z``; m, N),
     ``seconds`` (wall time), ``newton`` (iterations per step) and, for each time in
     ``snapshots``, the plate's full displacement vector (``shapes``). ``ordering``: the
     sparse LU's column ordering (another one shows the solution's round-off floor);
-    ``overrides`` change the plate's parameters (:func:`plate_body`)."""
+    ``base_force``: a function of the step's end time t1 (s) giving the force (N) on
+    each post in place of its base's spring and damper (a road profile fed as a force:
+    examples/four_post_road.py), else the posts' own bumps; ``overrides`` change the
+    plate's parameters (:func:`plate_body`)."""
     start = clock.perf_counter()
     body, posts, h = plate_body(fidelity, **overrides), _posts(), step
     rows = [body.interface.index((port, "z")) for port, _, _ in CORNERS.values()]
@@ -152,8 +156,12 @@ def monolithic(joints: str = "flexible", fidelity: str = "fine",
         t1 = i * h
         base = np.array([post.base(t1) for post in posts])[:, :, 0]  # (4, 2): y, yd
         rhs_body = mass @ (4 / h ** 2 * q + 4 / h * v + a) + damping @ (2 / h * q + v)
-        rhs_post = (m * (4 / h ** 2 * x + 4 / h * xv + xa) + c * (2 / h * x + xv)
-                    + k * base[:, 0] + c * base[:, 1])
+        if base_force is None:
+            rhs_post = (m * (4 / h ** 2 * x + 4 / h * xv + xa) + c * (2 / h * x + xv)
+                        + k * base[:, 0] + c * base[:, 1])
+        else:
+            rhs_post = (m * (4 / h ** 2 * x + 4 / h * xv + xa) + c * (2 / h * x + xv)
+                        + base_force(t1))
         if joints == "fixed":
             q1 = lu.solve(rhs_body + B.T @ rhs_post)
             x1 = B @ q1

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from dsim.master.errors import InputError
+from dsim.master.planning.inputs import with_inputs
 from dsim.master.planning.parameters import require_mapping, with_parameters
 from dsim.master.planning.plan import make_plan
 from dsim.master.planning.scenario import resolve_scenario
@@ -25,7 +26,7 @@ from dsim.master.settings import resolve
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
-            substeps=None, fmu_log: bool = False, scenario=None, **settings):
+            substeps=None, fmu_log: bool = False, scenario=None, inputs=None, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -58,10 +59,14 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     ``scenario``: events at times of the run (a scenario file's path, libcosim's JSON or
     YAML or ECOS's XML, or a :class:`~dsim.master.reading.scenario_files.Scenario`
     read from one), resolved against the scene's variables (docs/scenarios.md).
+    ``inputs``: an input table feeding inputs of the scene's components over time (a
+    .csv or .mat file's path, a pandas DataFrame or a numpy structured array: a
+    ``time`` column, then one column per input named ``component.variable``;
+    docs/inputs.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     with collector_paused():  # 10,000 components: millions of objects, few cycles
         plan = _prepare(scene, load_libraries, strict, parameters, outputs,
-                        output_interval, solver, allow_outside, settings, substeps)
+                        output_interval, solver, allow_outside, settings, substeps, inputs)
     if scenario is not None:
         plan = replace(plan, scenario=resolve_scenario(plan, scenario))
     if fmu_log:
@@ -70,7 +75,7 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
 
 
 def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval, solver,
-             allow_outside, settings, substeps=None):
+             allow_outside, settings, substeps=None, inputs=None):
     """:func:`prepare`'s work."""
     parameters = require_mapping(parameters)
     chosen = settings.get("parameter_set")
@@ -82,6 +87,8 @@ def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval
                          "loaded scene")
     scene = with_parameters(scene, parameters)
     scene = with_solver(scene, solver)
+    if inputs is not None:  # a table component and its connections (docs/inputs.md)
+        scene = with_inputs(scene, inputs)
     try:
         master, options = resolve(scene.master, settings)
     except InputError as error:

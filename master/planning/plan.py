@@ -17,10 +17,13 @@ import numpy as np
 
 from dsim.master.errors import InputError
 from dsim.master.planning.assembly import assemble
+from dsim.master.planning.inputs import INPUT_COMPONENT
 from dsim.master.planning.loops import find_loops
 from dsim.master.planning.parameters import written_by_master
 from dsim.master.planning.substeps import choose_substeps
+from dsim.master.planning.tables import table_data, with_table_inputs
 from dsim.master.reading.fmu_archive import fmu_problem
+from dsim.master.reading.input_tables import is_table
 from dsim.master.reading.fmi_description import (CO_SIMULATION, MODEL_EXCHANGE,
                                                 can_roll_back, chosen_interface, describe,
                                                 description_warning)
@@ -161,10 +164,11 @@ def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
     usable = {}
     jointed = {path for joint in scene.joints for path in (joint.a[0], joint.b[0])}
     for component in scene.components:
-        if not component.source.is_file():
+        table = is_table(component.source)  # a table component, or --input's
+        if not (table or component.source.is_file()):
             continue  # the reader has said so
         problem = fmu_problem(component.source, load_libraries)
-        where = f"{component.location}: FMU {component.source.name}"
+        where = f"{component.location}: {'table' if table else 'FMU'} {component.source.name}"
         if problem:
             problems.append(f"{where}: {problem}")
             continue
@@ -203,6 +207,9 @@ def _records(scene: Scene, usable: dict) -> tuple[dict, dict]:
     for component in scene.components:
         variables = usable.get(component.path)
         if variables is None:
+            continue
+        if component.path == INPUT_COMPONENT:  # --input's columns: inputs, not recorded
+            numbers[component.path], texts[component.path] = [], []
             continue
         declared = [c.name for c in component.connectors
                     if c.kind == "output" and c.name in variables]
@@ -633,9 +640,14 @@ def _moves(paths: list[str], links, records: dict, text_records: dict) -> dict:
                 text_transfer=text_transfer, text_writes=text_writes)
 
 
-def _specs(scene: Scene, interfaces: dict, checked: dict, moves: dict) -> tuple:
-    """The picklable spec of every component's subsystem."""
+def _specs(scene: Scene, interfaces: dict, checked: dict, moves: dict,
+           problems: list) -> tuple:
+    """The picklable spec of every component's subsystem (a table component's with its
+    data: :func:`~dsim.master.planning.tables.table_data`)."""
     kinds = _kinds(scene)
+    tables = {c.path: table_data(c, moves["reads"][c.path], moves["numbers"],
+                                 checked["usable"], problems)
+              for c in scene.components if is_table(c.source)}
     return tuple(SubsystemSpec(
         name=c.path, path=c.source, port_dofs=tuple(interfaces[c.path]),
         parameters=_with_files(c, checked["usable"][c.path]),
@@ -648,7 +660,7 @@ def _specs(scene: Scene, interfaces: dict, checked: dict, moves: dict) -> tuple:
         placement=scene.placements.get(c.path, ""), files=tuple(c.files),
         interface=checked["chosen"][c.path],
         fmi_version=(scene.descriptions.get(c.source) or describe(c.source)).fmiVersion,
-        solver=c.solver) for c in scene.components)
+        solver=c.solver, table=tables.get(c.path)) for c in scene.components)
 
 
 def _recorded(paths: list[str], reads: dict, records: dict) -> tuple[list, list]:
@@ -700,7 +712,8 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     layout, _, interfaces = assemble(paths, list(scene.joints), checked["sides"])
     moves = _moves(paths, checked["links"], checked["records"], checked["text_records"])
     recorded, record_index = _recorded(paths, moves["reads"], checked["records"])
-    specs = _specs(scene, interfaces, checked, moves)
+    problems = []
+    specs = _specs(scene, interfaces, checked, moves, problems)
     text_reads, text_records = moves["text_reads"], checked["text_records"]
     text_recorded = tuple((p, n) for p in paths for n in text_reads[p] if n in text_records[p])
     text_offsets, offset = {}, 0
@@ -709,8 +722,9 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
         offset += len(text_reads[path])
     text_index = [text_offsets[p] + text_reads[p].index(n) for p, n in text_recorded]
     columns = [f"{path}.{name}" for path, name in recorded] + list(layout.labels)
-    selected, text_selected, problems = select_columns(
+    selected, text_selected, selection_problems = select_columns(
         outputs, columns, [f"{path}.{name}" for path, name in text_recorded])
+    problems += selection_problems
     problems += written_by_master(scene, specs, checked["usable"])
     _refuse(problems, warnings)
     if text_selected is not None:
@@ -725,6 +739,7 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
     specs = choose_substeps(scene, substeps, glued, iterated if coupling == "strong" else (),
                             specs, problems)
     _refuse(problems, warnings)
+    specs = with_table_inputs(scene, specs, moves["numbers"], chosen, coupling)
     loops = find_loops(scene, moves["numbers"], chosen)
     start_links, start_transfer = checked["links"], moves["start_transfer"]
     if loops:

@@ -37,6 +37,7 @@ from fmpy import platform, platform_tuple, read_model_description, sharedLibrary
 from fmpy.model_description import ValidationError
 
 from dsim.master.reading.digests import file_digest
+from dsim.master.reading.input_tables import is_table_file, read_table
 
 #: dsim's value kind of each FMI type name (1.0, 2.0 and 3.0)
 KIND_OF_TYPE = {"Real": "Real", "Float64": "Real", "Float32": "Real",
@@ -217,8 +218,40 @@ def _described_file(path: Path) -> tuple:
 
 def describe(path: Path) -> FmuDescription:
     """dsim's description of the FMU file at ``path`` (cached per file, and read once
-    per content of the file: see _READ)."""
+    per content of the file: see _READ); of a table file (.csv, .mat: an SSP table
+    component, ``--input``), the description of a source whose outputs are its columns
+    (:func:`table_description`)."""
+    if is_table_file(path):
+        return table_description(read_table(path))
     return _described_file(path)[0]
+
+
+#: a table's "interface": a source that saves and restores its state (its time) and
+#: takes steps of any size; dsim runs it in process (dsim.master.running.tables)
+TABLE_INTERFACE = Interface(CO_SIMULATION, "table", canGetAndSetFMUstate=True,
+                            canSerializeFMUstate=True,
+                            canHandleVariableCommunicationStepSize=True)
+
+
+def table_description(table) -> FmuDescription:
+    """The description of an input table (a
+    :class:`~dsim.master.reading.input_tables.Table`) as the plan reads an FMU's: one
+    continuous Real output per column (OMSimulator's table components have Real
+    outputs), no input, no parameter, unitless (an SSP connector may give the unit)."""
+    found = _TABLES.get(id(table))
+    if found is not None and found[0] is table:
+        return found[1]
+    variables = tuple(Variable(name, index, "Real", "output", "continuous",
+                               initial="calculated") for index, name in enumerate(table.names))
+    description = FmuDescription("2.0", "table", "", TABLE_INTERFACE, None,
+                                 variables, dependencies={n: () for n in table.names},
+                                 generationTool="dsim (an input table)")
+    _TABLES[id(table)] = (table, description)
+    return description
+
+
+#: id(table) -> (the table, its description): made once per table read
+_TABLES: dict[int, tuple] = {}
 
 
 def _description(md) -> FmuDescription:
@@ -337,6 +370,8 @@ def _extent(dimension) -> int:
 
 def description_warning(path: Path) -> str | None:
     """The rule ``path``'s modelDescription.xml breaks that dsim tolerates, or None."""
+    if is_table_file(path):
+        return None
     return _described_file(path)[1]
 
 

@@ -20,6 +20,7 @@ from dsim.master.errors import InputError
 from dsim.master.reading.digests import file_digest
 from dsim.master.reading.fmi_description import (chosen_interface, describe, library_folder,
                                                 library_members)
+from dsim.master.reading.input_tables import is_table, is_table_file, table_problem
 from dsim.master.reading.unpacking import check_archive, extract
 
 _UNZIPPED: dict[Path, str] = {}
@@ -210,6 +211,8 @@ def fmu_problem(path: Path, load: bool = True) -> str | None:
     loaded in a child process; without, nothing of the FMU runs (``dsim validate``,
     uploads to ``dsim serve``: an FMU's library runs its constructors when loaded)."""
     path = Path(path)
+    if is_table_file(path):  # an SSP table component or --input: no FMU to check
+        return table_problem(path)
     digest = file_digest(path)
     if (digest, False) not in _CHECKED:  # what reading the files finds, nothing loaded
         _CHECKED[digest, False] = _archive_problem(path) or _first_blocker(path)
@@ -226,7 +229,7 @@ def descriptions(components) -> dict:
     result: dict = {}
     for component in components:
         source = component.source
-        if source in result or not source.is_file():
+        if source in result or not (source.is_file() or is_table(source)):
             continue
         if fmu_problem(source, load=False) is None:
             result[source] = describe(source)

@@ -22,6 +22,7 @@ from lxml import etree
 
 from dsim.master.errors import InputError
 from dsim.master.reading.fmu_archive import descriptions
+from dsim.master.reading.input_tables import TABLE_TYPES, is_table_file
 from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 from dsim.master.reading.small_files import parse_untrusted
 from dsim.master.reading.ssp_gluing import floats, read_joint, read_placement, read_port_map
@@ -391,18 +392,29 @@ class _Reader:
     def component(self, element, prefix: str, depth: int) -> None:
         where = self.where(element)
         source = element.get("source", "")
-        kind = element.get("type", "application/x-fmu-sharedlibrary")
-        if kind != "application/x-fmu-sharedlibrary":
-            self.problems.append(f"{where}: type '{kind}' is not an FMU (dsim runs FMU "
-                                 "components; a referenced SSP or SSD is not supported)")
+        kind = element.get("type")
+        # a table component (OMSimulator's: a .csv or .mat file of the scene) is a
+        # source whose outputs are its columns (dsim.master.running.tables)
+        table = kind in TABLE_TYPES or (kind is None and is_table_file(source))
+        if table and not is_table_file(source):
+            self.problems.append(f"{where}: type '{kind}' names a table, but its source "
+                                 f"'{source}' is no .csv or .mat file")
             self.refused.add(prefix + element.get("name", ""))
             return
-        file = self.inside(source, where, "FMU source")
+        if not table and (kind or "application/x-fmu-sharedlibrary") != \
+                "application/x-fmu-sharedlibrary":
+            self.problems.append(f"{where}: type '{kind}' is not an FMU (dsim runs FMU "
+                                 "components and tables of .csv or .mat files; a referenced "
+                                 "SSP or SSD is not supported)")
+            self.refused.add(prefix + element.get("name", ""))
+            return
+        file = self.inside(source, where, "table source" if table else "FMU source")
         if file is None:
             self.refused.add(prefix + element.get("name", ""))
             return
         if not source or not file.is_file():
-            self.problems.append(f"{where}: FMU '{source}' not found")
+            self.problems.append(f"{where}: {'table' if table else 'FMU'} '{source}' "
+                                 "not found")
         path = prefix + element.get("name", "")
         self.bindings_of(element, path, True, depth)
         self.components.append(dict(path=path, source=file, location=where,

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dsim.master.errors import SimulationError
+from dsim.master.reading.input_tables import is_table
 from dsim.master.reading.units import conversion, fmu_units, variable_unit
 
 #: FMI types a connection or a recorded column carries, and the kind each moves as
@@ -115,6 +116,11 @@ def check_connections(scene, usable: dict, problems: list, warnings=None) -> lis
         if len(ends) != 2:
             continue
         kinds = [KINDS[v.type] for v in ends]
+        if kinds[0] == "Real" and kinds[1] in ("Integer", "Boolean") and \
+                is_table(scene.component(connection.start[0]).source):
+            # a table's column feeds discrete inputs with its values held (whole
+            # numbers, 0 and 1: dsim.master.planning.tables checks them)
+            kinds[0] = kinds[1]
         if kinds == ["Integer", "Real"] and warnings is not None:
             warnings.append(f"{where}: connects an {ends[0].type} '{'.'.join(connection.start)}'"
                             f" to a Real '{'.'.join(connection.end)}': carried as a Real "

@@ -304,8 +304,13 @@ class Execution:
         #: the connected sources, each once: what the coupling error watch follows and
         #: the error-controlled step's estimate weighs
         self._sources = plan.sources
-        if len(self._sources) and plan.step_control is None:
-            self._watch = self._coupling_error_watch()
+        watched = self._sources
+        if any(spec.table is not None for spec in plan.specs):
+            # a table's columns are no coupling error: the table is the input, fed as
+            # it is at each communication point (docs/inputs.md)
+            watched = np.setdiff1d(watched, _table_reads(plan))
+        if len(watched) and plan.step_control is None:
+            self._watch = self._coupling_error_watch(watched)
         if plan.step_control is not None:
             self.controller = StepController(
                 plan.step_control, self._take, self._estimated, self._estimated_labels(),
@@ -335,7 +340,7 @@ class Execution:
                 positions[(spec.name, port_dof.port, port_dof.dof)] = value
         return positions
 
-    def _coupling_error_watch(self) -> CouplingErrorWatch:
+    def _coupling_error_watch(self, sources) -> CouplingErrorWatch:
         """The watch of the connected sources (:mod:`~dsim.master.running.coupling_error`),
         each marked iterated where every value it feeds is made consistent at the
         communication point: iterated by the strong coupling, or the input of an
@@ -343,7 +348,6 @@ class Execution:
         plan = self.plan
         transfer = plan.transfer
         reads = plan.read_names
-        sources = self._sources
         iterated = np.zeros(len(sources), dtype=bool)
         fed = np.zeros(transfer.size, dtype=bool)
         if plan.coupling == "strong":
@@ -702,3 +706,13 @@ class Execution:
                                            components)
         result.statistics["message"] = message
         return result
+
+
+def _table_reads(plan) -> np.ndarray:
+    """Where the table components' outputs are in the run's flat outputs."""
+    found, offset = [], 0
+    for spec in plan.specs:
+        if spec.table is not None:
+            found.extend(range(offset, offset + len(spec.reads)))
+        offset += len(spec.reads)
+    return np.array(found, dtype=int)

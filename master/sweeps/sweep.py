@@ -82,6 +82,9 @@ class Sweep:
     #: a scenario every point's run takes (``--scenario``: a path, or the
     #: :class:`~dsim.master.reading.scenario_files.Scenario` read from one), or None
     scenario: object = None
+    #: an input table every point's run takes (``--input``: a path, or the
+    #: :class:`~dsim.master.reading.input_tables.Table` read from one), or None
+    inputs: object = None
 
     def plan(self) -> Design:
         """The design: the grid's settings as lists, then the varied factors."""
@@ -247,9 +250,10 @@ def cheapest(points: list[Point], target: float) -> Point | None:
     return min(meeting, key=lambda p: p.wall_seconds) if meeting else None
 
 
-def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=None) -> str:
+def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=None,
+                 inputs=None) -> str:
     """The ``dsim run`` command of a point (``allow_outside``: the sweep's trusted
-    folders; ``scenario``: its scenario)."""
+    folders; ``scenario``: its scenario; ``inputs``: its input table)."""
     words = ["dsim", "run", str(scene)]
     settings, parameters = split({**fixed, **point.settings})
     for key, value in settings.items():
@@ -260,16 +264,21 @@ def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=No
         words += ["--allow-outside", str(folder)]
     if scenario is not None:
         words += ["--scenario", str(getattr(scenario, "file", scenario))]
+    if inputs is not None:
+        words += ["--input", str(getattr(inputs, "file", None) or getattr(inputs, "source",
+                                                                            inputs))]
     return " ".join(shlex.quote(w) for w in words)
 
 
 def trusted(sweep: Sweep) -> dict:
     """The keywords of ``dsim.simulate``/``prepare`` every point's run shares besides its
     settings: the folders the sweep's scene may name files in (``allow_outside``) and
-    its scenario ({} when it has neither)."""
+    its scenario and its input table ({} when it has none of them)."""
     shared = {"allow_outside": list(sweep.allow_outside)} if sweep.allow_outside else {}
     if sweep.scenario is not None:
         shared["scenario"] = sweep.scenario
+    if sweep.inputs is not None:
+        shared["inputs"] = sweep.inputs
     return shared
 
 

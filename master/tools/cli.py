@@ -22,6 +22,7 @@ from dsim.master.checks.validate import validate
 from dsim.master.errors import InputError, SimulationError
 from dsim.master.planning.parameters import JOINT_COEFFICIENTS
 from dsim.master.reading.parameter_input import given_parameters
+from dsim.master.reading.input_tables import read_table
 from dsim.master.reading.scenario_files import read_scenario
 from dsim.master.recording.observers import ProgressBar
 from dsim.master.running.backends import log_lines
@@ -140,7 +141,8 @@ def _cmd_run(args) -> int:
 
 def _cmd_info(args) -> int:
     print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all,
-                                allow_outside=args.allow_outside, scenario=args.scenario)))
+                                allow_outside=args.allow_outside, scenario=args.scenario,
+                                inputs=args.input)))
     return 0
 
 
@@ -247,6 +249,8 @@ def _sweep_of(args):
     sweep.allow_outside = tuple(args.allow_outside or ())
     if args.scenario:  # read once: each point's run (here or in a Ray worker) takes it
         sweep.scenario = read_scenario(args.scenario)
+    if args.input:  # read once, as the scenario
+        sweep.inputs = read_table(args.input)
     return sweep
 
 
@@ -314,7 +318,7 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
                   f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
                   f"{best.wall_seconds:.2f} s)")
             line = command_line(args.scene, best, sweep.fixed, sweep.allow_outside,
-                                sweep.scenario)
+                                sweep.scenario, sweep.inputs)
             print(f"run it      {line}")
 
 
@@ -390,7 +394,7 @@ def _run_choices(args) -> dict:
             "outputs": args.outputs, "output_interval": args.output_interval,
             "solver": solver, "allow_outside": args.allow_outside,
             "substeps": substeps or None, "fmu_log": args.fmu_log,
-            "scenario": args.scenario}
+            "scenario": args.scenario, "inputs": args.input}
 
 
 def _add_allow_outside(parser) -> None:
@@ -427,6 +431,12 @@ def _add_run_choices(run_parser) -> None:
                             "input, a tunable parameter or an output (libcosim's .json or "
                             ".yml scenario, or ECOS's .xml; docs/scenarios.md); each takes "
                             "effect at the first communication point at or after its time")
+    run_parser.add_argument("--input", metavar="FILE",
+                            help="inputs over time from a table (.csv or .mat): a time column, "
+                            "then one column per input named COMPONENT.VARIABLE; Reals "
+                            "interpolated linearly, discrete values held, a time on two "
+                            "rows a jump, the first and last values held outside "
+                            "(docs/inputs.md)")
     _add_allow_outside(run_parser)
     run_parser.add_argument("--set-file", action="append", metavar="FILE",
                             help="start values from a file: an SSP parameter set (.ssv), "
@@ -551,6 +561,9 @@ def _add_sweep(commands) -> None:
     sweep_parser.add_argument("--scenario", metavar="FILE",
                               help="the same scenario's events in every point's run (and "
                               "the reference run): docs/scenarios.md")
+    sweep_parser.add_argument("--input", metavar="FILE",
+                              help="the same input table (.csv or .mat) in every point's run "
+                              "(and the reference run): docs/inputs.md")
     _add_allow_outside(sweep_parser)
     sweep_parser.set_defaults(handler=_cmd_sweep)
 
@@ -598,6 +611,10 @@ def _add_info(commands) -> None:
                              help="list the events of a scenario file (docs/scenarios.md): "
                              "when each takes effect, its target and action, all checked "
                              "against the scene")
+    info_parser.add_argument("--input", metavar="FILE",
+                             help="summarise an input table (.csv or .mat: its columns, "
+                             "their ranges and its time span), checked against the scene "
+                             "(docs/inputs.md)")
     info_parser.add_argument("--all", action="store_true", help="every component in full, "
                              "with the table of every variable a run may set (name, type, "
                              "unit, start, the scene's value, limits, description)")

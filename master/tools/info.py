@@ -16,9 +16,11 @@ import math
 import numbers
 
 from dsim.master.api import prepare
+from dsim.master.planning.inputs import INPUT_COMPONENT
 from dsim.master.planning.parameters import (JOINT_COEFFICIENTS, array_size, free_settable,
                                              joint_coefficients)
 from dsim.master.reading.fmi_description import CO_SIMULATION, describe
+from dsim.master.reading.input_tables import read_table
 from dsim.master.reading.ssp import ssd_files
 from dsim.master.running.fmi.integrator import solver_summary
 
@@ -105,7 +107,12 @@ def settable_lines(plan, index: int, every: bool = False, shown: int = 12) -> li
 
 
 def _flags(spec, description) -> str:
-    """``FMI 2.0 co-simulation; state yes, serialize yes, variable step yes``."""
+    """``FMI 2.0 co-simulation; state yes, serialize yes, variable step yes``; for a
+    table component, its rows, columns and time span (docs/inputs.md)."""
+    if spec.table is not None:
+        times = spec.table.times
+        return (f"a table of {len(times)} rows, {len(description.modelVariables)} columns, "
+                f"t = {times[0]:g} .. {times[-1]:g} s (run by dsim, no FMU)")
     found = description.interface(spec.interface)
     flags = [f"state {'yes' if found.canGetAndSetFMUstate else 'NO'}",
              f"serialize {'yes' if found.canSerializeFMUstate else 'no'}"]
@@ -187,19 +194,44 @@ def _connections(checked) -> list[str]:
 
 
 def scene_info(scene_file, ssd: str | None = None, every: bool = False,
-               allow_outside=None, scenario=None) -> list[str]:
+               allow_outside=None, scenario=None, inputs=None) -> list[str]:
     """The lines ``dsim info`` prints for ``scene_file`` (an .ssp archive, a scene folder
     or an .ssd file; ``ssd``: which system structure of it): a summary that fits a
     screen, or with ``every`` each component in full with every variable a run may
     set; ``allow_outside``: folders trusted besides the scene, as :func:`dsim.prepare`
     takes them; ``scenario``: a scenario file, whose events are listed at the end with
-    the communication point each takes effect at (docs/scenarios.md).  Raises
-    InputError as a run would."""
-    checked = prepare(scene_file, ssd=ssd, allow_outside=allow_outside, scenario=scenario)
+    the communication point each takes effect at (docs/scenarios.md); ``inputs``: an
+    input table, summarised at the end (its columns, their ranges, its time span and
+    the input each feeds: docs/inputs.md).  Raises InputError as a run would."""
+    table = None if inputs is None else read_table(inputs)
+    checked = prepare(scene_file, ssd=ssd, allow_outside=allow_outside, scenario=scenario,
+                      inputs=table)
     lines = _header(scene_file, ssd, checked)
     lines += _details(checked) if every else _summary(checked)
     if checked.scenario is not None:
         lines += checked.scenario.lines()
+    if table is not None:
+        lines += _input_lines(checked, table)
+    return lines
+
+
+def _input_lines(checked, table) -> list[str]:
+    """The input table's summary, each column with the input it feeds (held or
+    interpolated) and whether the run covers more than the table's span."""
+    lines = table.lines()
+    index = {spec.name: i for i, spec in enumerate(checked.specs)}
+    source = checked.specs[index[INPUT_COMPONENT]]
+    held = dict(zip(source.reads, source.table.held))
+    feeds = {c.start[1]: ".".join(c.end) for c in checked.scene.connections
+             if c.start[0] == INPUT_COMPONENT}
+    for k, name in enumerate(table.names, start=1):
+        lines[k] += (f" -> {feeds.get(name, '?')} "
+                     f"({'held' if held.get(name) else 'interpolated'})")
+    first, last = table.span
+    scene = checked.scene
+    if scene.start_time < first or scene.stop_time > last:
+        lines.append(f"  the run ({scene.start_time:g} .. {scene.stop_time:g} s) holds the "
+                     "first value before the table's span and the last after it")
     return lines
 
 

@@ -20,6 +20,7 @@ from dsim.master.running.fmi.cs3 import CoSimulation3Subsystem
 from dsim.master.running.fmi.model_exchange import ModelExchangeSubsystem
 from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
+from dsim.master.running.tables import TableSubsystem
 
 __all__ = ["SubsystemSpec", "open_subsystem"]
 
@@ -28,6 +29,8 @@ def open_subsystem(spec: SubsystemSpec) -> Subsystem:
     """Instantiate the FMU of ``spec`` in its FMI version and interface, in
     initialization mode with its parameters set."""
     major = spec.fmi_version.split(".")[0]
+    if spec.table is not None:  # a table component: no FMU (dsim.master.running.tables)
+        return TableSubsystem(spec)
     if spec.interface == "ModelExchange":
         subsystem = ModelExchangeSubsystem(spec)
     elif major == "1":

@@ -240,6 +240,11 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         self._start_writes = _batches(self, [variables[n] for n in spec.start_writes])
         #: its Real inputs extrapolated over its substeps (``spec.input_derivatives``)
         self._slopes = self._input_slopes(spec, variables) if spec.input_derivatives else None
+        #: the inputs a table feeds, given their slope before each step (None: none;
+        #: the plan sets them only where the FMU can interpolate inputs)
+        self._table_vrs = None if spec.table_inputs is None else [
+            variables[spec.writes[place]].valueReference
+            for place in spec.table_inputs.places]
         self._texts_in = _Strings(self, [variables[n].valueReference for n in spec.text_reads])
         self._texts_out = _Strings(self, [variables[n].valueReference
                                           for n in spec.text_writes])
@@ -363,13 +368,24 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
             self._raise_ended()
         self.time = time
         self._stepped = True
+        if self._table_vrs is not None:
+            self._table_slopes(time, step_size)
         self._do_step(ctypes.c_double(time), ctypes.c_double(step_size), 1)
+
+    def _table_slopes(self, time: float, step_size: float) -> None:
+        """The slopes of the inputs a table feeds over the step from ``time`` by
+        ``step_size`` (s), set as their first derivatives (:mod:`.table_inputs`)."""
+        slopes = self.spec.table_inputs.slopes(time, step_size)
+        self._call("fmi2SetRealInputDerivatives", self.fmu.setRealInputDerivatives,
+                   self._table_vrs, [1] * len(self._table_vrs), list(slopes))
 
     def exchange(self, time, step_size):
         if self.substeps != 1:  # several steps per macro step
             return Subsystem.exchange(self, time, step_size)
         if self.ended_at is not None:
             self._raise_ended()
+        if self._table_vrs is not None:
+            self._table_slopes(time, step_size)
         self.time = time
         if step_size != self._step_size.value:
             self._step_size = ctypes.c_double(step_size)
@@ -385,7 +401,8 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         backend's kernel instead; this is the path of the others)."""
         writes, reads = self._write_direct, self._reads[0] if self._read_direct else None
         if values is None or writes is None or reads is None or not writes.size \
-                or not reads.size or self._initializing or self.substeps != 1:
+                or not reads.size or self._initializing or self.substeps != 1 \
+                or self._table_vrs is not None:  # (slopes: set in exchange)
             return super().exchange_with(values, time, step_size)
         self._read_after(reads, self._put_and_step(writes, values, time, step_size))
         return reads.array.copy()
@@ -447,8 +464,8 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         The kernel times each call into its ``seconds`` and counts them when
         :meth:`statistics` asks (``kernel.sync``)."""
         writes = self._write_direct
-        if self.substeps != 1:  # several steps per macro step: the generic exchange
-            return None
+        if self.substeps != 1 or self._table_vrs is not None:
+            return None  # several steps per macro step, or slopes: the generic exchange
         if self._initializing or (inputs is not None and (
                 writes is None or len(inputs) != writes.size)) or (len(outputs) and (
                 not self._read_direct or len(outputs) != self._reads[0].size)):
@@ -479,7 +496,7 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
         the general path."""
         writes = self._forces
         if self._held is not None or self.ended_at is not None or self._initializing \
-                or not writes.size:
+                or not writes.size or self._table_vrs is not None:  # (slopes: do_step)
             return super().trial_step(forces, time, step_size)
         self._stepped = True
         reads, kinds = self._kinematics_needed

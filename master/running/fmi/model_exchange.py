@@ -64,6 +64,11 @@ class ModelExchangeSubsystem(FmpyAdapter):
         self._input_vrs = list(self._force_vrs) + [self.variables[n].valueReference
                                                    for n in real_writes]
         self._input_places = [spec.writes.index(n) for n in real_writes]
+        #: the inputs a table feeds: where each is among the ramped inputs (forces
+        #: first), ramped over every step along the table (:mod:`.table_inputs`)
+        self._table_places = None if spec.table_inputs is None else np.array(
+            [len(self._force_vrs) + self._input_places.index(place)
+             for place in spec.table_inputs.places], dtype=int)
         self._start = np.zeros(len(self._input_vrs))  # inputs at the step's start
         self._end = np.zeros(len(self._input_vrs))    # ... and written for its end
         self._ramp = False
@@ -341,6 +346,10 @@ class ModelExchangeSubsystem(FmpyAdapter):
         self._step_start, self._step_size = time, step_size
         if self._hold_forces:  # the start values are the end values: no ramp
             self._start[:len(self._force_vrs)] = self._end[:len(self._force_vrs)]
+        if self._table_places is not None:  # along the table to the step's end
+            start, end = self.spec.table_inputs.ends(time, step_size)
+            self._start[self._table_places] = start
+            self._end[self._table_places] = end
         self._ramp = bool(len(self._input_vrs)) and not np.array_equal(self._start, self._end)
         if not self._ramp and len(self._input_vrs):
             self._set_inputs(self._end)

@@ -56,3 +56,11 @@ class SubsystemSpec:
     #: every log category of the FMU on and each message printed (``--fmu-log``);
     #: else only its warning and error categories, the last messages kept
     fmu_log: bool = False
+    #: a table component (an SSP table, ``--input``): its data
+    #: (:class:`~dsim.master.running.tables.TableData`), run in process with no FMU
+    #: (``path`` is then the table's file, or the name of a table made in memory)
+    table: object = None
+    #: the inputs this FMU takes from a table, where it can follow them within a step
+    #: (Model Exchange; co-simulation with canInterpolateInputs): their ramps over
+    #: each step (:class:`~dsim.master.running.fmi.table_inputs.TableInputs`), or None
+    table_inputs: object = None

@@ -677,6 +677,8 @@ def _unpacked(answer) -> list:
 def _shipped_files(shipment, spec) -> tuple:
     """What a worker needs to find a subsystem's files: its FMU, and the scene files
     its String parameters name (parameter -> shipped file)."""
+    if spec.table is not None:  # a table component carries its data in its spec
+        return None, {}
     return (shipment.add(spec.path),
             {name: shipment.add(spec.parameters[name][1]) for name in spec.files})
 

@@ -361,6 +361,8 @@ def _unrestartable(specs) -> str | None:
     """Why a worker with these subsystems cannot be started again from a saved state
     (the first of them that cannot serialize it), or None."""
     for spec in specs:
+        if spec.table is not None:  # a table's state is its time: it restarts anywhere
+            continue
         if spec.interface != "CoSimulation" or not spec.fmi_version.startswith("2"):
             return (f"component '{spec.name}' runs FMI {spec.fmi_version} "
                     f"{spec.interface}, whose state dsim does not move between processes "

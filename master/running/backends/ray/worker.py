@@ -136,8 +136,10 @@ class Host:
             for spec, (fmu, scene_files) in zip(specs, files):
                 parameters = {**spec.parameters, **{name: ("String", str(place(shipped)))
                                                     for name, shipped in scene_files.items()}}
-                self.subsystems.append(open_subsystem(replace(spec, path=place(fmu),
-                                                              parameters=parameters)))
+                # (a table component has no file to place: its spec carries its data)
+                self.subsystems.append(open_subsystem(replace(
+                    spec, path=spec.path if fmu is None else place(fmu),
+                    parameters=parameters)))
                 self.written.append({"start": {}, "inputs": {}})
                 self.initialized.append(False)
         if ray.get_runtime_context().get_actor_id() is not None:
