@@ -152,6 +152,17 @@ class Plan:
         files = [self.scene.file] + [spec.path for spec in self.specs]
         return files + list(self.scene.inputs)
 
+    @property
+    def input_table(self) -> dict | None:
+        """``--input``'s table for the statistics: where it came from and, per input it
+        feeds (``component.variable``), its column; None without one."""
+        table = next((c for c in self.scene.components if c.path == INPUT_COMPONENT), None)
+        if table is None:
+            return None
+        return {"table": table.location.removesuffix(" (--input)"),
+                "fed": {".".join(c.end): c.start[1] for c in self.scene.connections
+                        if c.start[0] == INPUT_COMPONENT}}
+
 
 def _usable(scene: Scene, problems: list, warnings: list, chosen: dict,
             load_libraries: bool = True) -> dict:

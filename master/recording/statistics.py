@@ -133,6 +133,8 @@ def run_statistics(plan, counts, wall_seconds: float, components: dict | None = 
                       "output_interval": plan.output_interval,
                       "every_steps": plan.record_every},
     }
+    if plan.input_table is not None:  # --input: the table and what each column fed
+        statistics["inputs"] = plan.input_table
     if counts.scenario is not None:  # a run with a scenario: every change it applied
         scenario = plan.scenario
         statistics["scenario"] = {"file": scenario.file, "format": scenario.format,

@@ -67,6 +67,10 @@ def test_every_step_takes_the_table_at_its_start(scenes):
     # --input's columns are inputs, not recorded, and no coupling error is claimed
     assert not any(c.startswith("--input") for c in result.signals)
     assert not result.warnings
+    # the statistics name the table and what each column fed
+    assert result.statistics["inputs"] == {
+        "table": str(scenes["csv"]), "fed": {"slave uno.realIn": "slave uno.realIn",
+                                            "slave uno.intIn": "slave uno.intIn"}}
 
 
 def test_a_mat_file_a_dataframe_and_a_structured_array_give_the_same_bytes(scenes, tmp_path):
