@@ -13,10 +13,10 @@ glued port's force (its joint sets it).
 """
 from __future__ import annotations
 
-import difflib
 from dataclasses import replace
 
 from dsim.master.errors import InputError
+from dsim.master.planning.names import closest, owner_split
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.input_tables import held, read_table
 from dsim.master.scene import Component, Connection, Scene
@@ -25,22 +25,6 @@ from dsim.master.scene import Component, Connection, Scene
 INPUT_COMPONENT = "--input"
 #: the input kinds a table can feed
 FED = ("Real", "Integer", "Boolean", "Enumeration")
-
-
-def _closest(name: str, candidates) -> str:
-    """' (closest: a, b, c)' of the names nearest ``name``, or ''."""
-    found = difflib.get_close_matches(name, list(candidates)[:50000], n=3, cutoff=0.5)
-    return f" (closest: {', '.join(found)})" if found else ""
-
-
-def _split(column: str, paths: dict) -> tuple[str | None, str]:
-    """(component path, variable) of a column: the longest component path the column
-    starts with (then a dot), or (None, column)."""
-    best = None
-    for path in paths:
-        if column.startswith(path + ".") and (best is None or len(path) > len(best)):
-            best = path
-    return (best, column[len(best) + 1:]) if best else (None, column)
 
 
 def _port_forces(scene: Scene) -> set[tuple[str, str]]:
@@ -74,11 +58,11 @@ def with_inputs(scene: Scene, inputs) -> Scene:
     problems, connections = [], []
     where = f"{table.source}"
     for column in table.names:
-        path, name = _split(column, paths)
+        path, name = owner_split(column, paths) or (None, column)
         if path is None:
             head = column.split(".")[0]
             problems.append(f"{where}: column '{column}': the scene has no component "
-                            f"'{head}'" + _closest(head, paths))
+                            f"'{head}'" + closest(head, paths))
             continue
         component = paths[path]
         try:
@@ -89,7 +73,7 @@ def with_inputs(scene: Scene, inputs) -> Scene:
         if variable is None:
             inputs_of = [v.name for v in description.modelVariables if v.causality == "input"]
             problems.append(f"{where}: column '{column}': component '{path}' has no variable "
-                            f"'{name}'" + _closest(name, inputs_of))
+                            f"'{name}'" + closest(name, inputs_of))
             continue
         if variable.causality != "input":
             problems.append(f"{where}: column '{column}' is {variable.causality} '{name}' of "

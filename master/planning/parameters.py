@@ -33,6 +33,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from dsim.master.errors import InputError
+from dsim.master.planning.names import closest, owner_split
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.scene_files import SCENE_RESOURCES, scene_file
 
@@ -60,8 +61,6 @@ NON_NEGATIVE = ("k0", "c0", "xi", "omega")
 #: the SSP value type dsim keeps for an FMU variable type
 KEPT_TYPE = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer",
              "Boolean": "Boolean", "String": "String"}
-#: the most names one 'closest' search compares (a large FE FMU has thousands)
-SEARCHED = 50000
 
 
 @dataclass(frozen=True)
@@ -320,22 +319,6 @@ def _limits(variable, value) -> str | None:
     return None
 
 
-def _closest(name: str, candidates, count: int = 3) -> str:
-    """' (closest: a, b)' of the names nearest ``name``, or ''."""
-    found = difflib.get_close_matches(name, list(candidates)[:SEARCHED], n=count, cutoff=0.5)
-    return f" (closest: {', '.join(found)})" if found else ""
-
-
-def _split(name: str, owners) -> tuple[str, str] | None:
-    """(owner, rest) for the longest owner path that prefixes ``name`` and a dot."""
-    parts = name.split(".")
-    for cut in range(len(parts) - 1, 0, -1):
-        owner = ".".join(parts[:cut])
-        if owner in owners:
-            return owner, ".".join(parts[cut:])
-    return None
-
-
 # --- joints ------------------------------------------------------------------------
 def _joint_value(joint, coefficient: str, value) -> tuple[object, str | None]:
     """A joint law coefficient: a tuple (one per dof) or a float, and its problem."""
@@ -400,9 +383,9 @@ def with_parameters(scene, parameters: dict):
     for name, value in parameters.items():
         name = str(name).strip()
         where = f"parameter '{name}'"
-        owner = _split(name, components)
-        if owner is None and _split(name, joints):
-            joint_name, coefficient = _split(name, joints)
+        owner = owner_split(name, components)
+        if owner is None and owner_split(name, joints):
+            joint_name, coefficient = owner_split(name, joints)
             converted, problem = _joint_value(joints[joint_name], coefficient, value)
             if problem:
                 problems.append(f"{where}: {problem}")
@@ -414,7 +397,7 @@ def with_parameters(scene, parameters: dict):
             head = name.split(".")[0]
             hint = "" if "." in name else " (give COMPONENT.VARIABLE)"
             problems.append(f"{where}: no component or joint of the scene is named '{head}'"
-                            + hint + _closest(head, list(components) + list(joints)))
+                            + hint + closest(head, list(components) + list(joints)))
             continue
         path, variable_name = owner
         checked, problem = _checked_value(scene, components[path], variable_name, value,
@@ -460,7 +443,7 @@ def _checked_value(scene, component, variable_name: str, value, where: str):
     if variable is None:
         settable = [v.name for v in variables.values() if refusal(v) is None]
         return None, (f"{where}: component '{path}' ({component.source.name}) has no "
-                      f"variable '{variable_name}'" + _closest(variable_name, settable))
+                      f"variable '{variable_name}'" + closest(variable_name, settable))
     reason = refusal(variable)
     if reason:
         return None, f"{where}: variable '{variable_name}' of component '{path}' is {reason}"

@@ -28,12 +28,12 @@ How each target is reached (:class:`Target`'s ``kind``):
 """
 from __future__ import annotations
 
-import difflib
 import math
 import numbers
 from dataclasses import dataclass
 
 from dsim.master.errors import InputError
+from dsim.master.planning.names import closest
 from dsim.master.planning.parameters import KEPT_TYPE, convert
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.scenario_files import Scenario, read_scenario
@@ -116,12 +116,6 @@ class ScenarioPlan:
                 f" at t = {self.end_at:.9g} s (point {self.end_point})"
                 if self.end_point is not None else " (after the stop time: never)"))
         return lines
-
-
-def _closest(name: str, candidates) -> str:
-    """' (closest: a, b, c)' of the names nearest ``name``, or ''."""
-    found = difflib.get_close_matches(name, list(candidates)[:50000], n=3, cutoff=0.5)
-    return f" (closest: {', '.join(found)})" if found else ""
 
 
 def _point(event, start: float, step: float, planned: int) -> int:
@@ -291,7 +285,7 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
                                 f"{event.model}.{event.variable}=VALUE does, for the run)")
             else:
                 problems.append(f"{where}: the scene has no component '{event.model}'"
-                                + _closest(event.model, index_of))
+                                + closest(event.model, index_of))
             continue
         spec = plan.specs[index]
         description = scene.descriptions.get(scene.component(spec.name).source) or \
@@ -299,7 +293,7 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
         variable = description.by_name.get(event.variable)
         if variable is None:
             problems.append(f"{where}: component '{event.model}' has no variable "
-                            f"'{event.variable}'" + _closest(event.variable,
+                            f"'{event.variable}'" + closest(event.variable,
                                                              _targetable(description)))
             continue
         key = (spec.name, variable.name)
