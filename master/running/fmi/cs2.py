@@ -375,9 +375,14 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
     def _table_slopes(self, time: float, step_size: float) -> None:
         """The slopes of the inputs a table feeds over the step from ``time`` by
         ``step_size`` (s), set as their first derivatives (:mod:`.table_inputs`)."""
-        slopes = self.spec.table_inputs.slopes(time, step_size)
+        self._set_derivatives(self._table_vrs,
+                              self.spec.table_inputs.slopes(time, step_size))
+
+    def _set_derivatives(self, vrs, slopes) -> None:
+        """Set the first derivatives (1/s) ``slopes`` of the Real inputs ``vrs``
+        (fmi2SetRealInputDerivatives, order 1), the call counted and checked."""
         self._call("fmi2SetRealInputDerivatives", self.fmu.setRealInputDerivatives,
-                   self._table_vrs, [1] * len(self._table_vrs), list(slopes))
+                   vrs, [1] * len(vrs), list(slopes))
 
     def exchange(self, time, step_size):
         if self.substeps != 1:  # several steps per macro step
@@ -555,9 +560,7 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
             return
         self.write_inputs(start)
         start = np.asarray(start, dtype=float)[places]
-        slope = (np.asarray(end, dtype=float)[places] - start) / step_size
-        self._call("fmi2SetRealInputDerivatives", self.fmu.setRealInputDerivatives,
-                   vrs, [1] * len(vrs), list(slope))
+        self._set_derivatives(vrs, (np.asarray(end, dtype=float)[places] - start) / step_size)
 
     def _input_slopes(self, spec: SubsystemSpec, variables: dict) -> InputSlopes | None:
         """The extrapolation of the Real continuous inputs among ``spec.writes`` over
