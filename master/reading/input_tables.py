@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from dsim.master.errors import InputError
+from dsim.master.reading.small_files import bounded_bytes, bounded_size, utf8_text
 from dsim.master.reading.digests import file_digest
 
 #: the largest table file read (bytes) and the most cells (rows x columns) kept: a
@@ -167,17 +168,13 @@ def table_problem(path) -> str | None:
 @lru_cache(maxsize=32)
 def _read_file(path: Path, digest: str) -> Table:
     """The table of the file at ``path`` (``digest``: its content's, the cache key)."""
+    if path.suffix.lower() != ".mat":
+        return _csv(path, bounded_bytes(path, MAX_BYTES, "an input table"))
+    bounded_size(path, MAX_BYTES, "an input table")
     try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise InputError(f"{path}: {size} bytes: more than an input table's "
-                             f"{MAX_BYTES} bytes")
-        if path.suffix.lower() == ".mat":
-            return _mat(path)
-        data = path.read_bytes()
+        return _mat(path)
     except OSError as error:
         raise InputError(f"{path}: cannot read: {error.strerror}") from None
-    return _csv(path, data)
 
 
 # --- the checks every form shares ------------------------------------------------
@@ -226,11 +223,7 @@ def _checked(times, names, values, source: str, file: Path | None, where_row) ->
 # --- CSV ----------------------------------------------------------------------------
 def _csv(path: Path, data: bytes) -> Table:
     """The table of a CSV file's bytes."""
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not UTF-8 text") from None
-    rows = csv.reader(io.StringIO(text))
+    rows = csv.reader(io.StringIO(utf8_text(path, data)))
     header, lines, values = None, [], []
     try:
         for row in rows:

@@ -10,13 +10,22 @@ from lxml import etree
 from dsim.master.errors import InputError
 
 
-def bounded_bytes(path: Path, limit: int, what: str) -> bytes:
-    """The bytes of ``path``, refused (InputError) when it cannot be read or holds more
-    than ``limit`` bytes (``what``: the kind of file, for the message)."""
+def bounded_size(path: Path, limit: int, what: str) -> int:
+    """The size of ``path`` in bytes, refused (InputError) when it cannot be read or
+    holds more than ``limit`` bytes (``what``: the kind of file, for the message)."""
     try:
         size = path.stat().st_size
-        if size > limit:
-            raise InputError(f"{path}: {size} bytes: more than {what}'s {limit} bytes")
+    except OSError as error:
+        raise InputError(f"{path}: cannot read: {error.strerror}") from None
+    if size > limit:
+        raise InputError(f"{path}: {size} bytes: more than {what}'s {limit} bytes")
+    return size
+
+
+def bounded_bytes(path: Path, limit: int, what: str) -> bytes:
+    """The bytes of ``path``, refused as :func:`bounded_size` refuses it."""
+    bounded_size(path, limit, what)
+    try:
         return path.read_bytes()
     except OSError as error:
         raise InputError(f"{path}: cannot read: {error.strerror}") from None
