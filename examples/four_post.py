@@ -156,12 +156,12 @@ def monolithic(joints: str = "flexible", fidelity: str = "fine",
         t1 = i * h
         base = np.array([post.base(t1) for post in posts])[:, :, 0]  # (4, 2): y, yd
         rhs_body = mass @ (4 / h ** 2 * q + 4 / h * v + a) + damping @ (2 / h * q + v)
+        # (summed in the order the terms always were: the same bits)
+        rhs_post = m * (4 / h ** 2 * x + 4 / h * xv + xa) + c * (2 / h * x + xv)
         if base_force is None:
-            rhs_post = (m * (4 / h ** 2 * x + 4 / h * xv + xa) + c * (2 / h * x + xv)
-                        + k * base[:, 0] + c * base[:, 1])
+            rhs_post = rhs_post + k * base[:, 0] + c * base[:, 1]
         else:
-            rhs_post = (m * (4 / h ** 2 * x + 4 / h * xv + xa) + c * (2 / h * x + xv)
-                        + base_force(t1))
+            rhs_post = rhs_post + base_force(t1)
         if joints == "fixed":
             q1 = lu.solve(rhs_body + B.T @ rhs_post)
             x1 = B @ q1
