@@ -5,8 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from lxml import etree
-
 from dsim.master.errors import InputError
 
 
@@ -39,21 +37,25 @@ def utf8_text(path: Path, data: bytes) -> str:
         raise InputError(f"{path}: not UTF-8 text") from None
 
 
-def untrusted_xml_parser(remove_comments: bool = False) -> etree.XMLParser:
+def untrusted_xml_parser(remove_comments: bool = False):
     """An lxml parser for XML from an untrusted file (an SSD, a parameter set, a
     scenario): no entity resolved (no external file read into a value, no billion
     laughs), no DTD loaded, nothing fetched from the network, no huge tree.  lxml's
     default parser resolves internal entities and loads DTDs."""
+    from lxml import etree  # here: a Ray worker reads input tables, and imports no lxml
+
     return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
                            huge_tree=False, remove_comments=remove_comments)
 
 
-def parse_untrusted(source, remove_comments: bool = False) -> etree._Element:
+def parse_untrusted(source, remove_comments: bool = False):
     """The root element of untrusted XML: a file's path (str) or its bytes, parsed with
     :func:`untrusted_xml_parser`.  A document that declares a document type is refused
     (etree.XMLSyntaxError, as malformed XML): with its entities left unread, lxml's
     schema check fails on it with an internal error, and no SSP or scenario file needs
     one."""
+    from lxml import etree
+
     parser = untrusted_xml_parser(remove_comments)
     tree = (etree.fromstring(source, parser).getroottree() if isinstance(source, bytes)
             else etree.parse(source, parser))
