@@ -7,6 +7,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 from dsim.master.errors import InputError
+from dsim.master.planning.checkpoints import (changed_parameters, check_files,
+                                              checked_every, checkpoint_problems,
+                                              manifest_of_run, request_of,
+                                              resumed_settings)
 from dsim.master.planning.inputs import with_inputs
 from dsim.master.planning.parameters import require_mapping, with_parameters
 from dsim.master.planning.plan import make_plan
@@ -15,10 +19,13 @@ from dsim.master.planning.solver import with_solver
 from dsim.master.planning.load import load_scene
 from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter, ProgressBar,
                                              StatisticsWriter)
+from dsim.master.reading.checkpoint_files import find_checkpoint
+from dsim.master.recording.checkpoints import CheckpointFolder, checkpoints_beside
 from dsim.master.recording.results import RunResult, statistics_path
 from dsim.master.running.backends.base import BACKEND_OPTIONS
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.backends import BACKENDS
+from dsim.master.running.checkpointing import Checkpointer
 from dsim.master.running.execution import Execution
 from dsim.master.scene import Scene
 from dsim.master.settings import resolve
@@ -26,7 +33,8 @@ from dsim.master.settings import resolve
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
-            substeps=None, fmu_log: bool = False, scenario=None, inputs=None, **settings):
+            substeps=None, fmu_log: bool = False, scenario=None, inputs=None,
+            start_time=None, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -66,7 +74,8 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
     with collector_paused():  # 10,000 components: millions of objects, few cycles
         plan = _prepare(scene, load_libraries, strict, parameters, outputs,
-                        output_interval, solver, allow_outside, settings, substeps, inputs)
+                        output_interval, solver, allow_outside, settings, substeps, inputs,
+                        start_time)
     if scenario is not None:
         plan = replace(plan, scenario=resolve_scenario(plan, scenario))
     if fmu_log:
@@ -75,7 +84,7 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
 
 
 def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval, solver,
-             allow_outside, settings, substeps=None, inputs=None):
+             allow_outside, settings, substeps=None, inputs=None, start_time=None):
     """:func:`prepare`'s work."""
     parameters = require_mapping(parameters)
     chosen = settings.get("parameter_set")
@@ -98,6 +107,8 @@ def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval
     changes = {"master": master}
     if "stop" in options:  # the user said when to stop: no default assumed
         changes.update(stop_time=options["stop"], experiment=True)
+    if start_time is not None:  # a run started from a checkpoint: its time
+        changes["start_time"] = float(start_time)
     if settings.get("step") is not None:  # said by dsim info and validate
         changes["step_from"] = "the step setting (--step)"
     return make_plan(replace(scene, **changes), options.get("backend", "in-process"),
@@ -105,9 +116,10 @@ def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval
                      outputs, output_interval, substeps)
 
 
-def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress: bool = False,
-             observers=(), handle_signals: bool = True, force: bool = False,
-             **settings) -> RunResult:
+def simulate(scene=None, *, out=None, statistics=None, plot=None, mat=None,
+             progress: bool = False, observers=(), handle_signals: bool = True,
+             force: bool = False, checkpoint_every=None, checkpoint_keep: int | None = None,
+             checkpoints=None, resume=None, start_from=None, **settings) -> RunResult:
     """Run ``scene`` to its stop time and return the :class:`~dsim.master.recording.results.RunResult`,
     also when the run fails or is interrupted (``result.status``).
 
@@ -121,6 +133,17 @@ def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress:
     run, as bad input).  ``parameters``, ``outputs``, ``output_interval`` and the other
     keywords are as :func:`prepare` takes them.  Raises InputError for bad input, before
     anything runs.
+
+    Checkpoints (docs/checkpoints.md): ``checkpoint_every``: seconds of simulated time
+    between two checkpoints of the whole simulation's state, written to ``checkpoints``
+    (a folder; default ``NAME.checkpoints`` beside ``out``), the last
+    ``checkpoint_keep`` kept.  ``resume``: a checkpoint folder (its last whole
+    checkpoint) or one checkpoint: the run that wrote it goes on from there, with its
+    own scene, settings and files (only where it runs may change: ``backend`` and its
+    options), its results continued to the same bytes as a run never stopped.
+    ``start_from``: a checkpoint a new run starts from (its time the start time), with
+    the scene and settings of the checkpoint's run and what is given here on top
+    (tunable parameters, a scenario, a stop time, other files).
     """
     # a cluster's workers start while the scene is read and planned (Backend.ahead)
     backend = BACKENDS.get(settings.get("backend") or "")
@@ -128,18 +151,117 @@ def simulate(scene, *, out=None, statistics=None, plot=None, mat=None, progress:
         backend.ahead(settings)
     try:
         return _simulate(scene, out, statistics, plot, mat, progress, observers,
-                         handle_signals, force, settings)
+                         handle_signals, force, settings, checkpoint_every,
+                         checkpoint_keep, checkpoints, resume, start_from)
     finally:
         if backend is not None:
             backend.release_ahead()  # a connection made ahead that no backend took
 
 
 def _simulate(scene, out, statistics, plot, mat, progress, observers, handle_signals,
-              force, settings) -> RunResult:
+              force, settings, every=None, keep=None, folder=None, resume=None,
+              start_from=None) -> RunResult:
+    if resume is not None or start_from is not None:
+        return _from_checkpoint(scene, out, statistics, plot, mat, progress, observers,
+                                handle_signals, force, settings, every, keep, folder,
+                                resume, start_from)
     plan = prepare(scene, **settings)
+    checkpointer = None
+    if every is not None:
+        request = request_of(scene, settings, {"out": out, "statistics": statistics,
+                                               "plot": plot, "mat": mat, "force": force})
+        checkpointer = _checkpointer(plan, settings, every, keep, folder, out, request)
+    return _run(plan, out, statistics, plot, mat, progress, observers, handle_signals,
+                force, checkpointer)
+
+
+def _checkpointer(plan, settings, every, keep, folder, out, request, continuing=False):
+    """The checkpoints of a run of ``plan``; InputError when its FMUs cannot serialize
+    their state or it has nowhere to write them."""
+    every = checked_every(every)
+    problems = checkpoint_problems(plan)
+    if problems:
+        raise InputError([f"checkpoints: {p}" for p in problems])
+    if folder is None and out is None:
+        raise InputError("checkpoints: give a results file (out) or a checkpoint folder "
+                         "(checkpoints) to write them beside")
+    keep = 2 if keep is None else keep
+    if not isinstance(keep, int) or isinstance(keep, bool) or keep < 1:
+        raise InputError(f"checkpoint_keep: {keep!r}: give a whole number from 1")
+    folder = checkpoints_beside(out) if folder is None else folder
+    inputs = [plan.scene.file] + [spec.path for spec in plan.specs]
+    return Checkpointer(CheckpointFolder(folder, keep, inputs), every,
+                        {**manifest_of_run(plan, request, settings, every), "keep": keep})
+
+
+def _from_checkpoint(scene, out, statistics, plot, mat, progress, observers,
+                     handle_signals, force, settings, every, keep, folder, resume,
+                     start_from) -> RunResult:
+    """A run resumed from a checkpoint (``resume``), or a new run started from one
+    (``start_from``)."""
+    if resume is not None and start_from is not None:
+        raise InputError("give resume or start_from, not both")
+    found = find_checkpoint(resume if resume is not None else start_from)
+    where = f"checkpoint {found.folder}"
+    manifest = found.manifest
+    if resume is not None:
+        if scene is not None:
+            raise InputError(f"{where}: a resumed run reads its scene from the "
+                             "checkpoint; give no scene")
+        scene, settings, outputs = resumed_settings(manifest, settings, where)
+        plan = prepare(scene, **settings)
+        check_files(manifest, plan, settings, where)
+        out, statistics, plot, mat = (outputs.get(k) for k in ("out", "statistics", "plot",
+                                                               "mat"))
+        force = bool(outputs.get("force"))
+        continuing = (manifest.get("results") or {}).get("csv")
+        if out is not None and continuing is None:
+            raise InputError(f"{where}: it records no results file to go on from")
+        every = manifest.get("every") if every is None else every
+        keep = manifest.get("keep") if keep is None else keep
+        checkpointer = _checkpointer(plan, settings, every, keep, folder or (
+            found.folder.parent if found.folder.name.startswith("step-") else None),
+            out, manifest.get("request"))
+        return _run(plan, out, statistics, plot, mat, progress, observers, handle_signals,
+                    force, checkpointer, found, continuing=continuing)
+    request = manifest.get("request") or {}
+    if scene is None:
+        scene = request.get("scene")
+        if scene is None:
+            raise InputError(f"{where}: its run was given a loaded scene: give the scene")
+    given = settings  # on top of the checkpoint's run's, the parameters merged
+    settings = dict(request.get("settings") or {})
+    if given.get("parameters"):
+        settings["parameters"] = {**(settings.get("parameters") or {}),
+                                  **given["parameters"]}
+    settings.update({k: v for k, v in given.items() if k != "parameters"})
+    settings.pop("start_time", None)
+    plan = prepare(scene, start_time=found.time, **settings)
+    check_files(manifest, plan, settings, where)
+    if plan.scene.stop_time <= found.time:
+        raise InputError(f"{where}: it is at t = {found.time:g} s, at or after the stop "
+                         f"time {plan.scene.stop_time:g} s: give a later stop time (--stop)")
+    checkpointer = None
+    if every is not None:
+        request = request_of(scene, {**settings, "start_time": found.time},
+                             {"out": out, "statistics": statistics, "plot": plot,
+                              "mat": mat, "force": force})
+        checkpointer = _checkpointer(plan, settings, every, keep, folder, out, request)
+    return _run(plan, out, statistics, plot, mat, progress, observers, handle_signals,
+                force, checkpointer, found, fresh=True,
+                changed=changed_parameters(manifest, plan, where))
+
+
+def _run(plan, out, statistics, plot, mat, progress, observers, handle_signals, force,
+         checkpointer=None, resume=None, continuing=None, fresh=False,
+         changed=()) -> RunResult:
     watchers = []
     if out is not None:
-        watchers.append(CsvRecorder(out, force=force))
+        recorder = CsvRecorder(out, force=force, digest=checkpointer is not None,
+                               continuing=continuing)
+        if checkpointer is not None:
+            checkpointer.results = recorder
+        watchers.append(recorder)
         watchers.append(StatisticsWriter(statistics or statistics_path(out)))
     elif statistics is not None:
         watchers.append(StatisticsWriter(statistics))
@@ -149,4 +271,5 @@ def _simulate(scene, out, statistics, plot, mat, progress, observers, handle_sig
         watchers.append(MatWriter(mat))
     if progress:
         watchers.append(ProgressBar())
-    return Execution(plan, watchers + list(observers)).run(handle_signals)
+    return Execution(plan, watchers + list(observers), checkpoints=checkpointer,
+                     resume=resume, fresh=fresh, changed=changed).run(handle_signals)

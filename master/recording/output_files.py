@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import hashlib
 import os
 import secrets
 import shutil
@@ -152,6 +153,51 @@ class OutputFile:
         self._fd: int | None = None
         self._info: os.stat_result | None = None
         self.size = 0
+        #: SHA-256 of the bytes written so far, when asked for (:meth:`keep_digest`: a
+        #: run with checkpoints records it), else None
+        self.digest = None
+
+    def keep_digest(self) -> None:
+        """Keep the SHA-256 of everything written from now on (call before writing)."""
+        self.digest = hashlib.sha256()
+
+    def sync(self) -> None:
+        """Flush what was written to the disk (``fsync``)."""
+        if self._fd is not None:
+            os.fsync(self._fd)
+
+    def copy_prefix(self, source: Path, count: int, digest: str) -> None:
+        """Append the first ``count`` bytes of the regular file ``source`` (not followed
+        if a link), which must have SHA-256 ``digest``; InputError (nothing kept of
+        them) when it is shorter or differs."""
+        check = hashlib.sha256()
+        try:
+            fd = os.open(source, os.O_RDONLY | os.O_NOFOLLOW)
+        except OSError as error:
+            raise InputError(f"{source}: cannot read the results to go on from: "
+                             f"{error.strerror}") from None
+        start = self.size
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise InputError(f"{source}: not a regular file")
+            left = count
+            while left > 0:
+                chunk = os.read(fd, min(left, 1 << 20))
+                if not chunk:
+                    break
+                check.update(chunk)
+                self.append(chunk)
+                left -= len(chunk)
+        except OutputError as error:
+            raise InputError(str(error)) from None
+        finally:
+            os.close(fd)
+        if left > 0 or check.hexdigest() != digest:
+            os.ftruncate(self._fd, start)
+            self.size = start
+            raise InputError(f"{source}: does not begin with the rows the checkpoint saw "
+                             "(shortened, changed or another run's since): the run cannot "
+                             "go on from it; start a new one (--from)")
 
     def open(self) -> None:
         """Create and lock the temporary file; InputError when the target is an
@@ -251,6 +297,8 @@ class OutputFile:
                 pass
             raise OutputError(f"cannot write {self.target}: {error.strerror}") from None
         self.size += written
+        if self.digest is not None:
+            self.digest.update(view)
 
     def commit(self) -> None:
         """Rename the temporary file to the target and release the lock; OutputError

@@ -33,6 +33,9 @@ class CouplingErrorWatch:
     flat outputs, ``labels`` their names, ``iterated``: whether the strong coupling
     iterates each) from step to step."""
 
+    #: what a checkpoint keeps (:mod:`dsim.master.running.checkpointing`)
+    CHECKPOINTED = ("_largest", "_low", "_high", "_pending", "_tail")
+
     def __init__(self, sources, labels, iterated):
         self.sources = np.asarray(sources, dtype=int)
         self.labels = tuple(labels)

@@ -34,6 +34,7 @@ from dsim.master.recording.output_files import OutputError
 from dsim.master.recording.results import RunResult
 from dsim.master.recording.statistics import run_statistics
 from dsim.master.running.backends import BACKENDS
+from dsim.master.running.checkpointing import resume_run
 from dsim.master.running.couplings import COUPLINGS
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.counts import RunCounts
@@ -66,7 +67,8 @@ class Execution:
     :meth:`finish` returns the result.
     """
 
-    def __init__(self, plan, observers=(), keep_signals: bool = True):
+    def __init__(self, plan, observers=(), keep_signals: bool = True, checkpoints=None,
+                 resume=None, fresh: bool = False, changed=()):
         self.plan = plan
         self.scene = plan.scene
         self.settings = plan.scene.master
@@ -114,6 +116,17 @@ class Execution:
         #: the scenario's state (:mod:`dsim.master.running.scenario`), or None: the step
         #: loop is then the same as without the option (no work added)
         self.scenario = None
+        #: writes the run's checkpoints (:class:`~dsim.master.running.checkpointing.
+        #: Checkpointer`), or None
+        self.checkpoints = checkpoints
+        #: the checkpoint this run goes on from (a
+        #: :class:`~dsim.master.reading.checkpoint_files.Checkpoint`), or None; ``fresh``:
+        #: a new run from its state (``--from``), not the same run resumed
+        self.resumed_from = resume
+        self._fresh = fresh
+        #: values a run started from a checkpoint sets on top of its saved states:
+        #: (subsystem index, names, values) (Backend.set_values)
+        self._changed = list(changed)
 
     # --- time --------------------------------------------------------------------
     def step_time(self, index: int) -> float:
@@ -193,10 +206,15 @@ class Execution:
             for observer in self.observers:
                 observer.started(info)
                 started.append(observer)
+            if self.checkpoints is not None:
+                self.checkpoints.open(self.scene.start_time)
             self.backend = BACKENDS[plan.backend].from_specs(
                 plan.specs, progress=self._instantiated, **(plan.backend_options or {}))
             self._notify("preparing", "initialising", 0, 0)
             self._initialize(layout, joints)
+            if self.resumed_from is not None:
+                self._notify("preparing", "resuming", 0, 0)
+                resume_run(self, self.resumed_from, self._fresh, self._changed)
         except SimulationError as error:
             if not self._initialized:  # in initialization mode: the consistent start
                 self._abort(started)   # failed, the scene's start is bad input
@@ -212,6 +230,8 @@ class Execution:
             self._abort(started)
             raise
         self.status = "running"
+        if self.checkpoints is not None and self.resumed_from is not None and not self._fresh:
+            self.checkpoints.resumed_at(self.time, self.scene.start_time)
         if self.coupling.kernel is not None and not self._text_reads \
                 and not len(self.coupling.forces) and self.controller is None:
             self._advance = self._kernel_advance
@@ -229,6 +249,8 @@ class Execution:
             self.backend.watch_head(lambda what: end_lost(self, what))  # never left to
             # Ray's own timeouts
         self._phases["setup"] = clock.perf_counter() - self._wall_start
+        if self.resumed_from is not None and not self._fresh:
+            return  # the results hold the rows up to the checkpoint already
         try:
             self._read_texts()
             row = self._row()
@@ -247,6 +269,8 @@ class Execution:
             observer.aborted()
         if self.backend is not None:
             self.backend.close()
+        if self.checkpoints is not None:
+            self.checkpoints.close()
         self.status = "aborted"
 
     def _carry_start_values(self) -> None:
@@ -437,6 +461,8 @@ class Execution:
             return False
         if self._stop_requested:
             self.status = "interrupted"
+            if self.checkpoints is not None and self.index:  # between two steps: whole
+                self.checkpoints.take(self)
             return False
         index, time = self.index, self.time
         started = clock.perf_counter()
@@ -466,6 +492,9 @@ class Execution:
         if following >= self.planned_steps:
             self.status = "completed"
             return False
+        if self.checkpoints is not None and self._held is None and \
+                self.checkpoints.due(end):
+            self.checkpoints.take(self)
         return True
 
     def _glued_advance(self, time: float, size: float, index: int, end: float):
@@ -610,6 +639,7 @@ class Execution:
                            warnings=self.warnings, error=self.error, signal=self.signal)
         result.statistics = run_statistics(self.plan, self.counts(),
                                            clock.perf_counter() - self._wall_start)
+        self._checkpoint_statistics(result.statistics)
         for observer in self.observers:
             try:
                 observer.finished(result)
@@ -617,6 +647,17 @@ class Execution:
                 result.warnings.append(f"{type(observer).__name__}: {error}")
             result.files.update(getattr(observer, "files", {}))
         return result
+
+    def _checkpoint_statistics(self, statistics: dict) -> None:
+        """The run's checkpoints and the one it went on from, in its statistics."""
+        if self.checkpoints is not None:
+            statistics["checkpoints"] = self.checkpoints.statistics()
+            self.checkpoints.close()
+        if self.resumed_from is not None:
+            found = self.resumed_from
+            statistics["resumed" if not self._fresh else "started_from"] = {
+                "checkpoint": str(found.folder), "step": found.step, "time": found.time,
+                "skipped": list(found.skipped)}
 
     def _end_message(self) -> str:
         """What ended the run: a failed run's error, an interrupted run's reason with

@@ -47,6 +47,10 @@ class JointStates:
     Arrays hold one entry per glued dof (the order of the force vector F).
     """
 
+    #: what a checkpoint keeps: the state; the laws come from the plan (a run started
+    #: from a checkpoint may change them)
+    CHECKPOINTED = ("q", "qd", "qdd")
+
     def __init__(self, flexible, k0, k1, c0, c1, newton_tolerance=1e-14, max_newton=50):
         self.flexible = np.asarray(flexible, dtype=bool)
         self.k0, self.k1 = np.asarray(k0, float), np.asarray(k1, float)

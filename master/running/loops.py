@@ -42,6 +42,10 @@ class LoopSolver:
     """Solves every loop of a plan (``loops``, ``positions`` in ``transfer``'s flat
     values) over a backend."""
 
+    #: what a checkpoint keeps (:mod:`dsim.master.running.checkpointing`)
+    CHECKPOINTED = ("solves", "corrections", "jacobians", "damped", "evaluations", "active",
+                    "notes")
+
     def __init__(self, transfer, loops, positions, settings):
         self.transfer = transfer
         self.loops = loops

@@ -36,6 +36,8 @@ class _Modifications:
     """The modifications in force, shared by a transfer and its restricted copies:
     transfer position -> (mode, value) of the connected inputs modified."""
 
+    CHECKPOINTED = ("inputs",)
+
     def __init__(self):
         self.inputs: dict[int, tuple[str, float]] = {}
 
@@ -94,6 +96,9 @@ class ScenarioRun:
     """The state of one run's scenario (a
     :class:`~dsim.master.planning.scenario.ScenarioPlan`): what is modified now, and
     every change applied so far (:attr:`applied`)."""
+
+    #: what a checkpoint keeps (:mod:`dsim.master.running.checkpointing`)
+    CHECKPOINTED = ("_modifications", "_outputs", "_raw", "_current", "_active", "applied")
 
     def __init__(self, scenario, transfer: Transfer):
         self.plan = scenario

@@ -89,6 +89,10 @@ class StepController:
     ``backend`` and ``coupling`` keep and restore snapshots; ``interval`` is the
     output interval (s)."""
 
+    #: what a checkpoint keeps (:mod:`dsim.master.running.checkpointing`)
+    CHECKPOINTED = ("_level", "_previous", "rejected", "at_smallest", "worst", "times",
+                    "sizes", "notes")
+
     def __init__(self, control: StepControl, take, values, labels, backend, coupling,
                  interval: float):
         self.control = control

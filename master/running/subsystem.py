@@ -163,6 +163,45 @@ class Subsystem(ABC):
         """FMI function (or core method) -> [calls, seconds]."""
         return {name: list(entry) for name, entry in self.counters.items()}
 
+    # --- a checkpoint: the state as data, for another process (docs/checkpoints.md) ---
+    def checkpoint(self) -> dict:
+        """The state saved by the last :meth:`save_state` as plain data (bytes, numbers,
+        arrays): what a fresh instance of the same subsystem, out of initialization
+        mode, goes on from (:meth:`resume`), in another process or on another machine."""
+        raise NotImplementedError(f"component '{self.name}' cannot serialize its state")
+
+    def resume(self, state: dict) -> None:
+        """Go on from a :meth:`checkpoint` of another instance: its state set, and kept
+        as the saved one."""
+        raise NotImplementedError(f"component '{self.name}' cannot serialize its state")
+
+    def restore_counters(self, counters: dict) -> None:
+        """Take ``counters`` (what :meth:`statistics` gave) as the counts so far: a run
+        resumed from a checkpoint counts on from the run that wrote it."""
+        self.counters = defaultdict(lambda: [0, 0.0],
+                                    {name: list(entry) for name, entry in counters.items()})
+
+    @contextmanager
+    def uncounted(self):
+        """The FMI calls made in the block left out of the counts (a checkpoint's own:
+        a run with checkpoints counts what a run without them counts)."""
+        held = self.statistics()
+        try:
+            yield
+        finally:
+            self.restore_counters(held)
+
+    def current_checkpoint(self) -> dict:
+        """:meth:`checkpoint` of the state now (at a communication point), its calls
+        not counted; the saved state stays as it was."""
+        with self.uncounted():
+            snapshot = self.snapshot()
+            try:
+                with self._holding(snapshot):
+                    return self.checkpoint()
+            finally:
+                self.discard(snapshot)
+
     def finish_initialization(self) -> None:
         """Leave initialization mode (nothing to do for an in-process core)."""
 

@@ -24,6 +24,7 @@ from dsim.master.planning.parameters import JOINT_COEFFICIENTS
 from dsim.master.reading.parameter_input import given_parameters
 from dsim.master.reading.input_tables import read_table
 from dsim.master.reading.scenario_files import read_scenario
+from dsim.master.reading.checkpoint_files import find_checkpoint
 from dsim.master.recording.observers import ProgressBar
 from dsim.master.running.backends import log_lines
 from dsim.master.running.timeline import span_note
@@ -111,7 +112,10 @@ def _summary(result, plot: Path | None) -> str:
 
 
 def _cmd_run(args) -> int:
-
+    if args.resume is not None or args.start_from is not None:
+        return _cmd_run_checkpoint(args)
+    if args.scene is None:
+        raise InputError("dsim run: give a scene (or --resume FOLDER, --from CHECKPOINT)")
     out = Path(args.out or f"{Path(args.scene).stem}.csv")
     settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
     if args.isolate:
@@ -122,7 +126,46 @@ def _cmd_run(args) -> int:
         settings["backend"] = "isolated"
     progress = ProgressBar(Path(args.scene).stem)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
-                      force=args.force, strict=args.strict, **_run_choices(args), **settings)
+                      force=args.force, strict=args.strict, **_checkpoint_choices(args),
+                      **_run_choices(args), **settings)
+    return _said(result, args, progress)
+
+
+def _checkpoint_choices(args) -> dict:
+    """``--checkpoint-every``, ``--checkpoint-keep`` and ``--checkpoints``."""
+    return {"checkpoint_every": args.checkpoint_every, "checkpoint_keep": args.checkpoint_keep,
+            "checkpoints": args.checkpoints}
+
+
+def _cmd_run_checkpoint(args) -> int:
+    """``dsim run --resume FOLDER`` (the same run goes on) or ``dsim run [SCENE] --from
+    CHECKPOINT`` (a new run from a saved state): docs/checkpoints.md."""
+    settings = {keyword: getattr(args, keyword) for keyword in SETTINGS}
+    if args.resume is not None:
+        given = [name for name, value in (("--out", args.out), ("--plot", args.plot),
+                                          ("--mat", args.mat), ("--from", args.start_from))
+                 if value is not None]
+        if given:
+            raise InputError(f"--resume goes on writing the run's own files: "
+                             f"{', '.join(given)} cannot be given with it")
+        progress = ProgressBar(Path(args.resume).name)
+        result = simulate(args.scene, observers=[progress], resume=args.resume,
+                          checkpoint_keep=args.checkpoint_keep,
+                          **{k: v for k, v in settings.items() if v is not None})
+        return _said(result, args, progress)
+    found = find_checkpoint(args.start_from)
+    scene = args.scene or (found.manifest.get("request") or {}).get("scene") or "scene"
+    out = Path(args.out or f"{Path(scene).stem}_from_{found.time:g}s.csv")
+    choices = {k: v for k, v in _run_choices(args).items() if v not in (None, {}, [], False)}
+    progress = ProgressBar(Path(scene).stem)
+    result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
+                      force=args.force, start_from=found.folder, **_checkpoint_choices(args),
+                      **choices, **{k: v for k, v in settings.items() if v is not None})
+    return _said(result, args, progress)
+
+
+def _said(result, args, progress) -> int:
+    """What the command line says of a run's ``result``; its exit code."""
     if result.status != "completed":
         label = "simulation failed" if result.status == "failed" else "interrupted"
         print(f"dsim: {label}: {result.message}", file=sys.stderr)
@@ -474,7 +517,7 @@ STRICT_HELP = ("refuse (exit 2) what is otherwise a warning: a rule the files br
 def _add_run(commands) -> None:
     """``dsim run``: its settings, run choices and output files."""
     run_parser = commands.add_parser("run", help="run a scene (.ssp, folder or .ssd)")
-    run_parser.add_argument("scene")
+    run_parser.add_argument("scene", nargs="?")
     _add_settings(run_parser)
     _add_run_choices(run_parser)
     run_parser.add_argument("--out", help="results CSV (default: SCENE.csv here); the "
@@ -489,6 +532,24 @@ def _add_run(commands) -> None:
                             "(--backend isolated; needs dsim[ray]): an FMU that crashes ends "
                             "the run with a message, never dsim")
     run_parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
+    run_parser.add_argument("--checkpoint-every", type=float, metavar="T",
+                            help="write the whole simulation's state every T seconds of "
+                            "simulated time (and when interrupted) to a folder beside the "
+                            "results (docs/checkpoints.md)")
+    run_parser.add_argument("--checkpoint-keep", type=int, metavar="N",
+                            help="checkpoints kept, the last ones (default 2; a resumed "
+                            "run: as many as its run kept)")
+    run_parser.add_argument("--checkpoints", metavar="DIR",
+                            help="the checkpoint folder (default: RESULTS.checkpoints "
+                            "beside the results CSV)")
+    run_parser.add_argument("--resume", metavar="FOLDER",
+                            help="go on from the last whole checkpoint in FOLDER (or from "
+                            "the checkpoint FOLDER): the same run, its own scene, settings "
+                            "and files; the results are the bytes of a run never stopped")
+    run_parser.add_argument("--from", dest="start_from", metavar="CHECKPOINT",
+                            help="a new run starting from a checkpoint's state and time, "
+                            "with its run's scene and settings and what is given here on "
+                            "top (--set of tunable parameters, --scenario, --stop, --out)")
     run_parser.set_defaults(handler=_cmd_run)
 
 

@@ -60,8 +60,14 @@ class CsvRecorder(Observer):
     lock: the step costs what it did) and leave it, in order, only under a lock that
     guards the file; that lock is never held across an FMU call."""
 
-    def __init__(self, path, flush_seconds: float = 0.05, force: bool = False):
+    def __init__(self, path, flush_seconds: float = 0.05, force: bool = False,
+                 digest: bool = False, continuing: dict | None = None):
         self.path = Path(path)
+        #: keep the SHA-256 of the file as it is written (a run with checkpoints)
+        self.digest = digest or continuing is not None
+        #: the results a resumed run goes on from ({"bytes", "sha256", "rows"}: the
+        #: file at ``path`` as a checkpoint saw it), or None: a new file
+        self.continuing = continuing
         #: run even when the CSV would not fit the free disk space
         self.force = force
         self.output: OutputFile | None = None
@@ -81,9 +87,20 @@ class CsvRecorder(Observer):
             check_fits(self.path, recorded_rows(info.planned_steps, info.record_every),
                        1 + len(info.columns) + len(info.text_columns))
         self.output = OutputFile(self.path, info.inputs)
-        self.output.open()
-        self.output.append((",".join(("time",) + info.columns + info.text_columns)
-                            + "\n").encode())
+        self.output.open()  # (a killed run's rows go to the final name first)
+        if self.digest:
+            self.output.keep_digest()
+        if self.continuing is not None:
+            try:
+                self.output.copy_prefix(self.path, self.continuing["bytes"],
+                                        self.continuing["sha256"])
+            except BaseException:
+                self.output.discard()
+                raise
+            self._written = self.continuing["rows"]
+        else:
+            self.output.append((",".join(("time",) + info.columns + info.text_columns)
+                                + "\n").encode())
         self._flushed_at = clock.monotonic()
         self._due = self._flushed_at + self.flush_seconds
         self._done.clear()
@@ -112,6 +129,14 @@ class CsvRecorder(Observer):
                 self._pending.clear()  # rows after a lost batch would leave a gap
                 raise error
             self._write_pending()
+
+    def position(self) -> dict:
+        """The results written so far, every pending row flushed and on the disk: their
+        length (bytes), SHA-256 and rows (a checkpoint records them)."""
+        self.flush()
+        self.output.sync()
+        return {"path": str(self.path.resolve()), "bytes": self.output.size,
+                "sha256": self.output.digest.hexdigest(), "rows": self._written}
 
     def _write_pending(self) -> None:
         """Write the rows pending now, with the lock held."""

@@ -168,6 +168,18 @@ class Backend(ABC):
         """Every subsystem leaves initialization mode."""
 
     @abstractmethod
+    def save_states(self) -> list[dict]:
+        """Each subsystem's state now as plain data, its own FMI calls not counted
+        (:meth:`~dsim.master.running.subsystem.Subsystem.current_checkpoint`): a
+        checkpoint on disk."""
+        raise NotImplementedError(f"the {self.name} backend writes no checkpoint")
+
+    def load_states(self, states, counters) -> None:
+        """Bring each subsystem (out of initialization mode) to its entry of
+        :meth:`save_states`, and its counts to its entry of ``counters`` (what
+        :meth:`counters` gave then)."""
+        raise NotImplementedError(f"the {self.name} backend resumes no checkpoint")
+
     def counters(self) -> list[dict]:
         """Per subsystem: FMI function -> [calls, seconds]."""
 

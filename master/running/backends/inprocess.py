@@ -133,6 +133,14 @@ class InProcessBackend(Backend):
     def counters(self):
         return [s.statistics() for s in self.subsystems]
 
+    def save_states(self) -> list[dict]:
+        return [s.current_checkpoint() for s in self.subsystems]
+
+    def load_states(self, states, counters) -> None:
+        for subsystem, state, counted in zip(self.subsystems, states, counters):
+            subsystem.resume(state)
+            subsystem.restore_counters(counted)
+
     def close(self) -> list[Exception]:
         try:
             return terminate_all(self.subsystems)

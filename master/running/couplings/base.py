@@ -54,6 +54,10 @@ class Coupling(ABC):
 
     #: registry name
     name = ""
+    #: what a checkpoint keeps of a coupling (:mod:`dsim.master.running.checkpointing`;
+    #: a subclass adds its own)
+    CHECKPOINTED = ("outputs", "forces", "_outputs_by_subsystem", "refreshes",
+                    "factorizations", "loop_solver")
     #: whether the glued subsystems must save and restore their state
     rolls_back = True
     #: the backend's kernel that takes whole steps, where this coupling has one (the
@@ -136,6 +140,10 @@ class Coupling(ABC):
         self.outputs = state["outputs"].copy()
         self.forces = state["forces"].copy()
         self._outputs_by_subsystem = list(state["parts"])
+
+    def resumed(self) -> None:
+        """Make again what is derived from the state a checkpoint set
+        (:mod:`dsim.master.running.checkpointing`): here nothing."""
 
     def solve_loops(self, time: float) -> None:
         """Solve the algebraic loops at the communication point ``time`` (the outputs

@@ -35,6 +35,9 @@ def newton_diverging(history, refreshed: int) -> bool:
 class _Blocks:
     """The envelope on blocks of one size."""
 
+    #: what a checkpoint keeps (:mod:`dsim.master.running.checkpointing`)
+    CHECKPOINTED = ("_count", "_largest", "_maxima", "_growing")
+
     def __init__(self, size: int):
         self.size = size
         self._count = 0
@@ -58,6 +61,8 @@ class _Blocks:
 
 class EnvelopeWatch:
     """The residual's envelope over the steps of an explicit run."""
+
+    CHECKPOINTED = ("_scales", "block")
 
     def __init__(self):
         self._scales = [_Blocks(size) for size in BLOCK_SIZES]

@@ -24,6 +24,7 @@ class ExplicitCoupling(IterativeCoupling):
     """One trial per macro step; the correction goes to the next step's predictor."""
 
     name = "explicit"
+    CHECKPOINTED = ("_envelope",)
     #: d a / d f of every glued subsystem at the start time, when some cannot save
     #: their state: the flexibility then comes from it, with no rollback ever
     start_sensitivity = None

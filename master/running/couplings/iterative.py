@@ -109,6 +109,9 @@ class IterativeCoupling(Coupling):
     """Newton iteration on the joint forces with step rollback."""
 
     name = "iterative"
+    CHECKPOINTED = ("cuts", "regularized", "least_squares_steps", "roundoff_steps",
+                    "_history", "_measured", "_flexibility", "_step_size", "_factored_with",
+                    "joints")
     #: how many times a failed macro step may be halved (the execution sets it to
     #: ``settings.step_cuts`` when every glued FMU accepts variable step sizes)
     cut_limit = 0
@@ -171,6 +174,20 @@ class IterativeCoupling(Coupling):
         self.joints.q, self.joints.qd, self.joints.qdd = q.copy(), qd.copy(), qdd.copy()
         self._history = deque((f.copy() for f in state["history"]),
                               maxlen=self._history.maxlen)
+
+    def resumed(self) -> None:
+        """The interface flexibility's projections and the gluing matrix's factor made
+        again from a checkpoint's flexibility and the weights it was factored with
+        (the same bits as the run that wrote it; not counted again)."""
+        super().resumed()
+        if self._flexibility is None:
+            return
+        held = self._factored_with
+        counts = (self.refreshes, self.factorizations, self.regularized)
+        self._use_flexibility(self._flexibility, measured=False)
+        if held is not None:
+            self._factorize(*held)
+        self.refreshes, self.factorizations, self.regularized = counts
 
     # --- assembly --------------------------------------------------------------------
     def residual(self, kinematics, forces, step_size):
@@ -277,7 +294,7 @@ class IterativeCoupling(Coupling):
         if self.layout.size <= DENSE_UP_TO:
             self._dense_parts = [part.toarray() for part in self._parts]
         self.refreshes += int(measured)
-        self._factor = None
+        self._factor = self._factored_with = None
 
     def _ensure_factor(self, weights, diagonal, time: float, step_index: int) -> None:
         """Factor the gluing matrix unless the held factor has these weights."""

@@ -46,6 +46,7 @@ class StrongCoupling(IterativeCoupling):
     Newton of the iterative coupling where the scene has joints."""
 
     name = "strong"
+    CHECKPOINTED = ("_previous", "_jacobian", "_measured_for", "_jacobians")
 
     def __init__(self, backend, glued, layout, joints, settings, transfer=None):
         super().__init__(backend, glued, layout, joints, settings, transfer)

@@ -14,6 +14,7 @@ FMI version         co-simulation                   Model Exchange
 """
 from __future__ import annotations
 
+from dsim.master.reading.fmi_description import describe
 from dsim.master.running.fmi.cs1 import CoSimulation1Subsystem
 from dsim.master.running.fmi.cs2 import CoSimulation2Subsystem
 from dsim.master.running.fmi.cs3 import CoSimulation3Subsystem
@@ -22,7 +23,7 @@ from dsim.master.running.fmi.spec import SubsystemSpec
 from dsim.master.running.subsystem import Subsystem
 from dsim.master.running.tables import TableSubsystem
 
-__all__ = ["SubsystemSpec", "open_subsystem"]
+__all__ = ["SubsystemSpec", "open_subsystem", "serialization_problem"]
 
 
 def open_subsystem(spec: SubsystemSpec) -> Subsystem:
@@ -41,3 +42,20 @@ def open_subsystem(spec: SubsystemSpec) -> Subsystem:
         subsystem = CoSimulation2Subsystem(spec)
     subsystem.substeps = spec.substeps
     return subsystem
+
+
+def serialization_problem(spec: SubsystemSpec) -> str | None:
+    """Why the state of ``spec``'s subsystem cannot be written to a file and read back
+    by another instance (a checkpoint, a worker started again elsewhere), or None."""
+    if spec.table is not None:  # a table's state is its time
+        return None
+    if spec.interface == "CoSimulation" and spec.fmi_version.startswith("1"):
+        return (f"component '{spec.name}' is an FMI 1.0 FMU, which cannot save its "
+                "state")
+    found = describe(spec.path)
+    interface = found.modelExchange if spec.interface == "ModelExchange" \
+        else found.coSimulation
+    if not (interface and interface.canGetAndSetFMUstate and interface.canSerializeFMUstate):
+        return (f"component '{spec.name}': its FMU cannot serialize its state "
+                "(canSerializeFMUstate is false)")
+    return None

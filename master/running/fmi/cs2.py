@@ -492,6 +492,12 @@ class CoSimulation2Subsystem(Checkpoint, Subsystem):
             self._kernel.sync()
         return self._statistics()
 
+    def restore_counters(self, counters: dict) -> None:
+        # the time loop's bindings count apart (_statistics adds them): from zero now
+        super().restore_counters(counters)
+        for call in self._calls.values():
+            call.calls, call.seconds = 0, 0.0
+
     def trial_step(self, forces, time, step_size):
         """A glued trial in one call: ``fmi2SetFMUstate`` (when a trial ran since the
         save), ``fmi2SetReal`` of the forces, ``fmi2DoStep``, ``fmi2GetReal`` of the

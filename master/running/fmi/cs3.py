@@ -71,6 +71,20 @@ class CoSimulation3Subsystem(FmpyAdapter):
             finally:
                 self._state = None
 
+    def checkpoint(self) -> dict:
+        """The saved state as bytes (fmi3SerializeFMUState) and the time it is at."""
+        data = self._checked("fmi3SerializeFMUState", self.fmu.serializeFMUState,
+                             self._state)
+        return {"fmu": bytes(data), "time": self.time, "stepped": self._stepped}
+
+    def resume(self, checkpoint: dict) -> None:
+        state = self._checked("fmi3DeserializeFMUState", self.fmu.deserializeFMUState,
+                              checkpoint["fmu"])
+        self._free_saved()
+        self._state = state
+        self.restore_state()
+        self.time, self._stepped, self._dirty = checkpoint["time"], checkpoint["stepped"], False
+
     def do_step(self, time, step_size):
         if self.ended_at is not None:
             self._raise_ended()

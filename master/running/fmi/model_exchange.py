@@ -333,6 +333,37 @@ class ModelExchangeSubsystem(FmpyAdapter):
             finally:
                 self._fmu_state = None
 
+    def checkpoint(self) -> dict:
+        """The saved FMU state as bytes (fmi2SerializeFMUstate, fmi3SerializeFMUState)
+        with what dsim's integration keeps beside it: the time, the inputs at the
+        step's start and those written for its end, the next time event."""
+        if not self.can_save:
+            raise NotImplementedError(f"component '{self.name}': its FMU cannot save its "
+                                      "state (canGetAndSetFMUstate is false)")
+        data = self._checked(f"{self.prefix}SerializeFMU{'S' if self.fmi3 else 's'}tate",
+                             self.fmu.serializeFMUState, self._fmu_state)
+        time, x, start, next_event = self._saved
+        return {"fmu": bytes(data), "time": time, "x": x, "start": start,
+                "next_event": next_event, "end": self._end.copy(), "stepped": self._stepped}
+
+    def resume(self, checkpoint: dict) -> None:
+        state = self._checked(f"{self.prefix}DeserializeFMU{'S' if self.fmi3 else 's'}tate",
+                              self.fmu.deserializeFMUState, checkpoint["fmu"])
+        self._free_saved()
+        self._fmu_state = state
+        self._saved = (checkpoint["time"], checkpoint["x"],
+                       np.array(checkpoint["start"], dtype=float), checkpoint["next_event"])
+        self.restore_state()
+        self._end = np.array(checkpoint["end"], dtype=float)
+        self._stepped, self._dirty = checkpoint["stepped"], False
+
+    def restore_counters(self, counters: dict) -> None:
+        counters = dict(counters)  # the integrator counts its own evaluations
+        evaluations = counters.pop("right-hand side evaluations", None)
+        super().restore_counters(counters)
+        if evaluations is not None and self.integrator is not None:
+            self.integrator.evaluations = evaluations[0]
+
     _stop_asked = False
 
     def do_step(self, time, step_size):

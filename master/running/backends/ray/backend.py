@@ -568,6 +568,13 @@ class RayBackend(Recovery, Backend):
     def places(self) -> list:
         return [self._cluster.places[host] for host, _ in self.members]
 
+    def save_states(self) -> list[dict]:
+        return self._each("current_checkpoint")
+
+    def load_states(self, states, counters) -> None:
+        self._run([[("resume", (state,)), ("restore_counters", (counted,))]
+                   for state, counted in zip(states, counters)])
+
     def close(self) -> list[Exception]:
         """Terminate every subsystem (the live workers'), then end the workers and,
         if this run started Ray, Ray itself; the errors the subsystems raised."""

@@ -18,7 +18,7 @@ import pickle
 import time as clock
 
 from dsim.master.errors import SimulationError
-from dsim.master.reading.fmi_description import describe
+from dsim.master.running.fmi import serialization_problem
 from dsim.master.running.backends.ray.spares import NEW
 from dsim.master.running.backends.ray.worker import (CHECKPOINT, FAILED, RESUME, Host,
                                                      crash_report)
@@ -361,16 +361,14 @@ def _unrestartable(specs) -> str | None:
     """Why a worker with these subsystems cannot be started again from a saved state
     (the first of them that cannot serialize it), or None."""
     for spec in specs:
-        if spec.table is not None:  # a table's state is its time: it restarts anywhere
-            continue
-        if spec.interface != "CoSimulation" or not spec.fmi_version.startswith("2"):
+        if spec.table is None and (spec.interface != "CoSimulation"
+                                   or not spec.fmi_version.startswith("2")):
             return (f"component '{spec.name}' runs FMI {spec.fmi_version} "
                     f"{spec.interface}, whose state dsim does not move between processes "
                     "yet")
-        found = describe(spec.path).coSimulation
-        if not (found and found.canGetAndSetFMUstate and found.canSerializeFMUstate):
-            return (f"component '{spec.name}': its FMU cannot serialize its state "
-                    "(canSerializeFMUstate is false)")
+        problem = serialization_problem(spec)
+        if problem:
+            return problem
     return None
 
 
