@@ -237,7 +237,7 @@ def _from_checkpoint(scene, out, statistics, plot, mat, progress, observers,
     settings.update({k: v for k, v in given.items() if k != "parameters"})
     settings.pop("start_time", None)
     plan = prepare(scene, start_time=found.time, **settings)
-    check_files(manifest, plan, settings, where)
+    check_files(manifest, plan, settings, where, fresh=True)
     if plan.scene.stop_time <= found.time:
         raise InputError(f"{where}: it is at t = {found.time:g} s, at or after the stop "
                          f"time {plan.scene.stop_time:g} s: give a later stop time (--stop)")

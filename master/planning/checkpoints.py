@@ -69,19 +69,18 @@ def request_of(scene, settings: dict, outputs: dict) -> dict | None:
         return None
 
 
-def read_files(plan, settings: dict) -> dict[str, str]:
-    """Path -> SHA-256 of every file the run of ``plan`` reads: the scene, each FMU, a
-    scenario and an input table given as files."""
-    paths = [Path(plan.scene.file)] + [Path(spec.path) for spec in plan.specs
-                                       if spec.table is None]
-    paths += [Path(settings[key]) for key in FILE_SETTINGS
-              if isinstance(settings.get(key), (str, Path))]
-    digests = {}
-    for path in paths:
-        key = str(path.resolve())
-        if key not in digests and path.is_file():
-            digests[key] = file_digest(path)
-    return digests
+def read_files(plan, settings: dict) -> dict:
+    """The SHA-256 of what the run of ``plan`` reads: its scene file, each component's
+    FMU (by component: an archive's FMUs are unpacked to a new place every run), and
+    a scenario and an input table given as files (by path)."""
+    scene = Path(plan.scene.file)
+    return {"scene": file_digest(scene) if scene.is_file() else None,
+            "fmus": {spec.name: file_digest(spec.path) for spec in plan.specs
+                     if spec.table is None},
+            "files": {str(Path(settings[key]).resolve()): file_digest(settings[key])
+                      for key in FILE_SETTINGS
+                      if isinstance(settings.get(key), (str, Path))
+                      and Path(settings[key]).is_file()}}
 
 
 def manifest_of_run(plan, request, settings: dict, every: float) -> dict:
@@ -94,21 +93,26 @@ def manifest_of_run(plan, request, settings: dict, every: float) -> dict:
                            for spec in plan.specs}}
 
 
-def check_files(manifest: dict, plan, settings: dict, where: str) -> None:
-    """Refuse (one line) a checkpoint whose run read other files than ``plan`` reads
-    now: a changed FMU, scene, scenario or table."""
-    then = manifest.get("read") or {}
-    now = read_files(plan, settings)
-    for path, digest in now.items():
-        if path in then and then[path] != digest:
-            raise InputError(f"{where}: {path} changed since the checkpoint was written "
-                             "(its SHA-256 differs): the saved states belong to the old one")
-    fmus = {str(Path(spec.path).resolve()) for spec in plan.specs if spec.table is None}
-    missing = sorted(p for p in fmus if p not in then)
-    if missing and not any(Path(p).name == Path(q).name and then[q] == now.get(p)
-                           for p in missing for q in then):
-        raise InputError(f"{where}: the run read other FMUs ({missing[0]} is not among "
-                         "the checkpoint's): another scene")
+def check_files(manifest: dict, plan, settings: dict, where: str,
+                fresh: bool = False) -> None:
+    """Refuse (one line) a checkpoint whose run read another scene or FMU than ``plan``
+    reads now (or the same files changed since); a resumed run (not ``fresh``) also
+    another scenario or input table."""
+    then, now = manifest.get("read") or {}, read_files(plan, settings)
+    if then.get("scene") != now["scene"]:
+        raise InputError(f"{where}: {plan.scene.file} is not the scene of the checkpoint's "
+                         "run, or it changed since the checkpoint was written (its SHA-256 "
+                         "differs)")
+    for name, digest in now["fmus"].items():
+        if (then.get("fmus") or {}).get(name) != digest:
+            raise InputError(f"{where}: component '{name}': its FMU is not the one the "
+                             "checkpoint's run read, or it changed since (its SHA-256 "
+                             "differs): the saved state belongs to that one")
+    if not fresh:
+        for path, digest in now["files"].items():
+            if (then.get("files") or {}).get(path) != digest:
+                raise InputError(f"{where}: {path} changed since the checkpoint was written "
+                                 "(its SHA-256 differs)")
 
 
 def resumed_settings(manifest: dict, given: dict, where: str) -> tuple[str, dict, dict]:
