@@ -34,7 +34,7 @@ from dsim.master.settings import resolve
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
             substeps=None, fmu_log: bool = False, scenario=None, inputs=None,
-            start_time=None, **settings):
+            start_time=None, start_from=None, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -71,7 +71,16 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     .csv or .mat file's path, a pandas DataFrame or a numpy structured array: a
     ``time`` column, then one column per input named ``component.variable``;
     docs/inputs.md).
+    ``start_from``: a checkpoint (its folder, or a checkpoint folder: its last one) a
+    new run starts from, at its time and from its saved states, with the scene and
+    settings of the checkpoint's run and these on top (``scene`` may be None: the
+    checkpoint's; docs/checkpoints.md).
     Raises :class:`~dsim.master.errors.InputError` listing every problem."""
+    if start_from is not None:
+        return _prepare_from(scene, start_from, dict(
+            settings, parameters=parameters, outputs=outputs, output_interval=output_interval,
+            solver=solver, allow_outside=allow_outside, substeps=substeps, fmu_log=fmu_log,
+            scenario=scenario, inputs=inputs, strict=strict, load_libraries=load_libraries))
     with collector_paused():  # 10,000 components: millions of objects, few cycles
         plan = _prepare(scene, load_libraries, strict, parameters, outputs,
                         output_interval, solver, allow_outside, settings, substeps, inputs,
@@ -175,7 +184,7 @@ def _simulate(scene, out, statistics, plot, mat, progress, observers, handle_sig
                 force, checkpointer)
 
 
-def _checkpointer(plan, settings, every, keep, folder, out, request, continuing=False):
+def _checkpointer(plan, settings, every, keep, folder, out, request):
     """The checkpoints of a run of ``plan``; InputError when its FMUs cannot serialize
     their state or it has nowhere to write them."""
     every = checked_every(every)
@@ -224,37 +233,54 @@ def _from_checkpoint(scene, out, statistics, plot, mat, progress, observers,
             out, manifest.get("request"))
         return _run(plan, out, statistics, plot, mat, progress, observers, handle_signals,
                     force, checkpointer, found, continuing=continuing)
+    plan = prepare(scene, start_from=found, **settings)
+    checkpointer = None
+    if every is not None:
+        merged = _merged(manifest, settings)
+        request = request_of(plan.scene.file if scene is None else scene,
+                             {**merged, "start_time": found.time},
+                             {"out": out, "statistics": statistics, "plot": plot,
+                              "mat": mat, "force": force})
+        checkpointer = _checkpointer(plan, merged, every, keep, folder, out, request)
+    return _run(plan, out, statistics, plot, mat, progress, observers, handle_signals,
+                force, checkpointer)
+
+
+def _merged(manifest: dict, given: dict) -> dict:
+    """The settings of a checkpoint's run with ``given`` on top (the parameters merged;
+    what is not given, None, is the checkpoint run's)."""
     request = manifest.get("request") or {}
-    if scene is None:
-        scene = request.get("scene")
-        if scene is None:
-            raise InputError(f"{where}: its run was given a loaded scene: give the scene")
-    given = settings  # on top of the checkpoint's run's, the parameters merged
     settings = dict(request.get("settings") or {})
     if given.get("parameters"):
         settings["parameters"] = {**(settings.get("parameters") or {}),
                                   **given["parameters"]}
-    settings.update({k: v for k, v in given.items() if k != "parameters"})
+    settings.update({k: v for k, v in given.items() if k != "parameters" and v is not None})
     settings.pop("start_time", None)
+    return settings
+
+
+def _prepare_from(scene, start_from, given: dict):
+    """:func:`prepare` of a new run from a checkpoint (``start_from``: a path or a
+    :class:`~dsim.master.reading.checkpoint_files.Checkpoint`)."""
+    found = find_checkpoint(start_from)
+    where = f"checkpoint {found.folder}"
+    manifest = found.manifest
+    if scene is None:
+        scene = (manifest.get("request") or {}).get("scene")
+        if scene is None:
+            raise InputError(f"{where}: its run was given a loaded scene: give the scene")
+    settings = _merged(manifest, given)
     plan = prepare(scene, start_time=found.time, **settings)
     check_files(manifest, plan, settings, where, fresh=True)
     if plan.scene.stop_time <= found.time:
         raise InputError(f"{where}: it is at t = {found.time:g} s, at or after the stop "
                          f"time {plan.scene.stop_time:g} s: give a later stop time (--stop)")
-    checkpointer = None
-    if every is not None:
-        request = request_of(scene, {**settings, "start_time": found.time},
-                             {"out": out, "statistics": statistics, "plot": plot,
-                              "mat": mat, "force": force})
-        checkpointer = _checkpointer(plan, settings, every, keep, folder, out, request)
-    return _run(plan, out, statistics, plot, mat, progress, observers, handle_signals,
-                force, checkpointer, found, fresh=True,
-                changed=changed_parameters(manifest, plan, where))
+    return replace(plan, start_from=found,
+                   start_values=tuple(changed_parameters(manifest, plan, where)))
 
 
 def _run(plan, out, statistics, plot, mat, progress, observers, handle_signals, force,
-         checkpointer=None, resume=None, continuing=None, fresh=False,
-         changed=()) -> RunResult:
+         checkpointer=None, resume=None, continuing=None) -> RunResult:
     watchers = []
     if out is not None:
         recorder = CsvRecorder(out, force=force, digest=checkpointer is not None,
@@ -272,4 +298,4 @@ def _run(plan, out, statistics, plot, mat, progress, observers, handle_signals, 
     if progress:
         watchers.append(ProgressBar())
     return Execution(plan, watchers + list(observers), checkpoints=checkpointer,
-                     resume=resume, fresh=fresh, changed=changed).run(handle_signals)
+                     resume=resume).run(handle_signals)

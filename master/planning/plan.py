@@ -110,6 +110,13 @@ class Plan:
     #: the scenario's events resolved against this plan
     #: (:class:`~dsim.master.planning.scenario.ScenarioPlan`), or None: no scenario
     scenario: object = None
+    #: the checkpoint a new run starts from (``--from``: a
+    #: :class:`~dsim.master.reading.checkpoint_files.Checkpoint`; the scene's start time
+    #: is its time), or None
+    start_from: object = None
+    #: values that run sets on top of the saved states: (component index, names,
+    #: values) of the tunable parameters and inputs given anew
+    start_values: tuple = ()
 
     @property
     def text_columns(self) -> tuple[str, ...]:

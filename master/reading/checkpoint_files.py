@@ -140,7 +140,9 @@ class _Arrays:
 def find_checkpoint(path) -> Checkpoint:
     """The checkpoint at ``path``: a checkpoint (a ``step-`` folder), or a checkpoint
     folder, whose last whole checkpoint it is (a newer damaged one skipped, and said).
-    InputError when there is none."""
+    InputError when there is none.  (A :class:`Checkpoint` is itself.)"""
+    if isinstance(path, Checkpoint):
+        return path
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such checkpoint or checkpoint folder")

@@ -194,8 +194,10 @@ class Checkpointer:
     def statistics(self) -> dict:
         """What the statistics say of this run's checkpoints."""
         folder = self.folder
+        last = folder.written[-1] if folder.written else None
         return {"folder": str(folder.folder), "every": self.every, "keep": folder.keep,
-                "written": [{"step": step, "name": path.name} for step, path in folder.written],
+                "written": len(folder.written),
+                "last": None if last is None else {"step": last[0], "name": last[1].name},
                 "seconds": folder.seconds, "bytes": folder.bytes}
 
     def close(self) -> None:

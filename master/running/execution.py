@@ -68,7 +68,7 @@ class Execution:
     """
 
     def __init__(self, plan, observers=(), keep_signals: bool = True, checkpoints=None,
-                 resume=None, fresh: bool = False, changed=()):
+                 resume=None):
         self.plan = plan
         self.scene = plan.scene
         self.settings = plan.scene.master
@@ -121,12 +121,9 @@ class Execution:
         self.checkpoints = checkpoints
         #: the checkpoint this run goes on from (a
         #: :class:`~dsim.master.reading.checkpoint_files.Checkpoint`), or None; ``fresh``:
-        #: a new run from its state (``--from``), not the same run resumed
-        self.resumed_from = resume
-        self._fresh = fresh
-        #: values a run started from a checkpoint sets on top of its saved states:
-        #: (subsystem index, names, values) (Backend.set_values)
-        self._changed = list(changed)
+        #: a new run from its state (the plan's ``start_from``), not the same run resumed
+        self._fresh = resume is None and plan.start_from is not None
+        self.resumed_from = plan.start_from if self._fresh else resume
 
     # --- time --------------------------------------------------------------------
     def step_time(self, index: int) -> float:
@@ -214,7 +211,7 @@ class Execution:
             self._initialize(layout, joints)
             if self.resumed_from is not None:
                 self._notify("preparing", "resuming", 0, 0)
-                resume_run(self, self.resumed_from, self._fresh, self._changed)
+                resume_run(self, self.resumed_from, self._fresh, plan.start_values)
         except SimulationError as error:
             if not self._initialized:  # in initialization mode: the consistent start
                 self._abort(started)   # failed, the scene's start is bad input

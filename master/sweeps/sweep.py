@@ -85,6 +85,9 @@ class Sweep:
     #: an input table every point's run takes (``--input``: a path, or the
     #: :class:`~dsim.master.reading.input_tables.Table` read from one), or None
     inputs: object = None
+    #: the checkpoint every point's run starts from (``--from``: a path, or the
+    #: :class:`~dsim.master.reading.checkpoint_files.Checkpoint` read from one), or None
+    start_from: object = None
 
     def plan(self) -> Design:
         """The design: the grid's settings as lists, then the varied factors."""
@@ -251,9 +254,10 @@ def cheapest(points: list[Point], target: float) -> Point | None:
 
 
 def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=None,
-                 inputs=None) -> str:
+                 inputs=None, start_from=None) -> str:
     """The ``dsim run`` command of a point (``allow_outside``: the sweep's trusted
-    folders; ``scenario``: its scenario; ``inputs``: its input table)."""
+    folders; ``scenario``: its scenario; ``inputs``: its input table; ``start_from``:
+    the checkpoint its run starts from)."""
     words = ["dsim", "run", str(scene)]
     settings, parameters = split({**fixed, **point.settings})
     for key, value in settings.items():
@@ -267,18 +271,23 @@ def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=No
     if inputs is not None:
         words += ["--input", str(getattr(inputs, "file", None) or getattr(inputs, "source",
                                                                             inputs))]
+    if start_from is not None:
+        words += ["--from", str(getattr(start_from, "folder", start_from))]
     return " ".join(shlex.quote(w) for w in words)
 
 
 def trusted(sweep: Sweep) -> dict:
     """The keywords of ``dsim.simulate``/``prepare`` every point's run shares besides its
     settings: the folders the sweep's scene may name files in (``allow_outside``) and
-    its scenario and its input table ({} when it has none of them)."""
+    its scenario, its input table and the checkpoint its points start from ({} when it
+    has none of them)."""
     shared = {"allow_outside": list(sweep.allow_outside)} if sweep.allow_outside else {}
     if sweep.scenario is not None:
         shared["scenario"] = sweep.scenario
     if sweep.inputs is not None:
         shared["inputs"] = sweep.inputs
+    if sweep.start_from is not None:
+        shared["start_from"] = sweep.start_from
     return shared
 
 

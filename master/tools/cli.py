@@ -294,6 +294,8 @@ def _sweep_of(args):
         sweep.scenario = read_scenario(args.scenario)
     if args.input:  # read once, as the scenario
         sweep.inputs = read_table(args.input)
+    if args.start_from:  # read and checked once, as the scenario
+        sweep.start_from = find_checkpoint(args.start_from)
     return sweep
 
 
@@ -361,7 +363,7 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
                   f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
                   f"{best.wall_seconds:.2f} s)")
             line = command_line(args.scene, best, sweep.fixed, sweep.allow_outside,
-                                sweep.scenario, sweep.inputs)
+                                sweep.scenario, sweep.inputs, sweep.start_from)
             print(f"run it      {line}")
 
 
@@ -625,6 +627,10 @@ def _add_sweep(commands) -> None:
     sweep_parser.add_argument("--input", metavar="FILE",
                               help="the same input table (.csv or .mat) in every point's run "
                               "(and the reference run): docs/inputs.md")
+    sweep_parser.add_argument("--from", dest="start_from", metavar="CHECKPOINT",
+                              help="every point's run (and the reference run) starts from "
+                              "this checkpoint's state and time: run to a steady state "
+                              "once, then vary (docs/checkpoints.md)")
     _add_allow_outside(sweep_parser)
     sweep_parser.set_defaults(handler=_cmd_sweep)
 

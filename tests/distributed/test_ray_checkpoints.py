@@ -40,3 +40,12 @@ def test_a_checkpoint_resumes_on_another_backend_to_the_same_bytes(built, ray_lo
                                           c["state_restores"])
                                    for name, c in stats["components"].items()}
         assert statistics == expected, step
+
+
+def test_every_point_of_a_sweep_on_ray_starts_from_the_checkpoint(built, ray_local,
+                                                                  tmp_path, capsys):
+    """The checkpoint read once by the driver travels to each point's worker."""
+    from tests.running.test_checkpoints import \
+        test_every_point_of_a_sweep_starts_from_the_checkpoint as sweep_from
+
+    sweep_from(built, tmp_path, capsys, backend="ray")

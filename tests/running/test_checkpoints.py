@@ -205,8 +205,8 @@ def test_the_last_checkpoints_are_kept_each_whole(built, tmp_path):
     folder = tmp_path / "run.checkpoints"
     assert sorted(p.name for p in folder.iterdir()) == ["step-0000000080",
                                                         "step-0000000090"]
-    assert [w["step"] for w in result.statistics["checkpoints"]["written"]] == \
-        list(range(10, 100, 10))
+    written = result.statistics["checkpoints"]
+    assert (written["written"], written["last"]["step"]) == (9, 90)
     for checkpoint in folder.iterdir():
         assert sorted(p.name for p in checkpoint.iterdir()) == ["arrays.npz",
                                                                 "manifest.json",
@@ -355,3 +355,64 @@ def test_a_new_run_from_a_checkpoint_sets_a_changed_input_on_the_saved_state(kin
     assert result["time"][0] == 0.5 and result["f.y"][1:].tolist() == [3.0] * 5
     with pytest.raises(InputError, match="'f.g' differs .* no tunable parameter"):
         dsim.simulate(start_from=checkpoint, parameters={"f.g": 2.0}, handle_signals=False)
+
+
+def test_an_interrupted_run_leaves_a_checkpoint_where_it_stopped(built, tmp_path):
+    """Ctrl-C (SIGINT) ends the run after its step, as interrupted (exit 130), with a
+    checkpoint there, from which --resume writes the bytes of the run never stopped."""
+    path = built["ssp"] / "spring_mass_nonlinear.ssp"
+    reference = tmp_path / "reference.csv"
+    assert _dsim("run", path, "--stop", 30, "--out", reference, "--quiet").returncode == 0
+    out = tmp_path / "run.csv"
+    process = subprocess.Popen([*DSIM, "run", str(path), "--stop", "30", "--out", str(out),
+                                "--checkpoint-every", "10", "--quiet"],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    folder = out.with_name("run.checkpoints")
+    deadline = time.monotonic() + 120
+    while not (folder.is_dir() and any(folder.glob("step-*"))):
+        assert process.poll() is None and time.monotonic() < deadline, "no checkpoint"
+        time.sleep(0.02)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    statistics = json.loads(out.with_name("run.stats.json").read_text())
+    assert statistics["status"] == "interrupted"
+    assert statistics["checkpoints"]["last"]["step"] == statistics["steps"]
+    assert _dsim("run", "--resume", folder, "--quiet").returncode == 0
+    assert out.read_bytes() == reference.read_bytes()
+
+
+def test_resume_refuses_what_it_cannot_honour_in_one_line(built, tmp_path, capsys):
+    from tests.support.runs import one_error
+    from dsim.master.tools.cli import main
+
+    folder = _checkpoints(built, tmp_path)
+    assert main(["run", "--resume", str(folder), "--out", str(tmp_path / "x.csv")]) == 2
+    assert "--out cannot be given with it" in one_error(capsys)
+    assert main(["run", "--resume", str(tmp_path / "nowhere")]) == 2
+    assert "no such checkpoint" in one_error(capsys)
+    assert main(["run", "--resume", str(folder), "--step", "0.02"]) == 2
+    assert "step cannot change" in one_error(capsys)
+    assert main(["run"]) == 2
+    assert "give a scene" in one_error(capsys)
+
+
+def test_every_point_of_a_sweep_starts_from_the_checkpoint(built, tmp_path, capsys,
+                                                           backend="in-process"):
+    """``dsim sweep --from``: run to 1 s once, then two tolerances from its last
+    checkpoint (0.75 s) to 1.5 s; each point's rows start there with the checkpoint's
+    state (the same first row).  (On Ray: tests/distributed/test_ray_checkpoints.py.)"""
+    from dsim.master.tools.cli import main
+
+    scene = built["ssp"] / "spring_mass_nonlinear.ssp"
+    folder = _checkpoints(built, tmp_path)
+    first = (tmp_path / "run.csv").read_text().splitlines()[76]  # the row at 0.75 s
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(scene), "--from", str(folder), "--stop", "1.5", "--tolerance",
+                 "1e-6,1e-9", "--out", str(out), "--backend", backend]) == 0, \
+        capsys.readouterr().err
+    for point in ("point_001", "point_002"):
+        rows = (out / f"{point}.csv").read_text().splitlines()
+        assert rows[1] == first and rows[-1].startswith("1.5,")
+        started = json.loads((out / f"{point}.stats.json").read_text())["started_from"]
+        assert started["time"] == 0.75
