@@ -7,7 +7,7 @@ import json
 import pytest
 
 import dsim
-from tests.running.test_checkpoints import timeless
+from tests.support.checkpoints import sweep_from_checkpoint, timeless
 
 
 @pytest.mark.parametrize("first, then", [("in-process", "ray"), ("ray", "in-process"),
@@ -45,7 +45,4 @@ def test_a_checkpoint_resumes_on_another_backend_to_the_same_bytes(built, ray_lo
 def test_every_point_of_a_sweep_on_ray_starts_from_the_checkpoint(built, ray_local,
                                                                   tmp_path, capsys):
     """The checkpoint read once by the driver travels to each point's worker."""
-    from tests.running.test_checkpoints import \
-        test_every_point_of_a_sweep_starts_from_the_checkpoint as sweep_from
-
-    sweep_from(built, tmp_path, capsys, backend="ray")
+    sweep_from_checkpoint(built, tmp_path, capsys, "ray")

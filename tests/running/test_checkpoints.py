@@ -21,20 +21,10 @@ import pytest
 import dsim
 from dsim.master.errors import InputError
 from tests.support.paths import DSIM
+from tests.support.checkpoints import checkpoints_of, sweep_from_checkpoint, timeless
 from tests.support.scenes import archive_scene
 
 needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
-
-
-def timeless(statistics):
-    """The statistics without what a clock measured and what says how the run went
-    on (checkpoints written, the checkpoint resumed from)."""
-    if isinstance(statistics, dict):
-        return {k: timeless(v) for k, v in statistics.items()
-                if "seconds" not in k and k not in ("phases", "checkpoints", "resumed")}
-    if isinstance(statistics, list):
-        return [timeless(v) for v in statistics]
-    return statistics
 
 
 def resumed_from_each(scene, folder: Path, every: float, **settings) -> int:
@@ -188,16 +178,6 @@ def test_a_run_killed_with_sigkill_at_a_random_point_resumes_to_the_same_bytes(
     assert statistics["resumed"]["time"] < stop
 
 
-def _checkpoints(built, tmp_path, **settings) -> Path:
-    """A run of spring_mass_nonlinear to 1 s with a checkpoint every 0.25 s, all kept:
-    its checkpoint folder."""
-    result = dsim.simulate(built["ssp"] / "spring_mass_nonlinear.ssp", stop=1.0,
-                           out=tmp_path / "run.csv", checkpoint_every=0.25,
-                           checkpoint_keep=10, handle_signals=False, **settings)
-    assert result.status == "completed"
-    return tmp_path / "run.checkpoints"
-
-
 def test_the_last_checkpoints_are_kept_each_whole(built, tmp_path):
     result = dsim.simulate(built["ssp"] / "spring_mass_nonlinear.ssp", stop=1.0,
                            out=tmp_path / "run.csv", checkpoint_every=0.1,
@@ -215,7 +195,7 @@ def test_the_last_checkpoints_are_kept_each_whole(built, tmp_path):
 
 def test_a_damaged_checkpoint_is_refused_and_a_folder_falls_back_to_the_one_before(
         built, tmp_path, capsys):
-    folder = _checkpoints(built, tmp_path)
+    folder = checkpoints_of(built, tmp_path)
     last = sorted(folder.iterdir())[-1]
     data = bytearray((last / "arrays.npz").read_bytes())
     data[len(data) // 2] ^= 0x01
@@ -233,7 +213,7 @@ def test_a_damaged_checkpoint_is_refused_and_a_folder_falls_back_to_the_one_befo
 def test_a_checkpoint_of_another_version_or_a_changed_fmu_is_refused(built, tmp_path):
     scene = tmp_path / "scene.ssp"
     shutil.copy(built["ssp"] / "spring_mass_nonlinear.ssp", scene)
-    folder = _checkpoints(built, tmp_path / "a")
+    folder = checkpoints_of(built, tmp_path / "a")
     checkpoint = sorted(folder.iterdir())[0]
     manifest = json.loads((checkpoint / "manifest.json").read_text())
     (checkpoint / "manifest.json").write_text(json.dumps({**manifest, "dsim": "0.0.1"}))
@@ -253,14 +233,14 @@ def test_a_checkpoint_of_another_version_or_a_changed_fmu_is_refused(built, tmp_
 
 
 def test_a_checkpoint_of_another_scene_is_refused_for_a_new_run(built, tmp_path):
-    folder = _checkpoints(built, tmp_path)
+    folder = checkpoints_of(built, tmp_path)
     with pytest.raises(InputError, match="is not the scene of the checkpoint's run"):
         dsim.simulate(built["ssp"] / "spring_mass_linear.ssp", start_from=folder,
                       out=tmp_path / "other.csv", handle_signals=False)
 
 
 def test_a_resumed_run_goes_on_with_its_own_settings(built, tmp_path):
-    folder = _checkpoints(built, tmp_path)
+    folder = checkpoints_of(built, tmp_path)
     with pytest.raises(InputError, match="tolerance cannot change"):
         dsim.simulate(resume=folder, tolerance=1e-3, handle_signals=False)
 
@@ -271,7 +251,7 @@ def test_a_crafted_checkpoint_runs_no_code(built, tmp_path):
     import hashlib
     import io
 
-    folder = _checkpoints(built, tmp_path)
+    folder = checkpoints_of(built, tmp_path)
     checkpoint = sorted(folder.iterdir())[0]
     marker = tmp_path / "ran"
 
@@ -320,7 +300,7 @@ def test_fmus_that_cannot_serialize_their_state_are_refused_in_one_line(tmp_path
 def test_a_new_run_from_a_checkpoint_starts_at_its_time(built, tmp_path):
     """``--from`` with a later stop: the rows from the checkpoint on are the original
     run's (the same state, the same steps); a fixed parameter that differs is refused."""
-    folder = _checkpoints(built, tmp_path)
+    folder = checkpoints_of(built, tmp_path)
     checkpoint = folder / "step-0000000050"
     result = dsim.simulate(start_from=checkpoint, stop=1.0, out=tmp_path / "from.csv",
                            handle_signals=False)
@@ -386,7 +366,7 @@ def test_resume_refuses_what_it_cannot_honour_in_one_line(built, tmp_path, capsy
     from tests.support.runs import one_error
     from dsim.master.tools.cli import main
 
-    folder = _checkpoints(built, tmp_path)
+    folder = checkpoints_of(built, tmp_path)
     assert main(["run", "--resume", str(folder), "--out", str(tmp_path / "x.csv")]) == 2
     assert "--out cannot be given with it" in one_error(capsys)
     assert main(["run", "--resume", str(tmp_path / "nowhere")]) == 2
@@ -397,22 +377,6 @@ def test_resume_refuses_what_it_cannot_honour_in_one_line(built, tmp_path, capsy
     assert "give a scene" in one_error(capsys)
 
 
-def test_every_point_of_a_sweep_starts_from_the_checkpoint(built, tmp_path, capsys,
-                                                           backend="in-process"):
-    """``dsim sweep --from``: run to 1 s once, then two tolerances from its last
-    checkpoint (0.75 s) to 1.5 s; each point's rows start there with the checkpoint's
-    state (the same first row).  (On Ray: tests/distributed/test_ray_checkpoints.py.)"""
-    from dsim.master.tools.cli import main
-
-    scene = built["ssp"] / "spring_mass_nonlinear.ssp"
-    folder = _checkpoints(built, tmp_path)
-    first = (tmp_path / "run.csv").read_text().splitlines()[76]  # the row at 0.75 s
-    out = tmp_path / "sweep"
-    assert main(["sweep", str(scene), "--from", str(folder), "--stop", "1.5", "--tolerance",
-                 "1e-6,1e-9", "--out", str(out), "--backend", backend]) == 0, \
-        capsys.readouterr().err
-    for point in ("point_001", "point_002"):
-        rows = (out / f"{point}.csv").read_text().splitlines()
-        assert rows[1] == first and rows[-1].startswith("1.5,")
-        started = json.loads((out / f"{point}.stats.json").read_text())["started_from"]
-        assert started["time"] == 0.75
+def test_every_point_of_a_sweep_starts_from_the_checkpoint(built, tmp_path, capsys):
+    """``dsim sweep --from`` (on Ray: tests/distributed/test_ray_checkpoints.py)."""
+    sweep_from_checkpoint(built, tmp_path, capsys, "in-process")
