@@ -1,4 +1,4 @@
-"""``python -m dsim``: the command line."""
-from dsim.master.tools.cli import console
+"""``python -m dsim``: the command line (``dsim run`` under its supervising process)."""
+from dsim.master.tools.supervisor import console
 
 console()

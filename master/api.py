@@ -22,7 +22,7 @@ from dsim.master.recording.observers import (CsvRecorder, MatWriter, PlotWriter,
 from dsim.master.reading.checkpoint_files import find_checkpoint
 from dsim.master.recording.checkpoints import CheckpointFolder, checkpoints_beside
 from dsim.master.recording.results import RunResult, statistics_path
-from dsim.master.running.backends.base import BACKEND_OPTIONS
+from dsim.master.running.backends.base import BACKEND_OPTIONS, RUN_OPTIONS
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.checkpointing import Checkpointer
@@ -121,7 +121,8 @@ def _prepare(scene, load_libraries, strict, parameters, outputs, output_interval
     if settings.get("step") is not None:  # said by dsim info and validate
         changes["step_from"] = "the step setting (--step)"
     return make_plan(replace(scene, **changes), options.get("backend", "in-process"),
-                     {key: options.get(key) for key in BACKEND_OPTIONS}, load_libraries, strict,
+                     {key: options.get(key) for key in (*BACKEND_OPTIONS, *RUN_OPTIONS)},
+                     load_libraries, strict,
                      outputs, output_interval, substeps)
 
 

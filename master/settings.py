@@ -106,8 +106,9 @@ SETTINGS = {s.keyword: s for s in (
     Setting("restarts", None, int, "non-negative",
             "workers of the ray or isolated backend started again, at most, when one is "
             "lost (killed, or gone with its node): its FMUs go on from the last converged "
-            "step on a node that is left; 0: a lost worker ends the run (exit 1); "
-            "default: 3"),
+            "step on a node that is left; 0: a lost worker ends the run (exit 1); and, "
+            "with --checkpoint-every, times dsim run's process is started again from the "
+            "last checkpoint when it dies (docs/checkpoints.md); default: 3"),
     Setting("parameter_set", None, str, "text",
             "a parameter set of the scene applied on top of its bindings: an .ssv file's "
             "path in the scene or a ParameterSet's name"),

@@ -25,6 +25,8 @@ from dsim.master.reading.parameter_input import given_parameters
 from dsim.master.reading.input_tables import read_table
 from dsim.master.reading.scenario_files import read_scenario
 from dsim.master.reading.checkpoint_files import find_checkpoint
+from dsim.master.recording.checkpoints import checkpoints_beside
+from dsim.master.recording.results import statistics_path
 from dsim.master.recording.observers import ProgressBar
 from dsim.master.running.backends import log_lines
 from dsim.master.running.timeline import span_note
@@ -37,6 +39,7 @@ from dsim.master.sweeps.sensitivity import (SPANS_ZERO, SPANS_ZERO_TEXT, Index,
 from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, read_sweep_file,
                                       run_sweep)
 from dsim.master.sweeps.table import STATES, count_states, state
+from dsim.master.tools import supervisor
 from dsim.master.tools.info import scene_info
 from dsim.master.tools.plot import overlay_files
 from dsim.master.tools.process_exit import end_process
@@ -125,10 +128,21 @@ def _cmd_run(args) -> int:
                              f"{settings['backend']}")
         settings["backend"] = "isolated"
     progress = ProgressBar(Path(args.scene).stem)
+    _report(args.scene, out, args)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
                       force=args.force, strict=args.strict, **_checkpoint_choices(args),
                       **_run_choices(args), **settings)
     return _said(result, args, progress)
+
+
+def _report(scene, out: Path, args, checkpoints=None) -> None:
+    """Tell a supervising process (master/tools/supervisor.py) where the run's files
+    are, so that it can finish them if this process dies."""
+    if checkpoints is None and args.checkpoint_every is not None:
+        checkpoints = args.checkpoints or checkpoints_beside(out)
+    supervisor.report(csv=Path(out).resolve(), statistics=statistics_path(out).resolve(),
+                      checkpoints=None if checkpoints is None else Path(checkpoints).resolve(),
+                      scene=scene)
 
 
 def _checkpoint_choices(args) -> dict:
@@ -149,6 +163,11 @@ def _cmd_run_checkpoint(args) -> int:
             raise InputError(f"--resume goes on writing the run's own files: "
                              f"{', '.join(given)} cannot be given with it")
         progress = ProgressBar(Path(args.resume).name)
+        found = find_checkpoint(args.resume)
+        outputs = (found.manifest.get("request") or {}).get("outputs") or {}
+        if outputs.get("out"):
+            _report(found.manifest.get("scene"), Path(outputs["out"]), args,
+                    checkpoints=found.folder.parent)
         result = simulate(args.scene, observers=[progress], resume=args.resume,
                           checkpoint_keep=args.checkpoint_keep,
                           **{k: v for k, v in settings.items() if v is not None})
@@ -158,6 +177,7 @@ def _cmd_run_checkpoint(args) -> int:
     out = Path(args.out or f"{Path(scene).stem}_from_{found.time:g}s.csv")
     choices = {k: v for k, v in _run_choices(args).items() if v not in (None, {}, [], False)}
     progress = ProgressBar(Path(scene).stem)
+    _report(scene, out, args)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
                       force=args.force, start_from=found.folder, **_checkpoint_choices(args),
                       **choices, **{k: v for k, v in settings.items() if v is not None})
@@ -548,6 +568,10 @@ def _add_run(commands) -> None:
                             help="go on from the last whole checkpoint in FOLDER (or from "
                             "the checkpoint FOLDER): the same run, its own scene, settings "
                             "and files; the results are the bytes of a run never stopped")
+    run_parser.add_argument("--no-supervisor", action="store_true",
+                            help="step the run in the dsim process itself, with no small "
+                            "process beside it to finish its files if it is killed "
+                            "(docs/results.md)")
     run_parser.add_argument("--from", dest="start_from", metavar="CHECKPOINT",
                             help="a new run starting from a checkpoint's state and time, "
                             "with its run's scene and settings and what is given here on "

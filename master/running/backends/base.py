@@ -9,9 +9,11 @@ from abc import ABC, abstractmethod
 BACKEND_OPTIONS = {"address": "only the ray backend takes it (--backend ray)",
                    "call_timeout": "only the ray and isolated backends take it (--backend "
                                    "ray, --isolate): an FMU in dsim's own process cannot be "
-                                   "stopped",
-                   "restarts": "only the ray and isolated backends take it (--backend ray, "
-                               "--isolate): they start a lost worker again"}
+                                   "stopped"}
+#: settings every backend takes that its run's process uses: ``restarts`` (lost
+#: workers of the ray and isolated backends started again; with checkpoints, the
+#: process of ``dsim run`` started again by its supervisor from the last one)
+RUN_OPTIONS = ("restarts",)
 
 
 class Backend(ABC):
@@ -32,7 +34,8 @@ class Backend(ABC):
         """What is wrong with running on this backend with ``options`` (the run
         options that are not master settings, such as ``address``), one line each."""
         return [f"setting {key}: {BACKEND_OPTIONS[key]}"
-                for key, value in options.items() if value is not None]
+                for key, value in options.items() if value is not None
+                and key in BACKEND_OPTIONS]
 
     @classmethod
     def ahead(cls, settings: dict) -> None:
