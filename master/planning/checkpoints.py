@@ -86,8 +86,7 @@ def read_files(plan, settings: dict) -> dict:
 def manifest_of_run(plan, request, settings: dict, every: float) -> dict:
     """What every checkpoint of a run says of it besides its step."""
     return {"dsim": __version__, "scene": plan.scene.name, "every": every,
-            "request": request, "files": {},  # (the checkpoint's own, set when written)
-            "read": read_files(plan, settings),
+            "request": request, "read": read_files(plan, settings),
             "parameters": {spec.name: {name: repr(value)
                                        for name, value in sorted(spec.parameters.items())}
                            for spec in plan.specs}}

@@ -39,7 +39,7 @@ from dsim.master.sweeps.sensitivity import (SPANS_ZERO, SPANS_ZERO_TEXT, Index,
 from dsim.master.sweeps.sweep import (Sweep, TIGHTEST, cheapest, command_line, read_sweep_file,
                                       run_sweep)
 from dsim.master.sweeps.table import STATES, count_states, state
-from dsim.master.tools import supervisor
+from dsim.master.tools import supervised
 from dsim.master.tools.info import scene_info
 from dsim.master.tools.plot import overlay_files
 from dsim.master.tools.process_exit import end_process
@@ -140,7 +140,7 @@ def _report(scene, out: Path, args, checkpoints=None) -> None:
     are, so that it can finish them if this process dies."""
     if checkpoints is None and args.checkpoint_every is not None:
         checkpoints = args.checkpoints or checkpoints_beside(out)
-    supervisor.report(csv=Path(out).resolve(), statistics=statistics_path(out).resolve(),
+    supervised.report(csv=Path(out).resolve(), statistics=statistics_path(out).resolve(),
                       checkpoints=None if checkpoints is None else Path(checkpoints).resolve(),
                       scene=scene)
 

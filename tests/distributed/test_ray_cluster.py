@@ -447,6 +447,27 @@ def test_the_heads_raylet_lost_mid_run_leaves_a_failed_runs_files(built, tmp_pat
     assert not list(tmp_path.glob(".*partial"))
 
 
+def test_a_ray_run_whose_process_is_killed_goes_on_from_its_checkpoint(built, cluster,
+                                                                      tmp_path):
+    """A run on the cluster with checkpoints, its stepping process (the Ray driver)
+    killed with SIGKILL at a random moment: dsim run's supervisor starts it again from
+    the last checkpoint on the cluster; the CSV is the in-process run's never stopped,
+    byte for byte, and the statistics but for where it ran and the restart."""
+    from tests.support.checkpoints import killed_and_resumed, timeless
+
+    (reference, expected), (out, statistics) = killed_and_resumed(
+        built["ssp"] / "spring_mass_nonlinear.ssp", tmp_path, 30.0, 2.0, "--backend", "ray",
+        "--address", cluster["address"], stepping=True, env=cluster["env"])
+    assert out == reference
+    assert statistics["backend"] == "ray" and len(statistics["restarts"]) == 1
+    for stats in (statistics, expected):
+        for key in ("backend", "restarts", "lost_workers"):
+            stats.pop(key, None)
+        stats["components"] = {name: (c["do_steps"], c["state_saves"], c["state_restores"])
+                               for name, c in stats["components"].items()}
+    assert timeless(statistics) == timeless(expected)
+
+
 def sweep_losing_a_node(built, cluster, folder: Path, *options) -> tuple[list, dict]:
     """Three points on three nodes of one CPU each (the module's two and a third that
     joins for this sweep); the third node is lost while they run.  The command and the

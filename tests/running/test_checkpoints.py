@@ -5,12 +5,9 @@ strong, the error-controlled step), on FE bodies, Model Exchange and FMI 3.0 FMU
 scenario's state; a run killed with SIGKILL at a random point and resumed; a new run
 from a checkpoint (--from) with a tunable parameter changed."""
 import json
-import os
-import random
 import shutil
 import signal
 import subprocess
-import sys
 import time
 import zipfile
 from pathlib import Path
@@ -21,7 +18,8 @@ import pytest
 import dsim
 from dsim.master.errors import InputError
 from tests.support.paths import DSIM
-from tests.support.checkpoints import checkpoints_of, sweep_from_checkpoint, timeless
+from tests.support.checkpoints import (checkpoints_of, killed_and_resumed,
+                                       sweep_from_checkpoint, timeless)
 from tests.support.scenes import archive_scene
 
 needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
@@ -151,31 +149,31 @@ def test_a_run_killed_with_sigkill_at_a_random_point_resumes_to_the_same_bytes(
     """``dsim run --checkpoint-every``, killed with SIGKILL once a checkpoint is on the
     disk (at a random moment after), then ``dsim run --resume``: the CSV and the
     statistics (but for seconds) of the same run never stopped."""
-    path = built["ssp"] / f"{scene}.ssp"
     stop, every = {"spring_mass_nonlinear": (20.0, 2.0), "frame_split": (0.2, 0.02)}[scene]
-    reference = tmp_path / "reference" / "run.csv"
-    done = _dsim("run", path, "--stop", stop, "--out", reference, "--checkpoint-every",
-                 every, "--quiet")
-    assert done.returncode == 0, done.stderr
-    out = tmp_path / "killed" / "run.csv"
-    process = subprocess.Popen([*DSIM, "run", str(path), "--stop", str(stop), "--out",
-                                str(out), "--checkpoint-every", str(every), "--quiet"],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    folder = out.with_name("run.checkpoints")
-    deadline = time.monotonic() + 120
-    while not (folder.is_dir() and any(folder.glob("step-*"))):
-        assert process.poll() is None and time.monotonic() < deadline, "no checkpoint"
-        time.sleep(0.02)
-    time.sleep(random.uniform(0.0, 0.5))
-    process.send_signal(signal.SIGKILL)
-    process.wait()
-    resumed = _dsim("run", "--resume", folder, "--quiet")
-    assert resumed.returncode == 0, resumed.stderr
-    assert out.read_bytes() == reference.read_bytes()
-    statistics = json.loads(out.with_name("run.stats.json").read_text())
-    assert timeless(statistics) == timeless(json.loads(
-        reference.with_name("run.stats.json").read_text()))
+    (reference, expected), (out, statistics) = killed_and_resumed(
+        built["ssp"] / f"{scene}.ssp", tmp_path, stop, every)
+    assert out == reference
+    assert timeless(statistics) == timeless(expected)
     assert statistics["resumed"]["time"] < stop
+
+
+@needs_gcc
+@pytest.mark.parametrize("stepping", [False, True], ids=["dsim-killed", "child-killed"])
+def test_a_model_exchange_run_killed_with_sigkill_resumes_to_the_same_bytes(
+        kinds, tmp_path, stepping):
+    """Two C oscillators glued as Model Exchange FMUs, integrated by dsim: dsim killed
+    and resumed, or its stepping process killed and started again by the supervisor."""
+    fmu = kinds("oscillator", "2.0")
+    path = archive_scene(tmp_path / "pair.ssp",
+                         {"a": (fmu, "ModelExchange", POSITION), "b": (fmu, "ModelExchange", "")},
+                         gluing='<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="fixed"/>',
+                         master='tolerance="1e-10"', step=0.01, stop=1.0)
+    (reference, expected), (out, statistics) = killed_and_resumed(
+        path, tmp_path, 40.0, 2.0, stepping=stepping)
+    assert out == reference
+    assert timeless(statistics) == timeless(expected)
+    if stepping:
+        assert statistics["restarts"][0]["ended"] == "killed by SIGKILL"
 
 
 def test_the_last_checkpoints_are_kept_each_whole(built, tmp_path):

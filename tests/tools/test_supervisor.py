@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from dsim.master.running.interrupts import descendants
+from tests.support.checkpoints import stepping_process
 from tests.support.paths import DSIM, ROOT
 from tests.support.scenes import oscillator_scene
 from tests.support.third_party.build import OSCILLATOR_VARIABLES, c_fmu
@@ -21,22 +22,6 @@ from tests.support.third_party.build import OSCILLATOR_VARIABLES, c_fmu
 def start(*args) -> subprocess.Popen:
     return subprocess.Popen([*DSIM, "run", *map(str, args), "--quiet"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-
-def stepping_process(supervisor: subprocess.Popen) -> int:
-    """The pid of the child that steps the run (``python -m dsim run`` below the
-    supervisor)."""
-    deadline = time.monotonic() + 60
-    while True:
-        for pid in descendants(supervisor.pid):
-            try:
-                argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-            except OSError:
-                continue
-            if b"dsim" in argv and b"run" in argv:
-                return pid
-        assert supervisor.poll() is None and time.monotonic() < deadline
-        time.sleep(0.02)
 
 
 def rows_written(target: Path, process, count: int) -> None:
