@@ -168,7 +168,7 @@ def _cmd_run_checkpoint(args) -> int:
         if outputs.get("out"):
             _report(found.manifest.get("scene"), Path(outputs["out"]), args,
                     checkpoints=found.folder.parent)
-        result = simulate(args.scene, observers=[progress], resume=args.resume,
+        result = simulate(args.scene, observers=[progress], resume=found,
                           checkpoint_keep=args.checkpoint_keep,
                           **{k: v for k, v in settings.items() if v is not None})
         return _said(result, args, progress)
@@ -179,7 +179,7 @@ def _cmd_run_checkpoint(args) -> int:
     progress = ProgressBar(Path(scene).stem)
     _report(scene, out, args)
     result = simulate(args.scene, out=out, plot=args.plot, mat=args.mat, observers=[progress],
-                      force=args.force, start_from=found.folder, **_checkpoint_choices(args),
+                      force=args.force, start_from=found, **_checkpoint_choices(args),
                       **choices, **{k: v for k, v in settings.items() if v is not None})
     return _said(result, args, progress)
 

@@ -154,20 +154,31 @@ def _last_checkpoint(folder) -> tuple[str, float] | None:
     return None
 
 
-def _last_row(path: str) -> tuple[int, float | None]:
-    """Rows (after the header) of the CSV at ``path`` and the time of the last one."""
+def _last_row(path) -> tuple[int, float | None]:
+    """Whole rows (after the header) of the CSV at ``path`` and the time of the last
+    one, read in chunks (a results file may be larger than the supervisor's memory
+    should hold; a half row at its end is not counted)."""
+    lines, ends, offset = 0, [-1, -1], 0  # the offsets of the last two line ends
     try:
         with open(path, "rb") as stream:
-            data = stream.read()
+            while chunk := stream.read(1 << 20):
+                count = chunk.count(b"\n")
+                if count:
+                    lines += count
+                    last = chunk.rfind(b"\n")
+                    before = chunk.rfind(b"\n", 0, last)
+                    ends = [offset + before if before >= 0 else ends[1], offset + last]
+                offset += len(chunk)
+            if lines < 2:
+                return 0, None
+            stream.seek(ends[0] + 1)
+            first = stream.read(64).split(b",", 1)[0]
     except OSError:
         return 0, None
-    lines = data.splitlines()
-    if len(lines) < 2:
-        return 0, None
     try:
-        return len(lines) - 1, float(lines[-1].split(b",", 1)[0])
+        return lines - 1, float(first)
     except ValueError:
-        return len(lines) - 1, None
+        return lines - 1, None
 
 
 def _unfinished(files: dict) -> bool:
@@ -250,12 +261,13 @@ def supervise(argv) -> int:
                 print(f"dsim: the run's process ended ({_ended(code)})", file=sys.stderr)
                 return 128 - code
             return code
-        _, reached = _last_row(f"{os.path.dirname(files['csv']) or '.'}/."
-                               f"{os.path.basename(files['csv'])}.partial")
         found = _last_checkpoint(files.get("checkpoints"))
         if found is None or len(restarts) >= allowed:
             print(_finish(files, code, restarts), file=sys.stderr)
             return 1
+        from dsim.master.recording.output_files import partial_of
+
+        _, reached = _last_row(partial_of(files["csv"]))
         restarts.append({"ended": _ended(code), "time_reached": reached,
                          "resumed_from": os.path.basename(found[0]), "time": found[1]})
         print(f"dsim: the process stepping the run ended ({_ended(code)})"
