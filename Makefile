@@ -31,28 +31,34 @@ demo: fmus
 # works on a copy of the checkout; dsim serve binds free ports).  `make test-serial` is
 # the same suite in one process.
 PYTEST = OMP_NUM_THREADS=1 $(BIN)/pytest
-NICE_PYTEST = OMP_NUM_THREADS=1 nice -n 10 $(BIN)/pytest
+NICE_PYTEST = OMP_NUM_THREADS=1 nice -n 19 $(BIN)/pytest
 QUICK = not (wheel or kernels or ray or browser or fuzz or slow)
 BESIDE = ray
 REST_B = tests/fmus tests/checks tests/sweeps tests/house tests/tools
 
 test: fmus browser
-	@mkdir -p results && rm -f results/test-beside.log results/test-rest-b.log
+	@mkdir -p results && rm -f results/test-*.log results/junit-*.xml
 	@$(MAKE) --no-print-directory -j3 -k test-beside test-rest test-rest-b; status=$$?; \
 	  for half in rest-b beside; do \
 	    echo "=== the tests of results/test-$$half.log (run at the same time):"; \
-	    cat results/test-$$half.log; done; exit $$status
+	    cat results/test-$$half.log; done; \
+	  echo "=== where the time went (seconds per process, folder and file):"; \
+	  $(BIN)/python -m tests.support.timing results/junit-rest.xml results/junit-rest-b.xml \
+	    results/junit-beside.xml; exit $$status
 
 # the three parts of `make test` (they expect its set-up: use `make test`)
 test-rest:
-	$(NICE_PYTEST) -q -rs --durations=20 -m "not ($(BESIDE))" tests $(REST_B:%=--ignore=%)
+	$(NICE_PYTEST) -q -rs --durations=20 --junitxml=results/junit-rest.xml \
+	  -m "not ($(BESIDE))" tests $(REST_B:%=--ignore=%)
 test-rest-b:
 	@echo "make: the tests of $(REST_B) -m 'not ($(BESIDE))' run beside, into results/test-rest-b.log"
-	@$(NICE_PYTEST) -q -rs --durations=20 -m "not ($(BESIDE))" -p no:cacheprovider \
+	@$(NICE_PYTEST) -q -rs --durations=20 --junitxml=results/junit-rest-b.xml \
+	  -m "not ($(BESIDE))" -p no:cacheprovider \
 	  $(REST_B) >results/test-rest-b.log 2>&1
 test-beside:
 	@echo "make: the tests -m '$(BESIDE)' run beside, into results/test-beside.log"
-	@$(PYTEST) -q -rs --durations=15 -m "$(BESIDE)" -p no:cacheprovider >results/test-beside.log 2>&1
+	@$(PYTEST) -q -rs --durations=15 --junitxml=results/junit-beside.xml -m "$(BESIDE)" \
+	  -p no:cacheprovider >results/test-beside.log 2>&1
 
 test-serial: fmus browser
 	$(PYTEST) -q -rs --durations=25

@@ -77,6 +77,32 @@ def pytest_unconfigure(config):
     os._exit(int(status))
 
 
+def _cpu_seconds() -> float:
+    """CPU seconds of this process and of the processes it started and waited for."""
+    import resource
+
+    return sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
+               for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    item._dsim_cpu_start = _cpu_seconds()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """The CPU seconds of each test, set-up and tear-down included, as the property
+    ``cpu`` in the JUnit XML `make test` writes (tests/support/timing.py sums it): on
+    two cores the suite is bound by the CPU, so what a test costs the others is its CPU,
+    not its wall time.  Processes a test leaves running (a Ray node) are not counted."""
+    outcome = yield
+    start = getattr(item, "_dsim_cpu_start", None)
+    if call.when == "teardown" and start is not None:
+        outcome.get_result().user_properties.append(
+            ("cpu", round(_cpu_seconds() - start, 3)))
+
+
 def pytest_sessionfinish(session, exitstatus):
     session.config._dsim_exit_status = exitstatus
 

@@ -149,7 +149,7 @@ def test_a_run_killed_with_sigkill_at_a_random_point_resumes_to_the_same_bytes(
     """``dsim run --checkpoint-every``, killed with SIGKILL once a checkpoint is on the
     disk (at a random moment after), then ``dsim run --resume``: the CSV and the
     statistics (but for seconds) of the same run never stopped."""
-    stop, every = {"spring_mass_nonlinear": (20.0, 2.0), "frame_split": (0.2, 0.02)}[scene]
+    stop, every = {"spring_mass_nonlinear": (20.0, 2.0), "frame_split": (0.1, 0.01)}[scene]
     (reference, expected), (out, statistics) = killed_and_resumed(
         built["ssp"] / f"{scene}.ssp", tmp_path, stop, every)
     assert out == reference
@@ -169,7 +169,7 @@ def test_a_model_exchange_run_killed_with_sigkill_resumes_to_the_same_bytes(
                          gluing='<glue:Joint name="j" a="a.P" b="b.P" dofs="x" kind="fixed"/>',
                          master='tolerance="1e-10"', step=0.01, stop=1.0)
     (reference, expected), (out, statistics) = killed_and_resumed(
-        path, tmp_path, 40.0, 2.0, stepping=stepping)
+        path, tmp_path, 16.0, 2.0, stepping=stepping)
     assert out == reference
     assert timeless(statistics) == timeless(expected)
     if stepping:

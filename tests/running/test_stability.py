@@ -116,21 +116,21 @@ def test_a_step_newton_cannot_finish_is_cut_and_the_run_passes(built):
 
 def test_fixed_joints_pass_the_four_bar_singular_points_on_the_penalized_measure(built):
     """Table 5.1's fixed four bar fails on the displacement measure under the
-    trapezoidal rule (tests/fmus/test_linkage_scenes.py); on the penalized one it passes all
-    four collinear positions and equals the monolithic four bar; at H = 0.005 s steps land exactly
-    on them, where the gluing matrix loses rank and Newton solves in the
-    least-squares sense."""
+    trapezoidal rule (tests/fmus/test_linkage_scenes.py); on the penalized one it passes
+    both kinds of collinear position (crank and coupler folded at 0.375 s, stretched at
+    0.875 s; the second turn repeats them) and equals the monolithic four bar; at
+    H = 0.005 s steps land exactly on them, where the gluing matrix loses rank and Newton
+    solves in the least-squares sense."""
     scene = built["ssp"] / "four_bar_singular_penalized.ssp"
     twin = read_columns(dsim.load_scene(scene).reference)
-    on_grid = dsim.simulate(scene)
+    on_grid = dsim.simulate(scene, stop=1.0)
     assert on_grid.status == "completed"
     assert error_against(on_grid.signals, twin, ["A.f_x", "A.f_y"]) < 1e-8
-    landing = dsim.simulate(scene, step=0.005)
+    landing = dsim.simulate(scene, step=0.005, stop=1.0)
     assert landing.status == "completed"
-    assert landing.statistics["least_squares_steps"] == 4
+    assert landing.statistics["least_squares_steps"] == 2
     assert [w.split(":")[0] for w in landing.warnings] == [
-        f"step {k} (t = {t} s)" for k, t in ((75, 0.375), (175, 0.875), (275, 1.375),
-                                               (375, 1.875))]
+        f"step {k} (t = {t} s)" for k, t in ((75, 0.375), (175, 0.875))]
     # the step that lands on the singular point leaves the axial split of the joint
     # forces where the predictor had it: a dip of under 2 % of the peak force there
     force = np.hypot(landing["A.f_x"], landing["A.f_y"])
@@ -174,17 +174,17 @@ def test_a_macro_step_above_the_shortest_period_stays_with_the_twin(built, tmp_p
 
 
 def test_undamped_energy_drifts_no_more_than_the_twins(built, tmp_path):
-    """1e4 undamped steps of a free vibration: the trapezoidal rule keeps the energy of
-    the linear twin to round-off, and the iterative coupling keeps it as well; the
-    explicit one leaks it."""
+    """3,000 undamped steps of a free vibration: the trapezoidal rule keeps
+    the energy of the linear twin to round-off, and the iterative coupling keeps it as
+    well (1e-14 of it measured); the explicit one leaks it (1.4 % measured)."""
     from examples.testbed import Testbed, energy
 
     bed = Testbed(F0=0.0, x0=0.01, k0=1e4, c0=0.0)
-    result, twin, error = run_testbed(bed, tmp_path, 1e-3, 10.0)
+    result, twin, error = run_testbed(bed, tmp_path, 1e-3, 3.0)
     glued, reference = energy(bed, result.signals), energy(bed, twin)
     assert np.max(np.abs(glued - glued[0])) < 1e-10 * reference[0]
     assert error < 1e-9
-    explicit, _, _ = run_testbed(bed, tmp_path, 1e-3, 10.0, coupling="explicit")
+    explicit, _, _ = run_testbed(bed, tmp_path, 1e-3, 3.0, coupling="explicit")
     leaked = energy(bed, explicit.signals)
     assert np.max(np.abs(leaked - leaked[0])) > 1e-4 * reference[0]
 

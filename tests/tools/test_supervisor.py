@@ -83,14 +83,9 @@ def test_with_checkpoints_the_run_goes_on_by_itself(built, tmp_path, restarts):
     last one (one line says so) to the bytes of the run never stopped, the restart in
     its statistics; ``--restarts 0``: a failed run's files instead."""
     scene = built["ssp"] / "spring_mass_nonlinear.ssp"
-    reference = tmp_path / "reference" / "run.csv"
-    done = subprocess.run([*DSIM, "run", str(scene), "--stop", "200", "--out",
-                           str(reference), "--quiet", "--no-supervisor"], cwd=ROOT,
-                          capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
     target = tmp_path / "run.csv"
     options = [] if restarts is None else ["--restarts", restarts]
-    process = start(scene, "--stop", 200, "--out", target, "--checkpoint-every", 20, *options)
+    process = start(scene, "--stop", 40, "--out", target, "--checkpoint-every", 8, *options)
     folder = tmp_path / "run.checkpoints"
     deadline = time.monotonic() + 120
     while len(list(folder.glob("step-*"))) < 2:
@@ -102,6 +97,11 @@ def test_with_checkpoints_the_run_goes_on_by_itself(built, tmp_path, restarts):
     if restarts == 0:
         assert process.returncode == 1 and stats["status"] == "failed", err
         return
+    reference = tmp_path / "reference" / "run.csv"
+    done = subprocess.run([*DSIM, "run", str(scene), "--stop", "40", "--out",
+                           str(reference), "--quiet", "--no-supervisor"], cwd=ROOT,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
     assert process.returncode == 0, err
     [line] = err.splitlines()
     assert "(killed by SIGKILL)" in line and "going on from its checkpoint at t = " in line
