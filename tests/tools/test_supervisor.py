@@ -77,6 +77,41 @@ def test_an_fmu_that_ends_its_process_leaves_a_failed_runs_files(built, tmp_path
     assert 1.0 < last <= 7.999
 
 
+def test_an_out_of_memory_kill_of_the_stepping_process_leaves_a_failed_runs_files(
+        built, tmp_path):
+    """The real thing: the stepping process moved into a memory cgroup of 256 MiB, then
+    its C FMU allocates without end (oscillator.c with HOG): the kernel's out-of-memory
+    killer ends it, and the supervisor finishes the files as for any SIGKILL: every
+    whole row, the statistics saying so, one line, exit 1."""
+    from tests.support.memory_limit import memory_limit
+
+    fmu = c_fmu(tmp_path / "c", "oscillator", "oscillator.c", OSCILLATOR_VARIABLES,
+                defines=("HOG",))
+    folder = oscillator_scene(tmp_path / "scene", built, fmu)
+    target, trigger = tmp_path / "run.csv", tmp_path / "allocate-now"
+    with memory_limit(256 << 20) as cgroup:
+        process = subprocess.Popen(
+            [*DSIM, "run", str(folder), "--stop", "1000", "--step", "0.001", "--out",
+             str(target), "--quiet"], cwd=ROOT, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True, env={**os.environ, "OSCILLATOR_HOG": str(trigger)})
+        rows_written(target, process, 200)
+        cgroup.add(stepping_process(process))
+        trigger.touch()
+        _, err = process.communicate(timeout=120)
+        kills = cgroup.oom_kills()
+    assert process.returncode == 1, err
+    assert kills == 1  # the kernel's killer, not the FMU's own end (exit code 71)
+    [line] = err.splitlines()
+    assert "ended without finishing it (killed by SIGKILL) at t = " in line, line
+    lines = target.read_text().splitlines()
+    stats = json.loads(target.with_suffix(".stats.json").read_text())
+    assert (stats["status"], stats["signal"], stats["rows"]) == ("failed", "SIGKILL",
+                                                                len(lines) - 1)
+    assert stats["time_reached"] == float(lines[-1].split(",")[0]) > 0.2
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "allocate-now", "c", "run.csv", "run.stats.json", "scene"]
+
+
 @pytest.mark.parametrize("restarts", [None, 0])
 def test_with_checkpoints_the_run_goes_on_by_itself(built, tmp_path, restarts):
     """The stepping process killed after its second checkpoint: started again from the

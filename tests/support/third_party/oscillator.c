@@ -13,6 +13,11 @@
  * returns, as an FMU stuck in its own solver; with -DHANG_INITIALIZATION
  * fmi2ExitInitializationMode never returns, after creating the file named by the
  * environment variable OSCILLATOR_HUNG (if set), so a test knows when it is stuck.
+ * With -DHOG, once the file named by the environment variable OSCILLATOR_HOG exists,
+ * its next step allocates and touches memory 64 MiB at a time, as an FMU with a runaway
+ * allocation would, until the kernel's out-of-memory killer ends its process; it
+ * gives up at 4 GiB (_exit(71)), so that a test whose memory limit did not hold fails
+ * instead of filling the machine.
  * With -DINTERPOLATE it honours fmi2SetRealInputDerivatives (order 1, F_in only): the
  * force is F(t') = F + dF (t' - t_F) from the time t_F its value or slope was set (a
  * new fmi2SetReal holds it again: dF = 0), and the trapezoidal rule takes it at both
@@ -197,6 +202,19 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h,
 #endif
 #ifdef HANG_TIME
     while (t + h >= HANG_TIME) pause();
+#endif
+#ifdef HOG
+    {
+        const char *trigger = getenv("OSCILLATOR_HOG");
+        if (trigger && access(trigger, F_OK) == 0) {
+            size_t chunk = (size_t)64 << 20;
+            for (int k = 0; k < 64; k++) {
+                char *block = malloc(chunk);
+                if (block) memset(block, 1, chunk);  /* touched: charged to the process */
+            }
+            _exit(71);
+        }
+    }
 #endif
     if (x[VR_HMAX] > 0.0 && h > x[VR_HMAX] * (1.0 + 1e-12)) {
         m->cb.logger(m->cb.componentEnvironment, m->name, fmi2Discard, "logStatusDiscard",
