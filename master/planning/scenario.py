@@ -24,7 +24,11 @@ How each target is reached (:class:`Target`'s ``kind``):
   its unmodified value (``base``) is the value the run started it with (the scene's
   binding or ``--set``, else the FMU's declared start);
 - ``"output"``: a numeric output the run reads after every step (``position`` in the
-  flat outputs): what connected inputs receive and the CSV records is modified.
+  flat outputs): what connected inputs receive and the CSV records is modified;
+- ``"joint"``: a joint's law coefficient (``j1.k0``; ``path`` is the joint's name, the
+  ``model`` of the event): the coupling's joint law is changed between steps (every
+  dof of the joint; ``base``: its value per dof, or one number for the penalized
+  measure's ``xi`` and ``omega``).
 """
 from __future__ import annotations
 
@@ -32,9 +36,12 @@ import math
 import numbers
 from dataclasses import dataclass
 
+import numpy as np
+
 from dsim.master.errors import InputError
 from dsim.master.planning.names import closest
-from dsim.master.planning.parameters import KEPT_TYPE, convert
+from dsim.master.planning.parameters import (JOINT_SCALAR, KEPT_TYPE, NON_NEGATIVE,
+                                             convert, joint_coefficients)
 from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.scenario_files import Scenario, read_scenario
 from dsim.master.running.timeline import step_count
@@ -98,6 +105,8 @@ class ScenarioPlan:
     end_at: float | None
     file: str
     format: str
+    #: joint name -> (its dofs, xi, omega) of every joint a target changes the law of
+    joints: dict = None
 
     def lines(self) -> list[str]:
         """What ``dsim info --scenario`` says: one line per event (when it takes effect,
@@ -107,10 +116,10 @@ class ScenarioPlan:
         for event in self.events:
             target = self.targets[event.target]
             what = "reset" if event.action == "reset" else f"{event.action} {event.value!r}"
+            how = "joint law" if target.kind == "joint" else f"{target.type} {target.kind}" + (
+                f", {target.causality}" if target.kind == "set" else "")
             lines.append(f"  t = {event.time:g} s -> at t = {event.at:.9g} s (point "
-                         f"{event.point}): {target.name} ({target.type} {target.kind}"
-                         f"{', ' + target.causality if target.kind == 'set' else ''}): "
-                         f"{what}")
+                         f"{event.point}): {target.name} ({how}): {what}")
         if self.end is not None:
             lines.append(f"  end t = {self.end:g} s: every modification taken back" + (
                 f" at t = {self.end_at:.9g} s (point {self.end_point})"
@@ -263,7 +272,7 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
     problems = []
     planned = step_count(scene.start_time, scene.stop_time, step)
     index_of = {spec.name: i for i, spec in enumerate(plan.specs)}
-    joints = {joint.name for joint in scene.joints}
+    joints = {joint.name: joint for joint in scene.joints}
     targets: dict[tuple[str, str], int] = {}
     found: list[Target] = []
     events = []
@@ -278,14 +287,33 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
                             f"{scenario.end:g} s, which takes every modification back")
             continue
         index = index_of.get(event.model)
+        if index is None and event.model in joints:
+            key = (event.model, event.variable)
+            if key not in targets:
+                target = _joint_target(joints[event.model], event.variable, where, problems)
+                if target is None:
+                    continue
+                targets[key] = len(found)
+                found.append(target)
+            target = found[targets[key]]
+            if not _declared_matches(event, target, where, problems):
+                continue
+            value = None
+            if event.action != "reset":
+                value = _joint_value(target, event.action, event.value,
+                                     scenario.format == "ecos", where, problems)
+                if value is None:
+                    continue
+            point = _point(event, scene.start_time, step, planned)
+            if _after_the_stop(event, point, planned, scene, where, problems):
+                continue
+            events.append((point, order, PlannedEvent(
+                point, scene.start_time + point * step, event.time, targets[key],
+                event.action, value, where)))
+            continue
         if index is None:
-            if event.model in joints:
-                problems.append(f"{where}: '{event.model}' is a joint: a scenario does not "
-                                "change joint law coefficients (--set "
-                                f"{event.model}.{event.variable}=VALUE does, for the run)")
-            else:
-                problems.append(f"{where}: the scene has no component '{event.model}'"
-                                + closest(event.model, index_of))
+            problems.append(f"{where}: the scene has no component '{event.model}'"
+                            + closest(event.model, {**index_of, **joints}))
             continue
         spec = plan.specs[index]
         description = scene.descriptions.get(scene.component(spec.name).source) or \
@@ -321,10 +349,7 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
                                 "a number (Real or Integer)")
                 continue
         point = _point(event, scene.start_time, step, planned)
-        if point >= planned:
-            problems.append(f"{where}: t = {event.time:g} s takes effect at the stop time "
-                            f"{scene.stop_time:g} s (the first communication point at or "
-                            "after it): no step follows it")
+        if _after_the_stop(event, point, planned, scene, where, problems):
             continue
         events.append((point, order, PlannedEvent(
             point, scene.start_time + point * step, event.time, targets[key], event.action,
@@ -340,9 +365,67 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
         end_point = max([end_point] + [e.point + 1 for e in ordered])
         if end_point >= planned:
             end_point = None
+    laws = {t.path: (tuple(joints[t.path].dofs), float(joints[t.path].xi),
+                     float(joints[t.path].omega)) for t in found if t.kind == "joint"}
     return ScenarioPlan(tuple(found), ordered, scenario.end, end_point,
                         None if end_point is None else scene.start_time + end_point * step,
-                        scenario.file, scenario.format)
+                        scenario.file, scenario.format, laws)
+
+
+def _after_the_stop(event, point: int, planned: int, scene, where: str,
+                    problems: list) -> bool:
+    """Whether ``event`` takes effect at the stop time (said why): no step follows it."""
+    if point < planned:
+        return False
+    problems.append(f"{where}: t = {event.time:g} s takes effect at the stop time "
+                    f"{scene.stop_time:g} s (the first communication point at or after "
+                    "it): no step follows it")
+    return True
+
+
+def _joint_target(joint, name: str, where: str, problems: list) -> Target | None:
+    """A law coefficient of ``joint`` as a target (kind ``joint``), or None (said why):
+    its unmodified value (``base``) is the run's (the scene's, or ``--set``): one per
+    dof for the flexible law's coefficients, one number for the penalized measure's."""
+    settable = joint_coefficients(joint)
+    if name not in settable:
+        what = (f"a {joint.kind} joint on the {joint.measure} measure")
+        problems.append(f"{where}: joint '{joint.name}' is {what}: it has no law "
+                        f"coefficient '{name}'" + (
+                            f" (a scenario can change {', '.join(settable)})" if settable
+                            else " (a fixed joint on this measure has none to change)"))
+        return None
+    if name in JOINT_SCALAR:
+        base = float(getattr(joint, name))
+    else:
+        given = getattr(joint, name)
+        base = tuple(float(v) for v in given) if given else (0.0,) * len(joint.dofs)
+    return Target(-1, joint.name, name, "Real", "joint", "law", base=base)
+
+
+def _joint_value(target: Target, action: str, value, ecos: bool, where: str,
+                 problems: list) -> float | None:
+    """An event's number for a joint law coefficient, or None (said why): finite, and
+    where the coefficient is physical only when not negative (NON_NEGATIVE), the value
+    it makes of every dof's not negative."""
+    try:
+        if isinstance(value, bool) or not (ecos or isinstance(value, numbers.Real)):
+            raise ValueError
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        problems.append(f"{where}: '{target.name}' is a joint law coefficient (Real): "
+                        f"{value!r} is not a number")
+        return None
+    if not math.isfinite(number):
+        problems.append(f"{where}: '{target.name}': {value!r} is not a finite number")
+        return None
+    if target.variable in NON_NEGATIVE:
+        lowest = number + (min(np.atleast_1d(target.base)) if action == "bias" else 0.0)
+        if lowest < 0.0:
+            problems.append(f"{where}: '{target.name}' would be {lowest:g}: a "
+                            f"{target.variable} below zero is not physical")
+            return None
+    return number
 
 
 def _declared_matches(event, target: Target, where: str, problems: list) -> bool:

@@ -126,6 +126,7 @@ def resume_run(execution, checkpoint, fresh: bool = False, changed=()) -> None:
             restore(execution._watch, state["watch"])
         if execution.scenario is not None and state["scenario"] is not None:
             restore(execution.scenario, state["scenario"])
+            execution.scenario.restored(execution.coupling)
         own = state["execution"]
         execution.index, execution.time = own["index"], own["time"]
         execution._iterations = defaultdict(int, own["iterations"])

@@ -531,7 +531,8 @@ class Execution:
         """:meth:`_glued_advance` (or :meth:`_kernel_advance`) with the scenario's events
         of the communication point ``time`` applied before the step and its output
         modifications after it (:mod:`dsim.master.running.scenario`)."""
-        self.scenario.at_point(index - 1, time, self.coupling.outputs, self.backend)
+        self.scenario.at_point(index - 1, time, self.coupling.outputs, self.backend,
+                               self.coupling)
         report = self._unmodified_advance(time, size, index, end)
         self.scenario.stepped(self.coupling.outputs)
         return report

@@ -170,6 +170,28 @@ class JointStates:
         """Make a converged trial the joint state."""
         self.q, self.qd, self.qdd = q, qd, qdd
 
+    def law_values(self, rows, name: str) -> np.ndarray:
+        """The law coefficient ``name`` (k0, k1, c0, c1) of the dofs ``rows``."""
+        return getattr(self, name)[np.asarray(rows, dtype=int)].copy()
+
+    def set_law(self, rows, name: str, values) -> None:
+        """A scenario's change of a joint's law between steps (running/scenario.py):
+        coefficient ``name`` (k0, k1, c0, c1: one value per dof of ``rows``; ``weights``:
+        the measure's (w_u, w_v, w_a) of a penalized joint, from its xi and omega) of the
+        dofs ``rows``.  New arrays, never written in place: a coupling compares the
+        weights it factored its gluing matrix with to the ones a trial gives, and a
+        change must show there (it refactors)."""
+        rows = np.asarray(rows, dtype=int)
+        if name == "weights":
+            weights = self.weights.copy()
+            weights[rows] = values
+            self.weights = weights
+            return
+        changed = getattr(self, name).copy()
+        changed[rows] = values
+        setattr(self, name, changed)
+        self.nonlinear = bool(np.any(self.k1[self.flexible]) or np.any(self.c1[self.flexible]))
+
 
 def trapezoidal_rates(q, q0, qd0, qdd0, step_size: float):
     """Rate and acceleration at the step's end by the trapezoidal rule, from the

@@ -12,7 +12,10 @@ is changed where the run already moves its value, through the backend protocol o
 - an input no connection feeds, or a tunable parameter: ``Backend.set_values`` at the
   point (before the step saves its state, so a rollback keeps the value);
 - an output: the values read after every step are modified in place before they are
-  recorded and passed on, so the CSV and the connected inputs see the same value.
+  recorded and passed on, so the CSV and the connected inputs see the same value;
+- a joint's law coefficient (``j1.k0``): the coupling's joint law is changed at the
+  point (:meth:`JointStates.set_law`), so the step that starts there is solved with it
+  (the coupling refactors its gluing matrix when the law changes what it holds).
 
 Every change is recorded for the statistics (:attr:`ScenarioRun.applied`): the point's
 time, the target, the action, the value before and the value after.
@@ -22,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from dsim.master.running.connections import Transfer
+from dsim.master.running.joints import measure_weights
 
 #: what a modification does to the unmodified value
 OVERRIDE, BIAS = "override", "bias"
@@ -113,17 +117,22 @@ class ScenarioRun:
         self._outputs: dict[int, tuple[str, float]] = {}
         self._raw: dict[int, float] = {}
         #: set targets: target index -> current value (their unmodified value first)
-        self._current = {i: t.base for i, t in enumerate(self.targets) if t.kind == "set"}
+        self._current = {i: t.base for i, t in enumerate(self.targets)
+                         if t.kind in ("set", "joint")}
+        #: joint targets changed at this point, to set on the coupling's joints
+        self._laws_to_set: list[int] = []
         #: targets modified now (index -> True), in the order they were first modified
         self._active: dict[int, bool] = {}
         #: every change applied: {"time", "event_time", "target", "action", "old", "new"}
         self.applied: list[dict] = []
 
     # --- what the execution calls -------------------------------------------------------
-    def at_point(self, point: int, time: float, outputs: np.ndarray, backend) -> None:
+    def at_point(self, point: int, time: float, outputs: np.ndarray, backend,
+                 coupling=None) -> None:
         """Apply the events that take effect at communication point ``point`` (its time
         ``time``, s; ``outputs``: the run's flat outputs there), then, at the
-        scenario's end, take every modification back."""
+        scenario's end, take every modification back.  ``coupling``: the run's, whose
+        joint laws a ``joint`` target changes."""
         settings = []
         for event in self._by_point.get(point, ()):
             self._apply(event.target, event.action, event.value, time, event.time,
@@ -134,6 +143,36 @@ class ScenarioRun:
                             label="end")
         if settings:
             backend.set_values(_batched(settings))
+        self._set_laws(coupling)
+
+    def restored(self, coupling) -> None:
+        """After a checkpoint's state is restored (``--resume``): the joint laws the
+        scenario had changed by then, set again (a checkpoint keeps the joints' state;
+        their laws come from the plan)."""
+        self._laws_to_set = [i for i, t in enumerate(self.targets) if t.kind == "joint"]
+        self._set_laws(coupling)
+
+    def _set_laws(self, coupling) -> None:
+        """Give the coupling's joints the current value of every joint target changed
+        since the last call (each dof its own, found by its row's label ``j.f_x``)."""
+        for index in self._laws_to_set:
+            target = self.targets[index]
+            dofs, xi, omega = self.plan.joints[target.path]
+            rows = [r for r, name in enumerate(coupling.layout.joint_of) if name == target.path]
+            if target.variable in ("xi", "omega"):
+                current = {"xi": xi, "omega": omega}
+                for other, kept in enumerate(self.targets):
+                    if kept.kind == "joint" and kept.path == target.path \
+                            and kept.variable in current:
+                        current[kept.variable] = self._current[other]
+                coupling.joints.set_law(rows, "weights", measure_weights(
+                    "penalized", current["xi"], current["omega"]))
+            else:
+                value = self._current[index]
+                coupling.joints.set_law(rows, target.variable, [
+                    value[dofs.index(coupling.layout.labels[r].rsplit(".f_", 1)[1])]
+                    for r in rows])
+        self._laws_to_set = []
 
     def stepped(self, outputs: np.ndarray) -> None:
         """Modify the outputs read after a step (in place), keeping their values as read."""
@@ -142,6 +181,27 @@ class ScenarioRun:
             outputs[position] = _modified(outputs[position], mode, value)
 
     # --- one change -----------------------------------------------------------------------
+    def _apply_law(self, index: int, target, action: str, value, time: float, event_time,
+                   label) -> None:
+        """A joint law coefficient overridden (every dof), offset from its unmodified
+        value (each dof's), or reset; set on the coupling's joints after the point's
+        events (:meth:`_set_laws`)."""
+        old, base = self._current[index], target.base
+        if action == "reset":
+            new = base
+            self._active.pop(index, None)
+        else:
+            offset = action != OVERRIDE
+            new = (float(value) + (base if offset else 0.0)) if np.isscalar(base) else \
+                tuple(float(value) + (b if offset else 0.0) for b in base)
+            self._active[index] = True
+        self._current[index] = new
+        if index not in self._laws_to_set:
+            self._laws_to_set.append(index)
+        self.applied.append({"time": time, "event_time": event_time, "target": target.name,
+                             "kind": target.kind, "action": label or action,
+                             "old": _law_shown(old), "new": _law_shown(new)})
+
     def _apply(self, index: int, action: str, value, time: float, event_time, outputs,
                settings: list, label: str | None = None) -> None:
         target = self.targets[index]
@@ -153,8 +213,11 @@ class ScenarioRun:
             old = outputs[target.position]
             raw = self._raw[target.position] if target.position in self._outputs else old
             table = self._outputs
-        else:
+        else:  # set through the backend, or a joint law
             old, raw, table = self._current[index], target.base, None
+        if target.kind == "joint":
+            self._apply_law(index, target, action, value, time, event_time, label)
+            return
         if action == "reset":
             new = raw
             if table is not None:
@@ -175,6 +238,13 @@ class ScenarioRun:
                              "kind": target.kind, "action": label or action,
                              "old": _shown(target.type, old),
                              "new": _shown(target.type, new)})
+
+
+def _law_shown(value):
+    """A joint law coefficient as the statistics give it: one number, or one per dof
+    where the dofs differ."""
+    values = [float(v) for v in np.atleast_1d(value)]
+    return values[0] if len(set(values)) == 1 else values
 
 
 def _batched(settings) -> list[tuple[int, tuple, tuple]]:

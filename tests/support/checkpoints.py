@@ -80,21 +80,21 @@ def stepping_process(supervisor: subprocess.Popen) -> int:
 
 
 def killed_and_resumed(path, folder: Path, stop: float, every: float, *options,
-                       stepping: bool = False, env=None) -> tuple:
+                       stepping: bool = False, env=None, both=()) -> tuple:
     """``dsim run PATH --checkpoint-every EVERY OPTIONS`` killed with SIGKILL at a random
     moment after its first checkpoint (``stepping``: its stepping child, which the
     supervisor starts again from the last checkpoint by itself; else ``dsim`` itself,
     then ``dsim run --resume``), and the same run never stopped, in-process: each
     one's CSV bytes and statistics (``env``: the environment of the killed run's
-    commands, a Ray cluster's token)."""
+    commands, a Ray cluster's token; ``both``: options of both runs, a scenario)."""
     reference = folder / "reference" / "run.csv"
     done = _dsim("run", path, "--stop", stop, "--out", reference, "--checkpoint-every",
-                 every, "--quiet")
+                 every, "--quiet", *both)
     assert done.returncode == 0, done.stderr
     out = folder / "killed" / "run.csv"
     process = subprocess.Popen([*DSIM, "run", str(path), "--stop", str(stop), "--out",
                                 str(out), "--checkpoint-every", str(every), "--quiet",
-                                *map(str, options)], cwd=ROOT, stdout=subprocess.DEVNULL,
+                                *map(str, both), *map(str, options)], cwd=ROOT, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True, env=env)
     checkpoints = out.with_name("run.checkpoints")
     deadline = time.monotonic() + 180

@@ -89,8 +89,9 @@ def test_glued_scene_refusals(capsys, tmp_path, built):
     for fields, expected in (
             ({"model": "left", "variable": "P.f_x"}, "is a glued port's force: the joint sets "
                                                      "it every step"),
-            ({"model": "j1", "variable": "k0"}, "'j1' is a joint: a scenario does not change "
-                                                "joint law coefficients")):
+            ({"model": "j1", "variable": "omega"}, "joint 'j1' is a flexible joint on the "
+                                                   "displacement measure: it has no law "
+                                                   "coefficient 'omega'")):
         scenario = tmp_path / "s.json"
         scenario.write_text(json.dumps({"events": [{"time": 1.0, "action": "override",
                                                     "value": 1.0, **fields}]}))
