@@ -493,7 +493,8 @@ def _add_run_choices(run_parser) -> None:
                             "for the error messages)")
     run_parser.add_argument("--scenario", metavar="FILE",
                             help="events at times of the run: override, bias or reset an "
-                            "input, a tunable parameter or an output (libcosim's .json or "
+                            "input, a tunable parameter, an output or a joint's law "
+                            "coefficient (JOINT.k0) (libcosim's .json or "
                             ".yml scenario, or ECOS's .xml; docs/scenarios.md); each takes "
                             "effect at the first communication point at or after its time")
     run_parser.add_argument("--input", metavar="FILE",
