@@ -33,8 +33,8 @@ from dsim.master.settings import resolve
 
 def prepare(scene, *, load_libraries: bool = True, strict: bool = False, parameters=None,
             outputs=None, output_interval=None, solver=None, allow_outside=None,
-            substeps=None, fmu_log: bool = False, scenario=None, inputs=None,
-            start_time=None, start_from=None, **settings):
+            substeps=None, fmu_log: bool = False, scenario=None, events: str = "point",
+            inputs=None, start_time=None, start_from=None, **settings):
     """The checked :class:`~dsim.master.planning.plan.Plan` of ``scene`` (an .ssp archive, a scene
     folder, an .ssd file, or a :class:`~dsim.master.scene.Scene`) with ``settings``
     overriding the scene's ``glue:Master`` annotation (keywords as the command-line
@@ -67,6 +67,9 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
     ``scenario``: events at times of the run (a scenario file's path, libcosim's JSON or
     YAML or ECOS's XML, or a :class:`~dsim.master.reading.scenario_files.Scenario`
     read from one), resolved against the scene's variables (docs/scenarios.md).
+    ``events``: ``"point"`` (default: each event at the first communication point at or
+    after its time, as libcosim) or ``"exact"`` (a step an event falls inside is cut
+    at its time; every FMU must take steps of any size).
     ``inputs``: an input table feeding inputs of the scene's components over time (a
     .csv or .mat file's path, a pandas DataFrame or a numpy structured array: a
     ``time`` column, then one column per input named ``component.variable``;
@@ -80,13 +83,17 @@ def prepare(scene, *, load_libraries: bool = True, strict: bool = False, paramet
         return _prepare_from(scene, start_from, dict(
             settings, parameters=parameters, outputs=outputs, output_interval=output_interval,
             solver=solver, allow_outside=allow_outside, substeps=substeps, fmu_log=fmu_log,
-            scenario=scenario, inputs=inputs, strict=strict, load_libraries=load_libraries))
+            scenario=scenario, events=events, inputs=inputs, strict=strict,
+            load_libraries=load_libraries))
     with collector_paused():  # 10,000 components: millions of objects, few cycles
         plan = _prepare(scene, load_libraries, strict, parameters, outputs,
                         output_interval, solver, allow_outside, settings, substeps, inputs,
                         start_time)
     if scenario is not None:
-        plan = replace(plan, scenario=resolve_scenario(plan, scenario))
+        plan = replace(plan, scenario=resolve_scenario(plan, scenario, events))
+    elif events != "point":
+        raise InputError("--events chooses when a scenario's events take effect: give "
+                         "--scenario with it")
     if fmu_log:
         plan = replace(plan, specs=tuple(replace(s, fmu_log=True) for s in plan.specs))
     return plan

@@ -12,7 +12,9 @@ within a millionth of a step of the time counts: ``n * step`` is rounded); ECOS'
 actions at the first point with ``t > time`` or ``|t - time| < eps`` (ECOS's own test).
 A change made at point n acts on the step that starts there: an input or parameter is
 written before that step, an output is modified from the values read after it (so the
-row of point n + 1 is the first to show it, as libcosim's observer sees it).
+row of point n + 1 is the first to show it, as libcosim's observer sees it).  With
+``--events exact`` an event inside a step takes effect at its own time: the step is cut
+there (``PlannedEvent.inside``; the execution takes it in parts).
 
 How each target is reached (:class:`Target`'s ``kind``):
 
@@ -42,7 +44,7 @@ from dsim.master.errors import InputError
 from dsim.master.planning.names import closest
 from dsim.master.planning.parameters import (JOINT_SCALAR, KEPT_TYPE, NON_NEGATIVE,
                                              convert, joint_coefficients)
-from dsim.master.reading.fmi_description import describe
+from dsim.master.reading.fmi_description import CO_SIMULATION, describe
 from dsim.master.reading.scenario_files import Scenario, read_scenario
 from dsim.master.running.timeline import step_count
 
@@ -51,6 +53,8 @@ from dsim.master.running.timeline import step_count
 ROUNDING = 1e-6
 #: the types whose values a bias can add to
 ADDABLE = ("Real", "Integer")
+#: when events take effect (``--events``): at communication points, or at their times
+EVENT_MODES = ("point", "exact")
 
 
 @dataclass(frozen=True)
@@ -80,7 +84,8 @@ class PlannedEvent:
     """One event as the run applies it: at communication point ``point`` (index; its
     time ``at``, s) the target ``target`` (an index into the plan's targets) gets
     ``action`` with ``value`` (converted; None for a reset); ``time``: the time the
-    file gives (s); ``where``: the file and event."""
+    file gives (s); ``where``: the file and event; ``inside``: at ``at`` within the
+    step from ``point`` (``--events exact``)."""
 
     point: int
     at: float
@@ -89,6 +94,9 @@ class PlannedEvent:
     action: str
     value: object
     where: str
+    #: ``--events exact``: the event falls inside the step that starts at ``point``,
+    #: which is cut so that a step ends at ``at`` (= ``time``), where it takes effect
+    inside: bool = False
 
 
 @dataclass(frozen=True)
@@ -118,13 +126,52 @@ class ScenarioPlan:
             what = "reset" if event.action == "reset" else f"{event.action} {event.value!r}"
             how = "joint law" if target.kind == "joint" else f"{target.type} {target.kind}" + (
                 f", {target.causality}" if target.kind == "set" else "")
-            lines.append(f"  t = {event.time:g} s -> at t = {event.at:.9g} s (point "
-                         f"{event.point}): {target.name} ({how}): {what}")
+            where = (f"the step from point {event.point} cut there" if event.inside
+                     else f"point {event.point}")
+            lines.append(f"  t = {event.time:g} s -> at t = {event.at:.9g} s ({where}): "
+                         f"{target.name} ({how}): {what}")
         if self.end is not None:
             lines.append(f"  end t = {self.end:g} s: every modification taken back" + (
                 f" at t = {self.end_at:.9g} s (point {self.end_point})"
                 if self.end_point is not None else " (after the stop time: never)"))
         return lines
+
+
+def _when(event, start: float, step: float, planned: int, exact: bool):
+    """(point, time, inside) at which ``event`` takes effect: the communication point by
+    its rule (:func:`_point`) and that point's time; with ``exact``, an event inside a
+    step (not within ``ROUNDING`` of a point) at its own time, in the step that starts
+    at the point before it."""
+    if exact:
+        n = math.floor((event.time - start) / step)
+        near = abs(event.time - (start + n * step)) <= ROUNDING * step
+        far = abs(event.time - (start + (n + 1) * step)) <= ROUNDING * step
+        if not (near or far) and 0 <= n < planned:
+            return n, float(event.time), True
+    point = _point(event, start, step, planned)
+    return point, start + point * step, False
+
+
+def _check_exact(plan) -> None:
+    """``--events exact`` cuts steps at event times: refused in one line where the step
+    is chosen by error control (it lands on the output points; use a finer output
+    interval), or where an FMU takes no communication step of another size."""
+    if plan.scene.master.adaptive:
+        raise InputError("--events exact cuts fixed macro steps at the events' times: with "
+                         "--step auto the steps land on the output points, where the "
+                         "events take effect (a finer --output-interval brings them closer)")
+    fixed = [spec.name for spec in plan.specs if spec.table is None
+             and spec.interface == CO_SIMULATION
+             and not describe(spec.path).interface(spec.interface)
+             .canHandleVariableCommunicationStepSize]
+    if fixed:
+        raise InputError(
+            "--events exact cuts steps at the events' times, and "
+            + ", ".join(f"'{name}'" for name in fixed[:5])
+            + (f" and {len(fixed) - 5} more" if len(fixed) > 5 else "")
+            + " take" + "s" * (len(fixed) == 1) + " no communication step of another "
+            "size (canHandleVariableCommunicationStepSize is false): events take effect "
+            "at the communication points (--events point)")
 
 
 def _point(event, start: float, step: float, planned: int) -> int:
@@ -262,12 +309,20 @@ def _targetable(description) -> list[str]:
             if v.causality in ("input", "output", "parameter") and v.variability != "constant"]
 
 
-def resolve_scenario(plan, scenario) -> ScenarioPlan:
+def resolve_scenario(plan, scenario, events: str = "point") -> ScenarioPlan:
     """``scenario`` (a :class:`~dsim.master.reading.scenario_files.Scenario`, or the
     path of its file) resolved against ``plan`` (a checked
-    :class:`~dsim.master.planning.plan.Plan`); InputError listing every problem."""
+    :class:`~dsim.master.planning.plan.Plan`); InputError listing every problem.
+    ``events``: ``point`` (each event at the first communication point at or after its
+    time, as libcosim) or ``exact`` (the step an event falls inside is cut at its time,
+    where every FMU takes steps of any size)."""
+    if events not in EVENT_MODES:
+        raise InputError(f"events '{events}' is not one of: {', '.join(EVENT_MODES)}")
     if not isinstance(scenario, Scenario):
         scenario = read_scenario(scenario)
+    exact = events == "exact"
+    if exact:
+        _check_exact(plan)
     scene, step = plan.scene, plan.scene.master.step
     problems = []
     planned = step_count(scene.start_time, scene.stop_time, step)
@@ -304,12 +359,11 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
                                      scenario.format == "ecos", where, problems)
                 if value is None:
                     continue
-            point = _point(event, scene.start_time, step, planned)
+            point, at, inside = _when(event, scene.start_time, step, planned, exact)
             if _after_the_stop(event, point, planned, scene, where, problems):
                 continue
             events.append((point, order, PlannedEvent(
-                point, scene.start_time + point * step, event.time, targets[key],
-                event.action, value, where)))
+                point, at, event.time, targets[key], event.action, value, where, inside)))
             continue
         if index is None:
             problems.append(f"{where}: the scene has no component '{event.model}'"
@@ -348,15 +402,14 @@ def resolve_scenario(plan, scenario) -> ScenarioPlan:
                 problems.append(f"{where}: '{target.name}' is {target.type}: a bias adds to "
                                 "a number (Real or Integer)")
                 continue
-        point = _point(event, scene.start_time, step, planned)
+        point, at, inside = _when(event, scene.start_time, step, planned, exact)
         if _after_the_stop(event, point, planned, scene, where, problems):
             continue
         events.append((point, order, PlannedEvent(
-            point, scene.start_time + point * step, event.time, targets[key], event.action,
-            value, where)))
+            point, at, event.time, targets[key], event.action, value, where, inside)))
     if problems:
         raise InputError(problems)
-    ordered = tuple(e for _, _, e in sorted(events, key=lambda e: e[:2]))
+    ordered = tuple(e for _, _, e in sorted(events, key=lambda e: (e[0], e[2].at, e[1])))
     end_point = None
     if scenario.end is not None:
         # libcosim takes everything back at the first point at or after the end at

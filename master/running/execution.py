@@ -36,6 +36,7 @@ from dsim.master.recording.statistics import run_statistics
 from dsim.master.running.backends import BACKENDS
 from dsim.master.running.checkpointing import resume_run
 from dsim.master.running.couplings import COUPLINGS
+from dsim.master.running.couplings.base import StepReport
 from dsim.master.running.collector import collector_paused
 from dsim.master.running.counts import RunCounts
 from dsim.master.running.coupling_error import CouplingErrorWatch
@@ -531,11 +532,29 @@ class Execution:
         """:meth:`_glued_advance` (or :meth:`_kernel_advance`) with the scenario's events
         of the communication point ``time`` applied before the step and its output
         modifications after it (:mod:`dsim.master.running.scenario`)."""
-        self.scenario.at_point(index - 1, time, self.coupling.outputs, self.backend,
+        point = index - 1
+        self.scenario.at_point(point, time, self.coupling.outputs, self.backend,
                                self.coupling)
-        report = self._unmodified_advance(time, size, index, end)
-        self.scenario.stepped(self.coupling.outputs)
-        return report
+        cuts = self.scenario.cuts(point)
+        if not cuts:
+            report = self._unmodified_advance(time, size, index, end)
+            self.scenario.stepped(self.coupling.outputs)
+            return report
+        # --events exact: the step in parts that end at the events' times, each part
+        # a step of its own size (every FMU takes any: planning/scenario.py checks)
+        reports, start = [], time
+        for part_end in [*cuts, end]:
+            reports.append(self._unmodified_advance(start, part_end - start, index,
+                                                    part_end))
+            self.scenario.stepped(self.coupling.outputs)
+            if part_end != end:
+                self.scenario.at_time(point, part_end, self.coupling.outputs,
+                                      self.backend, self.coupling)
+            start = part_end
+        return StepReport(sum(r.iterations for r in reports),
+                          sum(r.refreshed for r in reports),
+                          max(r.residual for r in reports), max(r.cuts for r in reports),
+                          max(r.lost for r in reports))
 
     def _emit(self, record) -> None:
         """Hand a step's record to the observers; off the output grid it is held, and

@@ -135,12 +135,31 @@ class ScenarioRun:
         joint laws a ``joint`` target changes."""
         settings = []
         for event in self._by_point.get(point, ()):
-            self._apply(event.target, event.action, event.value, time, event.time,
-                        outputs, settings)
+            if not event.inside:
+                self._apply(event.target, event.action, event.value, time, event.time,
+                            outputs, settings)
         if point == self.plan.end_point:
             for index in list(self._active):
                 self._apply(index, "reset", None, time, self.plan.end, outputs, settings,
                             label="end")
+        if settings:
+            backend.set_values(_batched(settings))
+        self._set_laws(coupling)
+
+    def cuts(self, point: int) -> list[float]:
+        """The times (s) inside the step from ``point`` at which events take effect
+        (``--events exact``), in order: where the step is cut."""
+        return sorted({e.at for e in self._by_point.get(point, ()) if e.inside})
+
+    def at_time(self, point: int, time: float, outputs: np.ndarray, backend,
+                coupling=None) -> None:
+        """Apply the events inside the step from ``point`` that take effect at ``time``
+        (one of :meth:`cuts`), between the two parts of the cut step."""
+        settings = []
+        for event in self._by_point.get(point, ()):
+            if event.inside and event.at == time:
+                self._apply(event.target, event.action, event.value, time, event.time,
+                            outputs, settings)
         if settings:
             backend.set_values(_batched(settings))
         self._set_laws(coupling)

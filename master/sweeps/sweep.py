@@ -82,6 +82,8 @@ class Sweep:
     #: a scenario every point's run takes (``--scenario``: a path, or the
     #: :class:`~dsim.master.reading.scenario_files.Scenario` read from one), or None
     scenario: object = None
+    #: when the scenario's events take effect (``--events``: point or exact)
+    events: str = "point"
     #: an input table every point's run takes (``--input``: a path, or the
     #: :class:`~dsim.master.reading.input_tables.Table` read from one), or None
     inputs: object = None
@@ -254,10 +256,10 @@ def cheapest(points: list[Point], target: float) -> Point | None:
 
 
 def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=None,
-                 inputs=None, start_from=None) -> str:
+                 inputs=None, start_from=None, events: str = "point") -> str:
     """The ``dsim run`` command of a point (``allow_outside``: the sweep's trusted
-    folders; ``scenario``: its scenario; ``inputs``: its input table; ``start_from``:
-    the checkpoint its run starts from)."""
+    folders; ``scenario``: its scenario, its events taking effect as ``events`` says;
+    ``inputs``: its input table; ``start_from``: the checkpoint its run starts from)."""
     words = ["dsim", "run", str(scene)]
     settings, parameters = split({**fixed, **point.settings})
     for key, value in settings.items():
@@ -268,6 +270,8 @@ def command_line(scene, point: Point, fixed: dict, allow_outside=(), scenario=No
         words += ["--allow-outside", str(folder)]
     if scenario is not None:
         words += ["--scenario", str(getattr(scenario, "file", scenario))]
+        if events != "point":
+            words += ["--events", events]
     if inputs is not None:
         words += ["--input", str(getattr(inputs, "file", None) or getattr(inputs, "source",
                                                                             inputs))]
@@ -284,6 +288,8 @@ def trusted(sweep: Sweep) -> dict:
     shared = {"allow_outside": list(sweep.allow_outside)} if sweep.allow_outside else {}
     if sweep.scenario is not None:
         shared["scenario"] = sweep.scenario
+        if sweep.events != "point":
+            shared["events"] = sweep.events
     if sweep.inputs is not None:
         shared["inputs"] = sweep.inputs
     if sweep.start_from is not None:

@@ -205,7 +205,7 @@ def _said(result, args, progress) -> int:
 def _cmd_info(args) -> int:
     print("\n".join(scene_info(args.scene, ssd=args.ssd, every=args.all,
                                 allow_outside=args.allow_outside, scenario=args.scenario,
-                                inputs=args.input)))
+                                inputs=args.input, events=args.events)))
     return 0
 
 
@@ -312,6 +312,7 @@ def _sweep_of(args):
     sweep.allow_outside = tuple(args.allow_outside or ())
     if args.scenario:  # read once: each point's run (here or in a Ray worker) takes it
         sweep.scenario = read_scenario(args.scenario)
+    sweep.events = args.events
     if args.input:  # read once, as the scenario
         sweep.inputs = read_table(args.input)
     if args.start_from:  # read and checked once, as the scenario
@@ -383,7 +384,8 @@ def _print_sweep_summary(args, sweep, out: Path, points) -> None:
                   f"{args.target_error:g}: {best.label} (error {best.error:.2e}, "
                   f"{best.wall_seconds:.2f} s)")
             line = command_line(args.scene, best, sweep.fixed, sweep.allow_outside,
-                                sweep.scenario, sweep.inputs, sweep.start_from)
+                                sweep.scenario, sweep.inputs, sweep.start_from,
+                                sweep.events)
             print(f"run it      {line}")
 
 
@@ -459,7 +461,7 @@ def _run_choices(args) -> dict:
             "outputs": args.outputs, "output_interval": args.output_interval,
             "solver": solver, "allow_outside": args.allow_outside,
             "substeps": substeps or None, "fmu_log": args.fmu_log,
-            "scenario": args.scenario, "inputs": args.input}
+            "scenario": args.scenario, "events": args.events, "inputs": args.input}
 
 
 def _add_allow_outside(parser) -> None:
@@ -497,6 +499,8 @@ def _add_run_choices(run_parser) -> None:
                             "coefficient (JOINT.k0) (libcosim's .json or "
                             ".yml scenario, or ECOS's .xml; docs/scenarios.md); each takes "
                             "effect at the first communication point at or after its time")
+    run_parser.add_argument("--events", choices=("point", "exact"), default="point",
+                            help="when a scenario's events take effect: point (default: at the first communication point at or after each event's time, as libcosim) or exact (the step an event falls inside is cut at its time; every FMU must take steps of any size)")
     run_parser.add_argument("--input", metavar="FILE",
                             help="inputs over time from a table (.csv or .mat): a time column, "
                             "then one column per input named COMPONENT.VARIABLE; Reals "
@@ -649,6 +653,8 @@ def _add_sweep(commands) -> None:
     sweep_parser.add_argument("--scenario", metavar="FILE",
                               help="the same scenario's events in every point's run (and "
                               "the reference run): docs/scenarios.md")
+    sweep_parser.add_argument("--events", choices=("point", "exact"), default="point",
+                            help="when a scenario's events take effect: point (default: at the first communication point at or after each event's time, as libcosim) or exact (the step an event falls inside is cut at its time; every FMU must take steps of any size)")
     sweep_parser.add_argument("--input", metavar="FILE",
                               help="the same input table (.csv or .mat) in every point's run "
                               "(and the reference run): docs/inputs.md")
@@ -703,6 +709,8 @@ def _add_info(commands) -> None:
                              help="list the events of a scenario file (docs/scenarios.md): "
                              "when each takes effect, its target and action, all checked "
                              "against the scene")
+    info_parser.add_argument("--events", choices=("point", "exact"), default="point",
+                             help="when a scenario's events take effect: point (default: at the first communication point at or after each event's time, as libcosim) or exact (the step an event falls inside is cut at its time; every FMU must take steps of any size)")
     info_parser.add_argument("--input", metavar="FILE",
                              help="summarise an input table (.csv or .mat: its columns, "
                              "their ranges and its time span), checked against the scene "

@@ -194,7 +194,8 @@ def _connections(checked) -> list[str]:
 
 
 def scene_info(scene_file, ssd: str | None = None, every: bool = False,
-               allow_outside=None, scenario=None, inputs=None) -> list[str]:
+               allow_outside=None, scenario=None, inputs=None,
+               events: str = "point") -> list[str]:
     """The lines ``dsim info`` prints for ``scene_file`` (an .ssp archive, a scene folder
     or an .ssd file; ``ssd``: which system structure of it): a summary that fits a
     screen, or with ``every`` each component in full with every variable a run may
@@ -205,6 +206,7 @@ def scene_info(scene_file, ssd: str | None = None, every: bool = False,
     the input each feeds: docs/inputs.md).  Raises InputError as a run would."""
     table = None if inputs is None else read_table(inputs)
     checked = prepare(scene_file, ssd=ssd, allow_outside=allow_outside, scenario=scenario,
+                      events=events,
                       inputs=table)
     lines = _header(scene_file, ssd, checked)
     lines += _details(checked) if every else _summary(checked)
