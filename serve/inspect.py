@@ -239,6 +239,36 @@ def check_parameters(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def check_scenario(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -> dict:
+    """A scenario a run form gives (``given``: its ``text``, the suffix it is read by
+    as ``format``, ``events`` and the run's ``settings``, its model parameters among
+    them) resolved against the stored scene at ``path`` by ``dsim run --scenario``'s
+    rules: ``{"lines": ...}``, what ``dsim info --scenario`` says of it (an InputError
+    lists what is wrong); no library is loaded."""
+    if not isinstance(given, dict) or not isinstance(given.get("text"), str) \
+            or given.get("format") not in ("json", "yml", "xml") \
+            or not isinstance(given.get("settings"), dict):
+        raise Refused("give the scenario as a JSON object with its text, format and the "
+                      "run's settings")
+    check_archive(path, "SSP", max_unpacked)
+    folder = Path(tempfile.mkdtemp(prefix="dsim-serve-"))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(folder / "scene")
+        scenario = folder / f"scenario.{given['format']}"
+        scenario.write_text(given["text"], encoding="utf-8")
+        try:
+            plan = prepare(folder / "scene", load_libraries=False, **given["settings"],
+                           scenario=scenario, events=given.get("events") or "point")
+        except InputError as error:
+            raise InputError([p.replace(str(scenario), "scenario").replace(
+                str(folder / "scene"), "scene") for p in error.problems]) from None
+        return {"lines": [line.replace(str(scenario), "scenario")
+                          for line in plan.scenario.lines()]}
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _ssd_root(folder: Path):
     from lxml import etree
 
@@ -251,9 +281,10 @@ def main(argv=None) -> int:
     kind, path = argv[0], Path(argv[1])
     max_unpacked = int(argv[2]) if len(argv) > 2 else MAX_UNPACKED
     try:
-        if kind == "parameters":
+        if kind in ("parameters", "scenario"):
             given = json.loads(sys.stdin.read() or "null")
-            answer = {"ok": True, "description": check_parameters(path, max_unpacked, given)}
+            check = check_parameters if kind == "parameters" else check_scenario
+            answer = {"ok": True, "description": check(path, max_unpacked, given)}
         else:
             describe = describe_fmu if kind == "fmu" else describe_scene
             answer = {"ok": True, "description": describe(path, max_unpacked)}

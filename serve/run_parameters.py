@@ -125,6 +125,10 @@ def command_options(settings: dict) -> str:
                     str(given).lower() if isinstance(given, bool) else
                     repr(given) if isinstance(given, float) else str(given))
                 words += ["--set", shlex.quote(f"{name}={text}")]
+        elif key == "scenario" and isinstance(value, dict):  # written into the run's folder
+            words += ["--scenario", f"scenario.{value['format']}"]
+            if value.get("events", "point") != "point":
+                words += ["--events", value["events"]]
         else:
             words += [_option(key), shlex.quote(str(value))]
     return " ".join(words)

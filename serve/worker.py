@@ -147,7 +147,14 @@ def input_hashes(plan, scene_sha: str) -> dict:
 
 def run_scene(job: dict, folder: Path) -> dict:
     """One run of ``dsim run`` with the job's settings; its outcome."""
-    plan = prepare(folder / "scene.ssp", **job["settings"])
+    settings = dict(job["settings"])
+    given = settings.pop("scenario", None)
+    if given:  # the scenario's text, checked when the run was launched, as a file here
+        scenario = folder / f"scenario.{given['format']}"
+        with open(scenario, "x", encoding="utf-8") as file:  # created, never reused
+            file.write(given["text"])
+        settings.update(scenario=scenario, events=given.get("events", "point"))
+    plan = prepare(folder / "scene.ssp", **settings)
     (folder / "inputs.json").write_text(json.dumps(input_hashes(plan, job["scene_sha256"])))
     live = LiveObserver(folder / "live.jsonl", job.get("signals", ()))
     execution = Execution(plan, [CsvRecorder(folder / "results.csv"),

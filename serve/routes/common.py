@@ -11,6 +11,7 @@ from fastapi import HTTPException, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse
 
+from dsim.serve.run_scenario import checked_scenario
 from dsim.serve.run_parameters import checked, command_options, run_command
 from dsim.serve.store import Store
 
@@ -123,6 +124,20 @@ def launch(request: Request, scene_id: int, settings: dict, signals: list,
     run_id = store.add_run(kind, scene_id, settings, signals, rerun_of)
     request.app.state.jobs.submit(run_id)
     return run_id
+
+
+async def with_scenario(request: Request, scene_id: int, settings: dict,
+                        given: dict | None) -> dict:
+    """``settings`` with the scenario ``given`` (serve/run_scenario.py), checked by
+    ``dsim run --scenario``'s rules over the stored scene with the run's model
+    parameters (FormError)."""
+    if given is None:
+        return settings
+    store = store_of(request)
+    scene = stored(store, "scenes", scene_id)
+    await run_in_threadpool(checked_scenario, store, scene, given, settings,
+                            request.app.state.max_upload * 4)
+    return {**settings, "scenario": given}
 
 
 async def with_parameters(request: Request, scene_id: int, settings: dict,

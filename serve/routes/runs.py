@@ -18,8 +18,9 @@ from dsim.serve.forms import FormError, run_settings
 from dsim.serve.routes import sweeps
 from dsim.serve.routes.common import (download_name, first_values, form_fields, launch,
                                       or_404, redirect, render, results_csv, store_of,
-                                      with_parameters)
+                                      with_parameters, with_scenario)
 from dsim.serve.run_parameters import form_values
+from dsim.serve.run_scenario import given_scenario
 from dsim.serve.store import ACTIVE
 from dsim import SETTINGS
 
@@ -41,9 +42,11 @@ DOWNLOADS = {"results.csv": ("results.csv", "text/csv"),
 async def run_form(request: Request, scene_id: int):
     fields = await form_fields(request)
     try:
-        settings = run_settings(first_values(fields))
-        settings = await with_parameters(request, scene_id, settings,
-                                         form_values(first_values(fields)))
+        values = first_values(fields)
+        settings = run_settings(values)
+        given = given_scenario(values.get("scenario"), values.get("events"))
+        settings = await with_parameters(request, scene_id, settings, form_values(values))
+        settings = await with_scenario(request, scene_id, settings, given)
     except FormError as error:
         return render(request, "error.html", 400, status=400, problems=error.problems,
                       back=f"/scenes/{scene_id}")
@@ -192,8 +195,10 @@ def run_download(request: Request, run_id: int, name: str):
 @api.post("/scenes/{scene_id}/runs")
 async def run_api(request: Request, scene_id: int):
     """Launch a run: JSON body ``{"settings": {...}, "signals": [...], "parameters":
-    {...}}`` (settings as ``dsim.simulate``'s keywords, parameters as its
-    ``parameters``: name -> value); ``{"id": N}`` or 400 with ``problems``."""
+    {...}, "scenario": "...", "events": "point"}`` (settings as ``dsim.simulate``'s
+    keywords, parameters as its ``parameters``: name -> value; scenario the text of a
+    scenario file, libcosim's JSON or YAML or ECOS's XML, and events when its events
+    take effect); ``{"id": N}`` or 400 with ``problems``."""
     body = await _json_object(request)
     settings, signals = body.get("settings") or {}, body.get("signals") or []
     parameters = body.get("parameters") or {}
@@ -209,7 +214,9 @@ async def run_api(request: Request, scene_id: int):
                                  f"(known: {', '.join(SETTINGS)})")
     try:
         settings = run_settings(settings)
+        given = given_scenario(body.get("scenario"), body.get("events"))
         settings = await with_parameters(request, scene_id, settings, parameters)
+        settings = await with_scenario(request, scene_id, settings, given)
     except FormError as error:
         return JSONResponse({"problems": error.problems}, status_code=400)
     return {"id": launch(request, scene_id, settings, signals)}
