@@ -342,45 +342,39 @@ def resolve_scenario(plan, scenario, events: str = "point") -> ScenarioPlan:
                             f"{scenario.end:g} s, which takes every modification back")
             continue
         index = index_of.get(event.model)
+        ecos = scenario.format == "ecos"
         if index is None and event.model in joints:
             key = (event.model, event.variable)
-            if key not in targets:
-                target = _joint_target(joints[event.model], event.variable, where, problems)
-                if target is None:
-                    continue
-                targets[key] = len(found)
-                found.append(target)
-            target = found[targets[key]]
-            if not _declared_matches(event, target, where, problems):
+            joint = joints[event.model]
+
+            def make():
+                return _joint_target(joint, event.variable, where, problems)
+
+            def value_of(target):
+                return _joint_value(target, event.action, event.value, ecos, where, problems)
+        else:
+            if index is None:
+                problems.append(f"{where}: the scene has no component '{event.model}'"
+                                + closest(event.model, {**index_of, **joints}))
                 continue
-            value = None
-            if event.action != "reset":
-                value = _joint_value(target, event.action, event.value,
-                                     scenario.format == "ecos", where, problems)
-                if value is None:
-                    continue
-            point, at, inside = _when(event, scene.start_time, step, planned, exact)
-            if _after_the_stop(event, point, planned, scene, where, problems):
+            spec = plan.specs[index]
+            description = scene.descriptions.get(scene.component(spec.name).source) or \
+                describe(spec.path)
+            variable = description.by_name.get(event.variable)
+            if variable is None:
+                problems.append(f"{where}: component '{event.model}' has no variable "
+                                f"'{event.variable}'" + closest(event.variable,
+                                                                 _targetable(description)))
                 continue
-            events.append((point, order, PlannedEvent(
-                point, at, event.time, targets[key], event.action, value, where, inside)))
-            continue
-        if index is None:
-            problems.append(f"{where}: the scene has no component '{event.model}'"
-                            + closest(event.model, {**index_of, **joints}))
-            continue
-        spec = plan.specs[index]
-        description = scene.descriptions.get(scene.component(spec.name).source) or \
-            describe(spec.path)
-        variable = description.by_name.get(event.variable)
-        if variable is None:
-            problems.append(f"{where}: component '{event.model}' has no variable "
-                            f"'{event.variable}'" + closest(event.variable,
-                                                             _targetable(description)))
-            continue
-        key = (spec.name, variable.name)
+            key = (spec.name, variable.name)
+
+            def make():
+                return _target(plan, index, variable, where, problems)
+
+            def value_of(target):
+                return _variable_value(target, variable, event, ecos, where, problems)
         if key not in targets:
-            target = _target(plan, index, variable, where, problems)
+            target = make()
             if target is None:
                 continue
             targets[key] = len(found)
@@ -390,17 +384,8 @@ def resolve_scenario(plan, scenario, events: str = "point") -> ScenarioPlan:
             continue
         value = None
         if event.action != "reset":
-            try:
-                value = _strict_value(variable, event.value, scenario.format == "ecos")
-            except (TypeError, ValueError, OverflowError):
-                problems.append(f"{where}: '{target.name}' is {target.type}: "
-                                f"{event.value!r} is not "
-                                + {"Real": "a number", "Integer": "an integer",
-                                   "Boolean": "true or false", "String": "text"}[target.type])
-                continue
-            if event.action == "bias" and target.type not in ADDABLE:
-                problems.append(f"{where}: '{target.name}' is {target.type}: a bias adds to "
-                                "a number (Real or Integer)")
+            value = value_of(target)
+            if value is _REFUSED:
                 continue
         point, at, inside = _when(event, scene.start_time, step, planned, exact)
         if _after_the_stop(event, point, planned, scene, where, problems):
@@ -423,6 +408,28 @@ def resolve_scenario(plan, scenario, events: str = "point") -> ScenarioPlan:
     return ScenarioPlan(tuple(found), ordered, scenario.end, end_point,
                         None if end_point is None else scene.start_time + end_point * step,
                         scenario.file, scenario.format, laws)
+
+
+#: what a value check returns for a value it refused (and said why)
+_REFUSED = object()
+
+
+def _variable_value(target: Target, variable, event, ecos: bool, where: str,
+                    problems: list):
+    """An event's value for an FMU variable, converted by its type, or ``_REFUSED``
+    (said why): a value of another type, or a bias of what cannot be added to."""
+    try:
+        value = _strict_value(variable, event.value, ecos)
+    except (TypeError, ValueError, OverflowError):
+        problems.append(f"{where}: '{target.name}' is {target.type}: {event.value!r} is not "
+                        + {"Real": "a number", "Integer": "an integer",
+                           "Boolean": "true or false", "String": "text"}[target.type])
+        return _REFUSED
+    if event.action == "bias" and target.type not in ADDABLE:
+        problems.append(f"{where}: '{target.name}' is {target.type}: a bias adds to a "
+                        "number (Real or Integer)")
+        return _REFUSED
+    return value
 
 
 def _after_the_stop(event, point: int, planned: int, scene, where: str,
@@ -457,10 +464,10 @@ def _joint_target(joint, name: str, where: str, problems: list) -> Target | None
 
 
 def _joint_value(target: Target, action: str, value, ecos: bool, where: str,
-                 problems: list) -> float | None:
-    """An event's number for a joint law coefficient, or None (said why): finite, and
-    where the coefficient is physical only when not negative (NON_NEGATIVE), the value
-    it makes of every dof's not negative."""
+                 problems: list):
+    """An event's number for a joint law coefficient, or ``_REFUSED`` (said why):
+    finite, and where the coefficient is physical only when not negative
+    (NON_NEGATIVE), the value it makes of every dof's not negative."""
     try:
         if isinstance(value, bool) or not (ecos or isinstance(value, numbers.Real)):
             raise ValueError
@@ -468,16 +475,16 @@ def _joint_value(target: Target, action: str, value, ecos: bool, where: str,
     except (TypeError, ValueError, OverflowError):
         problems.append(f"{where}: '{target.name}' is a joint law coefficient (Real): "
                         f"{value!r} is not a number")
-        return None
+        return _REFUSED
     if not math.isfinite(number):
         problems.append(f"{where}: '{target.name}': {value!r} is not a finite number")
-        return None
+        return _REFUSED
     if target.variable in NON_NEGATIVE:
         lowest = number + (min(np.atleast_1d(target.base)) if action == "bias" else 0.0)
         if lowest < 0.0:
             problems.append(f"{where}: '{target.name}' would be {lowest:g}: a "
                             f"{target.variable} below zero is not physical")
-            return None
+            return _REFUSED
     return number
 
 

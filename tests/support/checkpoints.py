@@ -94,8 +94,9 @@ def killed_and_resumed(path, folder: Path, stop: float, every: float, *options,
     out = folder / "killed" / "run.csv"
     process = subprocess.Popen([*DSIM, "run", str(path), "--stop", str(stop), "--out",
                                 str(out), "--checkpoint-every", str(every), "--quiet",
-                                *map(str, both), *map(str, options)], cwd=ROOT, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True, env=env)
+                                *map(str, both), *map(str, options)], cwd=ROOT,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                               env=env)
     checkpoints = out.with_name("run.checkpoints")
     deadline = time.monotonic() + 180
     while not (checkpoints.is_dir() and any(checkpoints.glob("step-*"))):
