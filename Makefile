@@ -22,11 +22,13 @@ demo: fmus
 
 # The test tiers (README, "Tests"; docs/ci.md): markers in pyproject.toml, assigned by
 # tests/conftest.py.  `make test` runs every test in three pytest processes at once and
-# prints where the time goes (--durations): the Ray tests (BESIDE) in one, into
-# results/test-beside.log; the others in two, split by folder (REST_B into
+# prints where the time goes: each process's slowest tests (--durations), then its wall
+# and CPU seconds by folder and file (each test's CPU recorded by tests/conftest.py in
+# results/junit-*.xml, summed by tests/support/timing.py).  The Ray tests (BESIDE) in
+# one, into results/test-beside.log; the others in two, split by folder (REST_B into
 # results/test-rest-b.log, the rest on the terminal).  The Ray process waits on Ray more
-# than it computes (a third of a core); the two others run at a lower priority (nice), so
-# they fill the cores it leaves idle without slowing what it waits on.  They share
+# than it computes (a third of a core); the two others run at the lowest priority (nice
+# 19), so they fill the cores it leaves idle with the least slowing of what it waits on.  They share
 # nothing (the Ray tests, and only they, start or join Ray instances; the wheel test
 # works on a copy of the checkout; dsim serve binds free ports).  `make test-serial` is
 # the same suite in one process.
