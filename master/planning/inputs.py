@@ -8,8 +8,10 @@ A column is named ``component.variable`` (a nested component by its dotted path:
 ``frame.rail.P.f_x`` is variable ``P.f_x`` of ``frame.rail``).  Refused, one line each,
 before anything runs: an unknown component or variable (with the closest names); a
 variable that is not an input (an output, a parameter: ``--set`` gives parameters); a
-String input; an input a connection feeds (a table does not override a connection); a
-glued port's force (its joint sets it).
+String input; an input a connection feeds (a table does not override a connection).
+A column on a glued port's force (its joint sets it) is refused by the plan, as any
+connection into one is (planning/plan.py: the joints' own port dofs, node sets and port
+maps included).
 """
 from __future__ import annotations
 
@@ -27,21 +29,6 @@ INPUT_COMPONENT = "--input"
 FED = ("Real", "Integer", "Boolean", "Enumeration")
 
 
-def _port_forces(scene: Scene) -> set[tuple[str, str]]:
-    """(component, variable) of every glued port's force: a port map's force variables,
-    else the conventional ``PORT.f_DOF``."""
-    mapped = {(m.component, m.name): m for m in scene.port_maps}
-    forces = set()
-    for joint in scene.joints:
-        for path, port in (joint.a, joint.b):
-            port_map = mapped.get((path, port))
-            if port_map is not None:
-                forces |= {(path, name) for name in port_map.force}
-            else:
-                forces |= {(path, f"{port}.f_{dof}") for dof in joint.dofs}
-    return forces
-
-
 def with_inputs(scene: Scene, inputs) -> Scene:
     """``scene`` with the input table ``inputs`` (a .csv or .mat file's path, a pandas
     DataFrame, a numpy structured array, or a read
@@ -54,7 +41,6 @@ def with_inputs(scene: Scene, inputs) -> Scene:
     source = table.file if table.file is not None and table.file.is_file() else held(table)
     paths = {c.path: c for c in scene.components}
     fed = {c.end: c.start for c in scene.connections}
-    forces = _port_forces(scene)
     problems, connections = [], []
     where = f"{table.source}"
     for column in table.names:
@@ -89,10 +75,6 @@ def with_inputs(scene: Scene, inputs) -> Scene:
             problems.append(f"{where}: column '{column}': '{path}.{name}' is fed by the "
                             f"connection from '{'.'.join(fed[path, name])}': an input table "
                             "feeds inputs no connection feeds")
-            continue
-        if (path, name) in forces:
-            problems.append(f"{where}: column '{column}': '{path}.{name}' is a glued port's "
-                            "force: its joint sets it every step")
             continue
         connections.append(Connection((INPUT_COMPONENT, column), (path, name),
                                       location=f"{where}: column '{column}'"))

@@ -597,6 +597,7 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     links = check_connections(scene, usable, problems, warnings)
     _fed_once(scene, links, problems)
     sides = _sides(scene, ports, problems, chosen)
+    _glued_forces_unfed(scene, links, sides, usable, problems)
     _check_joint_units(scene, sides, usable, problems)
     uneven = span_note(scene.start_time, scene.stop_time, scene.master.step)
     if uneven:  # the run's summary would say "step 20 s" of a run that took 10 s
@@ -617,6 +618,25 @@ def _checked(scene: Scene, backend: str, backend_options: dict, load_libraries: 
     return dict(usable=usable, chosen=chosen, ports=ports, records=records,
                 text_records=text_records, links=links, sides=sides, warnings=warnings,
                 every=every)
+
+
+def _glued_forces_unfed(scene: Scene, links, sides: dict, usable: dict,
+                        problems: list) -> None:
+    """No connection (nor an input table's column) may feed a glued port's force: its
+    joint sets it every step.  The forces are the joints' own port dofs, so a port map's
+    force variables and a node set's members count as the conventional names do."""
+    forces = {(dof.component, dof.force) for a_dofs, b_dofs in sides.values()
+              for dof in (*a_dofs, *b_dofs)}
+    by_end = {c.end: c for c in scene.connections}
+    for link in links:
+        variable = usable.get(link.end[0], {}).get(link.end[1])
+        if variable is None or variable.type != "Real" or \
+                (link.end[0], variable.valueReference) not in forces:
+            continue
+        connection = by_end.get(link.end)
+        where = connection.location if connection is not None else scene.file
+        problems.append(f"{where}: '{'.'.join(link.end)}' is a glued port's force: its "
+                        "joint sets it every step, no connection or input table may feed it")
 
 
 def _fed_once(scene: Scene, links, problems: list) -> None:

@@ -136,3 +136,24 @@ def test_the_jump_at_the_first_row_and_a_point_a_hair_before_a_jump(scenes, tmp_
     path.write_text("time,slave uno.realIn\n0,-1\n0,1\n0.3,1\n0.3,7\n")
     result = dsim.simulate(scenes["single"], inputs=path, stop=0.5)
     assert result["slave uno.realInEcho"].tolist() == [1.0, 1.0, 1.0, 1.0, 7.0, 7.0]
+
+
+@pytest.mark.parametrize("scene, column", [
+    ("spring_mass_nonlinear", "left.P.f_x"),  # the conventional PORT.f_DOF
+    ("frame_split", "rail_left.port1[2].f_x"),  # a member of a node set glued as one port
+])
+def test_a_column_on_a_glued_ports_force_is_refused_by_the_plan(built, tmp_path, scene,
+                                                                column):
+    """The joints' own port dofs say which inputs are glued forces: a node set's members
+    and a port map's variables as well as PORT.f_DOF (the table's check guessed the last
+    only, and let a node set's member through)."""
+    from dsim.master.errors import InputError
+
+    table = tmp_path / "load.csv"
+    table.write_text(f"time,{column}\n0,0\n1,1\n")
+    with pytest.raises(InputError) as error:
+        dsim.simulate(built["ssp"] / f"{scene}.ssp", stop=0.01, inputs=table,
+                      handle_signals=False)
+    [line] = error.value.problems
+    assert f"load.csv: column '{column}': '{column}' is a glued port's force: its joint " \
+           "sets it every step, no connection or input table may feed it" in line, line
