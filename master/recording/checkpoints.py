@@ -122,13 +122,13 @@ class CheckpointFolder:
             if name.startswith(".") and name.endswith(".tmp"):
                 _remove_folder(fd, name)
 
-    def write(self, step: int, manifest: dict, state, arrays: dict | None = None) -> Path:
-        """Write the checkpoint of macro step ``step``: ``state`` (plain data, with
-        ``arrays`` it refers to) and ``manifest`` (plain JSON), whole or not at all;
-        the older ones beyond ``keep`` removed.  OutputError when it cannot be written
-        (the run goes on without it)."""
+    def write(self, step: int, manifest: dict, state) -> Path:
+        """Write the checkpoint of macro step ``step``: ``state`` (plain data and numpy
+        arrays, which go into arrays.npz) and ``manifest`` (plain JSON), whole or not at
+        all; the older ones beyond ``keep`` removed.  OutputError when it cannot be
+        written (the run goes on without it)."""
         started = clock.perf_counter()
-        tree, arrays = encode(state, {} if arrays is None else dict(arrays))
+        tree, arrays = encode(state, {})
         name = checkpoint_name(step)
         temporary = f".{name}.{secrets.token_hex(6)}.tmp"
         fd = self._fd
