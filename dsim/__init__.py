@@ -69,6 +69,8 @@ _WHERE = {
     "Index": "sweeps.sensitivity",  # one sensitivity index of a KPI to a factor
     "ranking": "sweeps.sensitivity",  # the factors of a KPI, most influential first
     "ranking_text": "sweeps.sensitivity",  # the same as text, indices spanning 0 marked ~0
+    "read_scenario": "reading.scenario_files",  # a scenario file (libcosim's, ECOS's)
+    "EVENT_MODES": "planning.scenario",  # when a scenario's events take effect (--events)
     "end_process": "tools.process_exit",  # exit without the FMU libraries' exit handlers
     "process_alive": "processes",  # whether a process (the one started then) still runs
     "process_start_time": "processes",  # a process's start time, as process_alive takes it

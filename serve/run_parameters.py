@@ -164,6 +164,10 @@ def sweep_command(spec: dict, scene: str = "scene.ssp") -> str:
         words += ["--kpi", kpi]
     if spec.get("reference"):
         words += ["--reference", str(spec["reference"])]
+    if spec.get("scenario"):  # written into the sweep's folder
+        words += ["--scenario", f"scenario.{spec['scenario']['format']}"]
+        if spec["scenario"].get("events", "point") != "point":
+            words += ["--events", spec["scenario"]["events"]]
     return " ".join(shlex.quote(w) for w in words)
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 
-from dsim.master.planning.scenario import EVENT_MODES
+from dsim import EVENT_MODES
 from dsim.serve.forms import FormError
 from dsim.serve.uploads import UploadError, inspect_file
 

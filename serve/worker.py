@@ -25,8 +25,8 @@ import time
 import traceback
 from pathlib import Path
 
-from dsim import (CsvRecorder, Execution, InputError, Observer, prepare, run_sweep,
-                  StatisticsWriter)
+from dsim import (CsvRecorder, Execution, InputError, Observer, prepare, read_scenario,
+                  run_sweep, StatisticsWriter)
 from dsim.serve.forms import job_sweep
 
 #: seconds between two live samples (the first and last step are always sent)
@@ -145,15 +145,22 @@ def input_hashes(plan, scene_sha: str) -> dict:
     return hashes
 
 
+def _scenario_file(given: dict, folder: Path) -> Path:
+    """The scenario a run or sweep was launched with (serve/run_scenario.py: its text
+    and format) written into its folder, a file created, never reused."""
+    scenario = folder / f"scenario.{given['format']}"
+    with open(scenario, "x", encoding="utf-8") as file:
+        file.write(given["text"])
+    return scenario
+
+
 def run_scene(job: dict, folder: Path) -> dict:
     """One run of ``dsim run`` with the job's settings; its outcome."""
     settings = dict(job["settings"])
     given = settings.pop("scenario", None)
     if given:  # the scenario's text, checked when the run was launched, as a file here
-        scenario = folder / f"scenario.{given['format']}"
-        with open(scenario, "x", encoding="utf-8") as file:  # created, never reused
-            file.write(given["text"])
-        settings.update(scenario=scenario, events=given.get("events", "point"))
+        settings.update(scenario=_scenario_file(given, folder),
+                        events=given.get("events", "point"))
     plan = prepare(folder / "scene.ssp", **settings)
     (folder / "inputs.json").write_text(json.dumps(input_hashes(plan, job["scene_sha256"])))
     live = LiveObserver(folder / "live.jsonl", job.get("signals", ()))
@@ -171,6 +178,9 @@ def run_sweep_job(job: dict, folder: Path) -> dict:
     whose points all ran is completed, also when some of them failed: its message says
     how many failed and why (the first reasons); it fails only when no point ran."""
     sweep = job_sweep(job)
+    if job.get("scenario"):  # its text, checked at launch, as a file of this folder
+        sweep.scenario = read_scenario(_scenario_file(job["scenario"], folder))
+        sweep.events = job["scenario"].get("events", "point")
     (folder / "inputs.json").write_text(json.dumps({"scene.ssp": job["scene_sha256"]}))
     with open(folder / "live.jsonl", "a") as live:
         def progress(done, total, point):

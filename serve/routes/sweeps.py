@@ -14,7 +14,8 @@ from dsim.serve import results
 from dsim.serve.forms import FormError, job_sweep, sweep_spec
 from dsim.serve.routes.common import (first_values, form_fields, launch, or_404, redirect,
                                       render, results_csv, store_of, stored,
-                                      with_parameters)
+                                      with_parameters, with_scenario)
+from dsim.serve.run_scenario import given_scenario
 
 router = APIRouter()
 
@@ -31,8 +32,12 @@ async def sweep_form(request: Request, scene_id: int):
         reference = str(or_404(results_csv(store, run), "results of that run"))
     try:
         spec = sweep_spec(fields, reference)
+        given = given_scenario(fields.get("scenario"), fields.get("events"))
         _check_sweep_columns(store, scene_id, spec)
         await _check_sweep_parameters(request, scene_id, spec)
+        if given is not None:  # checked with the settings every point shares
+            await with_scenario(request, scene_id, dict(spec.get("fixed") or {}), given)
+            spec["scenario"] = given
     except FormError as error:
         return render(request, "error.html", 400, status=400, problems=error.problems,
                       back=f"/scenes/{scene_id}")

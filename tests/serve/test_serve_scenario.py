@@ -78,3 +78,38 @@ def test_the_api_takes_a_scenario_and_refuses_a_bad_one_in_one_line_each(server)
         problems = answer.json()["problems"]
         assert len(problems) == 1 and said in problems[0], (said, problems)
     assert len(store.all("SELECT id FROM runs")) == runs + 1  # only the good one queued
+
+
+def test_a_sweep_with_a_scenario_gives_dsim_sweep_s_points(server, tmp_path):
+    """The sweep form's scenario: every point runs with it (the joint stiffened at
+    0.3 s), the sweep's command says --scenario, and that command gives the same KPIs."""
+    import csv
+
+    from dsim.master.tools.cli import main as dsim_main
+
+    client, store, scene_id = server
+    text = json.dumps({"events": [SCENARIO["events"][0]]})
+    answer = client.post(f"/scenes/{scene_id}/sweeps", follow_redirects=False, data={
+        "step": "0.02, 0.01", "kpis": "max(right.x[2])", "stop": "0.6", "scenario": text})
+    assert answer.status_code == 303, answer.text
+    run_id = int(answer.headers["location"].rsplit("/", 1)[1])
+    assert wait_run(client, run_id)["status"] == "completed"
+    folder = store.run_folder(run_id)
+    assert (folder / "scenario.json").read_text() == text
+    status = html.unescape(client.get(f"/runs/{run_id}").text)
+    assert "--scenario scenario.json" in status
+    (tmp_path / "scenario.json").write_text(text)
+    scene = store.blob_path(client.get(f"/api/scenes/{scene_id}").json()["sha256"])
+    assert dsim_main(["sweep", str(scene), "--step", "0.02,0.01", "--kpi", "max(right.x[2])",
+                      "--stop", "0.6", "--scenario", str(tmp_path / "scenario.json"),
+                      "--out", str(tmp_path / "again")]) == 0
+
+    def kpis(where):
+        with open(where / "sweep.csv", newline="") as file:
+            return sorted((r["step"], r["max(right.x[2])"]) for r in csv.DictReader(file))
+    assert kpis(folder) == kpis(tmp_path / "again")
+    plain = client.post(f"/scenes/{scene_id}/sweeps", follow_redirects=False, data={
+        "step": "0.02, 0.01", "kpis": "max(right.x[2])", "stop": "0.6"})
+    plain_id = int(plain.headers["location"].rsplit("/", 1)[1])
+    assert wait_run(client, plain_id)["status"] == "completed"
+    assert kpis(store.run_folder(plain_id)) != kpis(folder)  # the scenario acted
