@@ -69,7 +69,7 @@ test-serial: fmus browser
 # two pytest processes side by side as `make test` runs (the folders of QUICK_BESIDE in
 # one, into results/quick-beside.log, every other folder in the second)
 QUICK_BESIDE = tests/fmus tests/reading tests/recording tests/planning tests/distributed \
-               tests/checks tests/sweeps tests/house
+               tests/checks tests/sweeps tests/house tests/tools
 quick: fmus
 	@mkdir -p results && rm -f results/quick-beside.log
 	@$(MAKE) --no-print-directory -j2 -k quick-beside quick-rest; status=$$?; \

@@ -200,6 +200,15 @@ NODE_MARKERS = {
     "tests/checks/test_validate_and_regress.py::test_regress_finds_a_regression_and_reports_it": ("slow",),
     "tests/running/test_scaling.py::test_ten_thousand_components_validate_with_the_right_findings": ("slow",),
     "tests/running/test_scaling.py::test_validation_grows_linearly_with_the_components": ("slow",),
+    # slow: checkpoints, the supervisor and scenarios, 4 to 9 s each (2026-11-29)
+    "tests/running/test_checkpoints.py::test_a_run_killed_with_sigkill_at_a_random_point_resumes_to_the_same_bytes": ("slow",),
+    "tests/running/test_checkpoints.py::test_an_interrupted_run_leaves_a_checkpoint_where_it_stopped": ("slow",),
+    "tests/running/test_checkpoints.py::test_a_model_exchange_run_killed_with_sigkill_resumes_to_the_same_bytes": ("slow",),
+    "tests/tools/test_supervisor.py::test_with_checkpoints_the_run_goes_on_by_itself": ("slow",),
+    "tests/running/test_scenario_joints.py::test_a_run_resumed_after_a_law_change_goes_on_with_the_changed_law": ("slow",),
+    "tests/running/test_scenario_joints.py::test_the_penalized_measures_coefficients_set_by_a_scenario_weigh_as_set_for_the_run": ("slow",),
+    "tests/serve/test_serve_scenario.py::test_a_sweep_with_a_scenario_gives_dsim_sweep_s_points": ("slow",),
+    "tests/serve/test_serve_scenario.py::test_the_api_takes_a_scenario_and_refuses_a_bad_one_in_one_line_each": ("slow",),
 }
 
 
