@@ -232,11 +232,11 @@ class ScenarioRun:
             old = outputs[target.position]
             raw = self._raw[target.position] if target.position in self._outputs else old
             table = self._outputs
-        else:  # set through the backend, or a joint law
-            old, raw, table = self._current[index], target.base, None
-        if target.kind == "joint":
+        elif target.kind == "joint":
             self._apply_law(index, target, action, value, time, event_time, label)
             return
+        else:  # set through the backend
+            old, raw, table = self._current[index], target.base, None
         if action == "reset":
             new = raw
             if table is not None:
