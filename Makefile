@@ -36,7 +36,7 @@ PYTEST = OMP_NUM_THREADS=1 $(BIN)/pytest
 NICE_PYTEST = OMP_NUM_THREADS=1 nice -n 19 $(BIN)/pytest
 QUICK = not (wheel or kernels or ray or browser or fuzz or slow)
 BESIDE = ray
-REST_B = tests/fmus tests/checks tests/sweeps tests/house tests/tools
+REST_B = tests/fmus tests/checks tests/sweeps tests/house tests/tools tests/recording
 
 test: fmus browser
 	@mkdir -p results && rm -f results/test-*.log results/junit-*.xml
