@@ -472,7 +472,7 @@ def _start_without_loops(paths: list[str], loops, moves: dict, specs, links) -> 
     return specs, kept, transfer
 
 
-def _variable_step(source, interface: str) -> bool:
+def takes_any_step(source, interface: str) -> bool:
     """Whether a component takes communication steps of any size (Model Exchange: the
     master integrates it, so always)."""
     found = describe(source).interface(interface)
@@ -561,7 +561,7 @@ def _step_control_problems(scene: Scene, backend: str, chosen: dict, problems: l
                                                                      chosen[path])
                             + "), so an error-controlled step (step auto) cannot take its "
                             "steps again: give a fixed step (--step)")
-        elif not _variable_step(component.source, chosen[path]):
+        elif not takes_any_step(component.source, chosen[path]):
             problems.append(f"{component.location}: component '{path}' takes only a fixed "
                             "communication step (canHandleVariableCommunicationStepSize="
                             "false), so an error-controlled step (step auto) cannot size "
@@ -795,7 +795,7 @@ def make_plan(scene: Scene, backend: str = "in-process", backend_options=None,
             for i in glued),
         text_recorded=text_recorded, text_index=tuple(text_index),
         text_transfer=moves["text_transfer"],
-        variable_steps=all(_variable_step(components[i].source, chosen[components[i].path])
+        variable_steps=all(takes_any_step(components[i].source, chosen[components[i].path])
                            for i in glued),
         backend_options=backend_options, selected=selected, record_every=checked["every"],
         outputs=tuple([outputs] if isinstance(outputs, str) else outputs or ()),

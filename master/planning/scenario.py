@@ -44,7 +44,8 @@ from dsim.master.errors import InputError
 from dsim.master.planning.names import closest
 from dsim.master.planning.parameters import (JOINT_SCALAR, KEPT_TYPE, NON_NEGATIVE,
                                              convert, joint_coefficients)
-from dsim.master.reading.fmi_description import CO_SIMULATION, describe
+from dsim.master.planning.plan import takes_any_step
+from dsim.master.reading.fmi_description import describe
 from dsim.master.reading.scenario_files import Scenario, read_scenario
 from dsim.master.running.timeline import step_count
 
@@ -160,10 +161,8 @@ def _check_exact(plan) -> None:
         raise InputError("--events exact cuts fixed macro steps at the events' times: with "
                          "--step auto the steps land on the output points, where the "
                          "events take effect (a finer --output-interval brings them closer)")
-    fixed = [spec.name for spec in plan.specs if spec.table is None
-             and spec.interface == CO_SIMULATION
-             and not describe(spec.path).interface(spec.interface)
-             .canHandleVariableCommunicationStepSize]
+    fixed = [spec.name for spec in plan.specs
+             if spec.table is None and not takes_any_step(spec.path, spec.interface)]
     if fixed:
         raise InputError(
             "--events exact cuts steps at the events' times, and "
@@ -331,6 +330,7 @@ def resolve_scenario(plan, scenario, events: str = "point") -> ScenarioPlan:
     targets: dict[tuple[str, str], int] = {}
     found: list[Target] = []
     events = []
+    ecos = scenario.format == "ecos"
     for order, event in enumerate(scenario.events):
         where = event.where
         if event.time >= scene.stop_time - ROUNDING * step:
@@ -342,7 +342,6 @@ def resolve_scenario(plan, scenario, events: str = "point") -> ScenarioPlan:
                             f"{scenario.end:g} s, which takes every modification back")
             continue
         index = index_of.get(event.model)
-        ecos = scenario.format == "ecos"
         if index is None and event.model in joints:
             key = (event.model, event.variable)
             joint = joints[event.model]

@@ -551,10 +551,7 @@ class Execution:
                 self.scenario.at_time(point, part_end, self.coupling.outputs,
                                       self.backend, self.coupling)
             start = part_end
-        return StepReport(sum(r.iterations for r in reports),
-                          sum(r.refreshed for r in reports),
-                          max(r.residual for r in reports), max(r.cuts for r in reports),
-                          max(r.lost for r in reports))
+        return StepReport.of_parts(reports)
 
     def _emit(self, record) -> None:
         """Hand a step's record to the observers; off the output grid it is held, and

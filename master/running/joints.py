@@ -170,10 +170,6 @@ class JointStates:
         """Make a converged trial the joint state."""
         self.q, self.qd, self.qdd = q, qd, qdd
 
-    def law_values(self, rows, name: str) -> np.ndarray:
-        """The law coefficient ``name`` (k0, k1, c0, c1) of the dofs ``rows``."""
-        return getattr(self, name)[np.asarray(rows, dtype=int)].copy()
-
     def set_law(self, rows, name: str, values) -> None:
         """A scenario's change of a joint's law between steps (running/scenario.py):
         coefficient ``name`` (k0, k1, c0, c1: one value per dof of ``rows``; ``weights``:

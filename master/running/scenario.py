@@ -133,18 +133,9 @@ class ScenarioRun:
         ``time``, s; ``outputs``: the run's flat outputs there), then, at the
         scenario's end, take every modification back.  ``coupling``: the run's, whose
         joint laws a ``joint`` target changes."""
-        settings = []
-        for event in self._by_point.get(point, ()):
-            if not event.inside:
-                self._apply(event.target, event.action, event.value, time, event.time,
-                            outputs, settings)
-        if point == self.plan.end_point:
-            for index in list(self._active):
-                self._apply(index, "reset", None, time, self.plan.end, outputs, settings,
-                            label="end")
-        if settings:
-            backend.set_values(_batched(settings))
-        self._set_laws(coupling)
+        self._apply_events([e for e in self._by_point.get(point, ()) if not e.inside],
+                           time, outputs, backend, coupling,
+                           end=point == self.plan.end_point)
 
     def cuts(self, point: int) -> list[float]:
         """The times (s) inside the step from ``point`` at which events take effect
@@ -155,11 +146,21 @@ class ScenarioRun:
                 coupling=None) -> None:
         """Apply the events inside the step from ``point`` that take effect at ``time``
         (one of :meth:`cuts`), between the two parts of the cut step."""
+        self._apply_events([e for e in self._by_point.get(point, ())
+                            if e.inside and e.at == time], time, outputs, backend, coupling)
+
+    def _apply_events(self, events, time: float, outputs: np.ndarray, backend, coupling,
+                      end: bool = False) -> None:
+        """Apply ``events`` at ``time`` (s) and, with ``end``, take every modification
+        back; then set what they set through the backend and the coupling's joints."""
         settings = []
-        for event in self._by_point.get(point, ()):
-            if event.inside and event.at == time:
-                self._apply(event.target, event.action, event.value, time, event.time,
-                            outputs, settings)
+        for event in events:
+            self._apply(event.target, event.action, event.value, time, event.time,
+                        outputs, settings)
+        if end:
+            for index in list(self._active):
+                self._apply(index, "reset", None, time, self.plan.end, outputs, settings,
+                            label="end")
         if settings:
             backend.set_values(_batched(settings))
         self._set_laws(coupling)

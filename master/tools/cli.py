@@ -21,6 +21,7 @@ from dsim.master.checks.regress import (KernelChoice, find_cases, junit_xml, rea
 from dsim.master.checks.validate import validate
 from dsim.master.errors import InputError, SimulationError
 from dsim.master.planning.parameters import JOINT_COEFFICIENTS
+from dsim.master.planning.scenario import EVENT_MODES
 from dsim.master.reading.parameter_input import given_parameters
 from dsim.master.reading.input_tables import read_table
 from dsim.master.reading.scenario_files import read_scenario
@@ -473,6 +474,15 @@ def _add_allow_outside(parser) -> None:
                         "(docs/security.md); again for more")
 
 
+def _add_events(parser) -> None:
+    """``--events`` (run, sweep, info): when a scenario's events take effect."""
+    parser.add_argument("--events", choices=EVENT_MODES, default="point",
+                        help="when a scenario's events take effect: point (default: at the "
+                        "first communication point at or after each event's time, as "
+                        "libcosim) or exact (the step an event falls inside is cut at its "
+                        "time; every FMU must take steps of any size)")
+
+
 def _add_run_choices(run_parser) -> None:
     """Options that choose a run's model parameters and what it records (run,
     validate): docs/parameters.md, docs/results.md."""
@@ -499,8 +509,7 @@ def _add_run_choices(run_parser) -> None:
                             "coefficient (JOINT.k0) (libcosim's .json or "
                             ".yml scenario, or ECOS's .xml; docs/scenarios.md); each takes "
                             "effect at the first communication point at or after its time")
-    run_parser.add_argument("--events", choices=("point", "exact"), default="point",
-                            help="when a scenario's events take effect: point (default: at the first communication point at or after each event's time, as libcosim) or exact (the step an event falls inside is cut at its time; every FMU must take steps of any size)")
+    _add_events(run_parser)
     run_parser.add_argument("--input", metavar="FILE",
                             help="inputs over time from a table (.csv or .mat): a time column, "
                             "then one column per input named COMPONENT.VARIABLE; Reals "
@@ -653,8 +662,7 @@ def _add_sweep(commands) -> None:
     sweep_parser.add_argument("--scenario", metavar="FILE",
                               help="the same scenario's events in every point's run (and "
                               "the reference run): docs/scenarios.md")
-    sweep_parser.add_argument("--events", choices=("point", "exact"), default="point",
-                            help="when a scenario's events take effect: point (default: at the first communication point at or after each event's time, as libcosim) or exact (the step an event falls inside is cut at its time; every FMU must take steps of any size)")
+    _add_events(sweep_parser)
     sweep_parser.add_argument("--input", metavar="FILE",
                               help="the same input table (.csv or .mat) in every point's run "
                               "(and the reference run): docs/inputs.md")
@@ -709,8 +717,7 @@ def _add_info(commands) -> None:
                              help="list the events of a scenario file (docs/scenarios.md): "
                              "when each takes effect, its target and action, all checked "
                              "against the scene")
-    info_parser.add_argument("--events", choices=("point", "exact"), default="point",
-                             help="when a scenario's events take effect: point (default: at the first communication point at or after each event's time, as libcosim) or exact (the step an event falls inside is cut at its time; every FMU must take steps of any size)")
+    _add_events(info_parser)
     info_parser.add_argument("--input", metavar="FILE",
                              help="summarise an input table (.csv or .mat: its columns, "
                              "their ranges and its time span), checked against the scene "

@@ -34,6 +34,15 @@ class StepReport:
     cuts: int = 0
     lost: float = 0.0
 
+    @classmethod
+    def of_parts(cls, parts) -> "StepReport":
+        """The report of a step taken in ``parts`` (a cut step's halves, a step cut at
+        an event's time): their iterations and refreshes summed, the largest residual,
+        cut depth and lost residual."""
+        return cls(sum(p.iterations for p in parts), sum(p.refreshed for p in parts),
+                   max(p.residual for p in parts), max(p.cuts for p in parts),
+                   max(p.lost for p in parts))
+
 
 def _joined(parts) -> np.ndarray:
     """The subsystems' outputs as one flat array (a scene without components: none)."""

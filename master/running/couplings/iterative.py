@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import warnings
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -348,11 +349,9 @@ class IterativeCoupling(Coupling):
         (start, half), (middle, rest) = halves(time, step_size)  # never past the step's end
         first = self._cut_or_fail(start, half, step_index, depth + 1, False)
         second = self._cut_or_fail(middle, rest, step_index, depth + 1, True)
-        return StepReport(spent + first.iterations + second.iterations,
-                          first.refreshed + second.refreshed,
-                          max(first.residual, second.residual),
-                          max(first.cuts, second.cuts, depth + 1),
-                          max(first.lost, second.lost))
+        both = StepReport.of_parts((first, second))
+        return replace(both, iterations=spent + both.iterations,
+                       cuts=max(both.cuts, depth + 1))
 
     def _lost_residual(self, r, tolerance, first: float) -> float:
         """Where the gluing matrix has lost rank (solved in the least-squares sense):
