@@ -27,6 +27,7 @@ import shutil
 import sys
 import tempfile
 import zipfile
+from contextlib import contextmanager
 from pathlib import Path
 
 from dsim import (MAX_UNPACKED, check_archive as shared_check_archive, conventional_ports,
@@ -218,25 +219,41 @@ def describe_scene(path: Path, max_unpacked: int = MAX_UNPACKED) -> dict:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+@contextmanager
+def _unpacked_scene(path: Path, max_unpacked: int):
+    """A new temporary folder holding the stored scene at ``path`` (checked as an
+    untrusted archive) unpacked in its ``scene`` subfolder; removed after."""
+    check_archive(path, "SSP", max_unpacked)
+    folder = Path(tempfile.mkdtemp(prefix="dsim-serve-"))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(folder / "scene")
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _plan(folder: Path, shown: dict, **keywords):
+    """``prepare`` of the scene unpacked in ``folder`` (:func:`_unpacked_scene`) with
+    ``keywords``, no library loaded; its InputError with each temporary path of
+    ``shown`` (path -> name) named as the user knows it."""
+    try:
+        return prepare(folder / "scene", load_libraries=False, **keywords)
+    except InputError as error:
+        problems = error.problems
+        for temporary, name in {**shown, folder / "scene": "scene"}.items():
+            problems = [p.replace(str(temporary), name) for p in problems]
+        raise InputError(problems) from None
+
+
 def check_parameters(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -> dict:
     """The model parameters ``given`` (name -> value, from a run form) as a run of the
     stored scene at ``path`` applies them, after every check of ``dsim run --set``
     (an InputError lists what is wrong); no library is loaded."""
     if not isinstance(given, dict):
         raise Refused("give the parameters as a JSON object of name: value")
-    check_archive(path, "SSP", max_unpacked)
-    folder = Path(tempfile.mkdtemp(prefix="dsim-serve-"))
-    try:
-        with zipfile.ZipFile(path) as archive:
-            archive.extractall(folder)
-        try:
-            plan = prepare(folder, load_libraries=False, parameters=given)
-        except InputError as error:
-            raise InputError([p.replace(str(folder), "scene") for p in error.problems]) \
-                from None
-        return {"parameters": plan.scene.overrides}
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
+    with _unpacked_scene(path, max_unpacked) as folder:
+        return {"parameters": _plan(folder, {}, parameters=given).scene.overrides}
 
 
 def check_scenario(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -> dict:
@@ -250,23 +267,13 @@ def check_scenario(path: Path, max_unpacked: int = MAX_UNPACKED, given=None) -> 
             or not isinstance(given.get("settings"), dict):
         raise Refused("give the scenario as a JSON object with its text, format and the "
                       "run's settings")
-    check_archive(path, "SSP", max_unpacked)
-    folder = Path(tempfile.mkdtemp(prefix="dsim-serve-"))
-    try:
-        with zipfile.ZipFile(path) as archive:
-            archive.extractall(folder / "scene")
+    with _unpacked_scene(path, max_unpacked) as folder:
         scenario = folder / f"scenario.{given['format']}"
         scenario.write_text(given["text"], encoding="utf-8")
-        try:
-            plan = prepare(folder / "scene", load_libraries=False, **given["settings"],
-                           scenario=scenario, events=given.get("events") or "point")
-        except InputError as error:
-            raise InputError([p.replace(str(scenario), "scenario").replace(
-                str(folder / "scene"), "scene") for p in error.problems]) from None
+        plan = _plan(folder, {scenario: "scenario"}, **given["settings"], scenario=scenario,
+                     events=given.get("events") or "point")
         return {"lines": [line.replace(str(scenario), "scenario")
                           for line in plan.scenario.lines()]}
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _ssd_root(folder: Path):

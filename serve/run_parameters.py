@@ -112,6 +112,15 @@ def form_groups(scene: dict, models: dict) -> list[dict]:
     return groups
 
 
+def scenario_words(given: dict) -> list[str]:
+    """The options of a scenario a run or sweep was given (serve/run_scenario.py), as
+    the file the worker writes into its folder."""
+    words = ["--scenario", f"scenario.{given['format']}"]
+    if given.get("events", "point") != "point":
+        words += ["--events", given["events"]]
+    return words
+
+
 def command_options(settings: dict) -> str:
     """The ``dsim run`` options of a run's stored settings (its parameters as
     ``--set NAME=VALUE``), quoted for a POSIX shell."""
@@ -126,9 +135,7 @@ def command_options(settings: dict) -> str:
                     repr(given) if isinstance(given, float) else str(given))
                 words += ["--set", shlex.quote(f"{name}={text}")]
         elif key == "scenario" and isinstance(value, dict):  # written into the run's folder
-            words += ["--scenario", f"scenario.{value['format']}"]
-            if value.get("events", "point") != "point":
-                words += ["--events", value["events"]]
+            words += scenario_words(value)
         else:
             words += [_option(key), shlex.quote(str(value))]
     return " ".join(words)
@@ -165,9 +172,7 @@ def sweep_command(spec: dict, scene: str = "scene.ssp") -> str:
     if spec.get("reference"):
         words += ["--reference", str(spec["reference"])]
     if spec.get("scenario"):  # written into the sweep's folder
-        words += ["--scenario", f"scenario.{spec['scenario']['format']}"]
-        if spec["scenario"].get("events", "point") != "point":
-            words += ["--events", spec["scenario"]["events"]]
+        words += scenario_words(spec["scenario"])
     return " ".join(shlex.quote(w) for w in words)
 
 
